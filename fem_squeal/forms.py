@@ -1,0 +1,70 @@
+"""UFL forms of 3D elastodynamics with penalty contact and friction (no PETSc here).
+
+Notation: u trial, v test, n outward unit normal of the body's face, s unit sliding direction.
+
+* stiffness      a_K(u, v) = ∫ σ(u) : ε(v) dx,  σ = λ tr ε I + 2G ε            (isotropic)
+* mass           a_M(u, v) = ∫ ρ u·v dx     (axial part ∫ ρ (u·a)(v·a) dx for energy shares)
+* contact        a_c(u, v) = ∫ k_n (u·n)(v·n) ds        (penalty to a rigid plate, symmetric)
+* friction       a_f(u, v) = ∫ μ k_n (u·n)(s·v) ds      (asymmetric)
+
+The friction *traction* on the body is t_f = μ k_n (u·n) s: a closure u·n > 0 into the plate raises
+the pressure by k_n u·n and the friction force by μ times that, along the direction in which the
+plate slides relative to the body.  Moving it to the left-hand side gives the operator
+
+    M ü + C u̇ + (K + K_c − K_f) u = 0,          K_f = assembled a_f.
+
+For a disc about the z axis s = ±e_θ: +1 for a plate sliding in +θ relative to the disc (forward).
+"""
+from __future__ import annotations
+
+import ufl
+
+
+def lame(E: float, nu: float) -> tuple[float, float]:
+    """Lamé parameters (λ, G) of an isotropic material."""
+    return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+
+
+def strain(u):
+    """ε(u) = sym(∇u)."""
+    return ufl.sym(ufl.grad(u))
+
+
+def stress(u, E, nu):
+    """σ(u) = λ tr ε(u) I + 2G ε(u)."""
+    lmbda, G = lame(E, nu)
+    eps = strain(u)
+    return lmbda * ufl.tr(eps) * ufl.Identity(len(u)) + 2 * G * eps
+
+
+def stiffness_form(u, v, E, nu, dx):
+    """a_K(u, v) = ∫ σ(u) : ε(v) dx."""
+    return ufl.inner(stress(u, E, nu), strain(v)) * dx
+
+
+def mass_form(u, v, rho, dx):
+    """a_M(u, v) = ∫ ρ u·v dx."""
+    return rho * ufl.inner(u, v) * dx
+
+
+def axial_mass_form(u, v, rho, dx, axis):
+    """∫ ρ (u·a)(v·a) dx: the mass of the motion along the unit rotation axis a (out-of-plane)."""
+    return rho * ufl.dot(u, axis) * ufl.dot(v, axis) * dx
+
+
+def contact_form(u, v, kn, n, ds):
+    """a_c(u, v) = ∫ k_n (u·n)(v·n) ds."""
+    return kn * ufl.dot(u, n) * ufl.dot(v, n) * ds
+
+
+def friction_form(u, v, kn, mu, n, s, ds):
+    """a_f(u, v) = ∫ μ k_n (u·n)(s·v) ds  (enters the operator as −K_f)."""
+    return mu * kn * ufl.dot(u, n) * ufl.dot(s, v) * ds
+
+
+def circumferential_direction(x, sign: float = 1.0, axis: str = "z"):
+    """Unit field sign·e_θ about the z axis: e_θ = (−y, x, 0)/r."""
+    if axis != "z":
+        raise ValueError(f"axis: only 'z' is supported (got {axis!r})")
+    r = ufl.sqrt(x[0] ** 2 + x[1] ** 2)
+    return ufl.as_vector((-sign * x[1] / r, sign * x[0] / r, 0.0))

@@ -1,0 +1,88 @@
+"""Atomic result files: JSON written by rank 0 through a temporary file and ``os.replace``;
+XDMF written collectively into a temporary folder that rank 0 moves into place."""
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+
+def _clean(o):
+    if isinstance(o, dict):
+        return {str(k): _clean(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_clean(v) for v in o]
+    if isinstance(o, np.ndarray):
+        return _clean(o.tolist())
+    if isinstance(o, (np.floating, float)):
+        f = float(o)
+        return f if math.isfinite(f) else str(f)
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, complex):
+        return {"re": o.real, "im": o.imag}
+    return o
+
+
+def write_json_atomic(path: Path, data: dict) -> None:
+    """Write ``data`` as JSON to ``path`` atomically (call on one rank only)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        os.fchmod(fd, 0o644)
+        with os.fdopen(fd, "w") as f:
+            json.dump(_clean(data), f, indent=1)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_modes_xdmf(comm, path: Path, V, modes: list[tuple[object, object | None]], names=("re", "im")) -> None:
+    """Write mode shapes (real part, imaginary part or None) as a time series t = mode index.
+
+    Functions are interpolated into the mesh's coordinate space (XDMF needs that degree)."""
+    from dolfinx import fem
+    from dolfinx.io import XDMFFile
+
+    path = Path(path)
+    mesh = V.mesh
+    tmpdir = None
+    if comm.rank == 0:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmpdir = tempfile.mkdtemp(prefix=".xdmf.", dir=path.parent)
+    tmpdir = Path(comm.bcast(tmpdir, root=0))
+    try:
+        W = fem.VectorFunctionSpace(mesh, ("Lagrange", mesh.geometry.cmap.degree))
+        src = fem.Function(V)
+        fr, fi = fem.Function(W, name=f"mode_{names[0]}"), fem.Function(W, name=f"mode_{names[1]}")
+        with XDMFFile(comm, str(tmpdir / path.name), "w") as xdmf:
+            xdmf.write_mesh(mesh)
+            for j, (xr, xi) in enumerate(modes):
+                for vec, f in ((xr, fr), (xi, fi)):
+                    if vec is None:
+                        f.x.array[:] = 0.0
+                    else:
+                        src.x.array[: vec.getLocalSize()] = vec.array_r
+                        src.x.scatter_forward()
+                        f.interpolate(src)
+                    xdmf.write_function(f, float(j))
+        comm.barrier()
+        if comm.rank == 0:
+            for suffix in (".xdmf", ".h5"):
+                p = tmpdir / (path.stem + suffix)
+                if p.exists():
+                    os.replace(p, path.with_suffix(suffix))
+    finally:
+        comm.barrier()
+        if comm.rank == 0:
+            shutil.rmtree(tmpdir, ignore_errors=True)

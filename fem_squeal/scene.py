@@ -1,0 +1,255 @@
+"""Scene files: TOML → validated, defaulted dictionary → model description.
+
+The schema below is the one place where keys, types, bounds and defaults are defined.  Errors
+name the key path and the reason (``SceneError("geometry.width: must be > 0 (got -0.1)")``);
+nothing is computed before a scene validates.  ``--set a.b.c=value`` overrides any key; the
+value is parsed as TOML (``0.3``, ``[1, 2]``, ``"top"``) and falls back to a bare string.
+
+Sections
+--------
+title            free text
+geometry         builder = "annular_disc": mean_radius, width, thickness [m], mesh_size [m],
+                 order (1 or 2; 2 = curved second-order tetrahedra)
+materials.<part> E [Pa], nu, rho [kg/m³], rayleigh_alpha [1/s], rayleigh_beta [s]
+interfaces.<name> type = "rigid_plate": face, kn [N/m³], mu, sliding (+1 forward: the plate
+                 slides in +e_θ relative to the body; −1 backward; 0 none)
+boundary         clamped = [face names] (all displacement components fixed)
+discretisation   degree (1 or 2), quadrature_degree (0 = automatic)
+analyses.real_modes  n_modes, target_hz, tol, max_residual
+analyses.cea         n_modes, target_hz, band_hz = [lo, hi], method ("auto"|"linear"|"pep"),
+                     tol, max_residual
+solver           petsc_options = { key = value } (given with their prefix, e.g. "cea_st_type")
+"""
+from __future__ import annotations
+
+import copy
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from fem_squeal.model import Material, ModelSpec, RigidPlate
+from fem_squeal.tags import GEOMETRY_TAGS
+
+
+class SceneError(ValueError):
+    """Invalid scene: the message starts with the key path."""
+
+
+@dataclass(frozen=True)
+class Field:
+    kind: type | tuple[type, ...]
+    default: Any = ...           # ... = required
+    check: Callable[[Any], str | None] | None = None
+    doc: str = ""
+
+
+def positive(v):
+    return None if v > 0 else f"must be > 0 (got {v})"
+
+
+def non_negative(v):
+    return None if v >= 0 else f"must be >= 0 (got {v})"
+
+
+def one_of(*choices):
+    return lambda v: None if v in choices else f"must be one of {list(choices)} (got {v!r})"
+
+
+def poisson(v):
+    return None if -1.0 < v < 0.5 else f"must be in (-1, 0.5) (got {v})"
+
+
+def band(v):
+    if len(v) != 2 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+        return f"must be [low, high] in Hz (got {v!r})"
+    return None if 0 <= v[0] < v[1] else f"must be increasing and >= 0 (got {v!r})"
+
+
+def nonempty_str(v):
+    return None if v.strip() else "must not be empty"
+
+
+REAL = (int, float)
+
+GEOMETRY = {
+    "annular_disc": {
+        "builder": Field(str),
+        "mean_radius": Field(REAL, check=positive, doc="mean radius R [m]"),
+        "width": Field(REAL, check=positive, doc="radial width b [m]"),
+        "thickness": Field(REAL, check=positive, doc="axial thickness h [m]"),
+        "mesh_size": Field(REAL, check=positive, doc="target element size [m]"),
+        "order": Field(int, 2, one_of(1, 2), "geometry order: 2 = curved tetrahedra"),
+    },
+}
+MATERIAL = {
+    "E": Field(REAL, check=positive, doc="Young's modulus [Pa]"),
+    "nu": Field(REAL, check=poisson, doc="Poisson's ratio"),
+    "rho": Field(REAL, check=positive, doc="density [kg/m³]"),
+    "rayleigh_alpha": Field(REAL, 0.0, non_negative, "mass-proportional damping [1/s]"),
+    "rayleigh_beta": Field(REAL, 0.0, non_negative, "stiffness-proportional damping [s]"),
+}
+INTERFACE = {
+    "type": Field(str, "rigid_plate", one_of("rigid_plate")),
+    "face": Field(str, check=nonempty_str, doc="face name of the geometry"),
+    "kn": Field(REAL, check=non_negative, doc="penalty stiffness per area [N/m³]"),
+    "mu": Field(REAL, 0.0, non_negative, "friction coefficient"),
+    "sliding": Field(int, 1, one_of(-1, 0, 1), "+1 forward (+e_θ), -1 backward, 0 none"),
+}
+SECTIONS = {
+    "boundary": {"clamped": Field(list, [], None, "faces with all displacements fixed")},
+    "discretisation": {
+        "degree": Field(int, 2, one_of(1, 2), "Lagrange degree (P1 locks in bending)"),
+        "quadrature_degree": Field(int, 0, non_negative, "0 = estimated by the form compiler"),
+    },
+    "solver": {"petsc_options": Field(dict, {}, None, "PETSc options, with their solver prefix")},
+}
+ANALYSES = {
+    "real_modes": {
+        "n_modes": Field(int, 20, positive), "target_hz": Field(REAL, 1000.0, non_negative),
+        "tol": Field(REAL, 1e-10, positive), "max_residual": Field(REAL, 1e-8, positive),
+    },
+    "cea": {
+        "n_modes": Field(int, 20, positive, "complex modes (Im λ > 0) to compute"),
+        "target_hz": Field(REAL, 0.0, non_negative, "shift; 0 = centre of band_hz"),
+        "band_hz": Field(list, [0.0, 10000.0], band, "frequency band kept in the results"),
+        "method": Field(str, "auto", one_of("auto", "linear", "pep")),
+        "tol": Field(REAL, 1e-10, positive), "max_residual": Field(REAL, 1e-8, positive),
+    },
+}
+
+
+def _check_fields(table: Any, fields: dict[str, Field], path: str) -> dict:
+    if not isinstance(table, dict):
+        raise SceneError(f"{path}: must be a table (got {type(table).__name__})")
+    unknown = sorted(set(table) - set(fields))
+    if unknown:
+        raise SceneError(f"{path}.{unknown[0]}: unknown key; allowed: {sorted(fields)}")
+    out = {}
+    for name, f in fields.items():
+        key = f"{path}.{name}"
+        if name not in table:
+            if f.default is ...:
+                raise SceneError(f"{key}: required" + (f" ({f.doc})" if f.doc else ""))
+            out[name] = copy.deepcopy(f.default)
+            continue
+        v = table[name]
+        kinds = f.kind if isinstance(f.kind, tuple) else (f.kind,)
+        if isinstance(v, bool) or not isinstance(v, kinds):
+            want = " or ".join(k.__name__ for k in kinds)
+            raise SceneError(f"{key}: must be {want} (got {v!r})")
+        if isinstance(v, float) and not math.isfinite(v):
+            raise SceneError(f"{key}: must be finite (got {v})")
+        if f.check is not None:
+            msg = f.check(v)
+            if msg:
+                raise SceneError(f"{key}: {msg}")
+        out[name] = v
+    return out
+
+
+def validate(raw: dict) -> dict:
+    """Validated scene with defaults filled in; raises :class:`SceneError`."""
+    if not isinstance(raw, dict):
+        raise SceneError("scene: must be a table")
+    allowed = {"title", "geometry", "materials", "interfaces", "analyses", *SECTIONS}
+    unknown = sorted(set(raw) - allowed)
+    if unknown:
+        raise SceneError(f"{unknown[0]}: unknown section; allowed: {sorted(allowed)}")
+    scene: dict[str, Any] = {"title": raw.get("title", "")}
+    if not isinstance(scene["title"], str):
+        raise SceneError("title: must be a string")
+    geo = raw.get("geometry")
+    if not isinstance(geo, dict) or "builder" not in geo:
+        raise SceneError("geometry.builder: required; one of " + str(sorted(GEOMETRY)))
+    if geo["builder"] not in GEOMETRY:
+        raise SceneError(f"geometry.builder: must be one of {sorted(GEOMETRY)} (got {geo['builder']!r})")
+    scene["geometry"] = _check_fields(geo, GEOMETRY[geo["builder"]], "geometry")
+    builder = geo["builder"]
+    volumes, faces = GEOMETRY_TAGS[builder]
+    if builder == "annular_disc" and scene["geometry"]["width"] >= 2 * scene["geometry"]["mean_radius"]:
+        raise SceneError("geometry.width: must be < 2 * mean_radius")
+
+    mats = raw.get("materials")
+    if not isinstance(mats, dict) or not mats:
+        raise SceneError(f"materials: required, one table per part {sorted(volumes)}")
+    scene["materials"] = {}
+    for part, table in mats.items():
+        if part not in volumes:
+            raise SceneError(f"materials.{part}: unknown part; parts of {builder}: {sorted(volumes)}")
+        scene["materials"][part] = _check_fields(table, MATERIAL, f"materials.{part}")
+    missing = sorted(set(volumes) - set(mats))
+    if missing:
+        raise SceneError(f"materials.{missing[0]}: required (no material for this part)")
+
+    scene["interfaces"] = {}
+    for name, table in (raw.get("interfaces") or {}).items():
+        t = _check_fields(table, INTERFACE, f"interfaces.{name}")
+        if t["face"] not in faces:
+            raise SceneError(f"interfaces.{name}.face: unknown face {t['face']!r}; faces: {sorted(faces)}")
+        scene["interfaces"][name] = t
+
+    for sec, fields in SECTIONS.items():
+        scene[sec] = _check_fields(raw.get(sec, {}), fields, sec)
+    for i, f in enumerate(scene["boundary"]["clamped"]):
+        if f not in faces:
+            raise SceneError(f"boundary.clamped[{i}]: unknown face {f!r}; faces: {sorted(faces)}")
+
+    ana = raw.get("analyses")
+    if not isinstance(ana, dict) or not ana:
+        raise SceneError(f"analyses: required, at least one of {sorted(ANALYSES)}")
+    scene["analyses"] = {}
+    for name, table in ana.items():
+        if name not in ANALYSES:
+            raise SceneError(f"analyses.{name}: unknown analysis; available: {sorted(ANALYSES)}")
+        scene["analyses"][name] = _check_fields(table, ANALYSES[name], f"analyses.{name}")
+    return scene
+
+
+def parse_value(text: str) -> Any:
+    """Parse a --set value as a TOML value, falling back to a bare string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def apply_overrides(raw: dict, overrides: list[str]) -> dict:
+    """Apply ``key.path=value`` overrides to a raw scene (a deep copy is returned)."""
+    raw = copy.deepcopy(raw)
+    for item in overrides:
+        if "=" not in item:
+            raise SceneError(f"--set {item}: expected key.path=value")
+        key, text = item.split("=", 1)
+        parts = [p for p in key.strip().split(".")]
+        if not all(parts):
+            raise SceneError(f"--set {item}: empty key component")
+        node = raw
+        for i, p in enumerate(parts[:-1]):
+            node = node.setdefault(p, {})
+            if not isinstance(node, dict):
+                raise SceneError(f"{'.'.join(parts[: i + 1])}: is not a table, cannot set {key}")
+        node[parts[-1]] = parse_value(text.strip())
+    return raw
+
+
+def load_scene(path: str | Path, overrides: list[str] | None = None) -> dict:
+    """Read, override and validate a scene file."""
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise SceneError(f"{path}: no such scene file") from None
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(f"{path}: not valid TOML ({e})") from None
+    return validate(apply_overrides(raw, overrides or []))
+
+
+def model_spec(scene: dict) -> ModelSpec:
+    """The physics description of a validated scene."""
+    mats = {p: Material(**m) for p, m in scene["materials"].items()}
+    plates = tuple(RigidPlate(t["face"], float(t["kn"]), float(t["mu"]), int(t["sliding"]))
+                   for t in scene["interfaces"].values() if t["type"] == "rigid_plate")
+    qd = scene["discretisation"]["quadrature_degree"] or None
+    return ModelSpec(mats, plates, tuple(scene["boundary"]["clamped"]), scene["discretisation"]["degree"], qd)

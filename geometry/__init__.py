@@ -1,0 +1,12 @@
+"""gmsh (OCC) builders that write tagged, curved second-order tetrahedral meshes.
+
+Each builder is a small typed function that adds one geometry to the current gmsh model and
+creates physical groups with the tags of :mod:`fem_squeal.tags`.  :func:`geometry.gmsh_io.to_dolfinx`
+builds on rank 0 and distributes with ``gmshio.model_to_mesh``.
+"""
+from geometry.annular_disc import annular_disc_mesh, build_annular_disc
+from geometry.gmsh_io import MeshData, to_dolfinx
+
+BUILDERS = {"annular_disc": annular_disc_mesh}
+
+__all__ = ["BUILDERS", "MeshData", "annular_disc_mesh", "build_annular_disc", "to_dolfinx"]

@@ -82,8 +82,9 @@ def _norm_inf(A: PETSc.Mat | None) -> float:
     return 0.0 if A is None else A.norm(PETSc.NormType.INFINITY)
 
 
-def _sort_key(lam: np.ndarray, rel: float = 1e-9) -> np.ndarray:
-    """Order by frequency; eigenvalues whose frequencies agree to ``rel`` are ordered by real part,
+def _sort_key(lam: np.ndarray, rel: float = 1e-7) -> np.ndarray:
+    """Order by frequency; eigenvalues whose frequencies agree to ``rel`` (PEP resolves the two
+    halves of a quadruple to ~1e-9) are ordered by real part,
     so that the order does not depend on round-off (e.g. the two halves of a quadruple)."""
     order = np.argsort(lam.imag, kind="stable")
     groups, g = np.zeros(len(lam)), 0
@@ -201,8 +202,13 @@ def _check(nconv: int, nev: int, res: np.ndarray, max_residual: float, what: str
 
 def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: int, target_hz: float,
                         *, method: str = "auto", tol: float = 1e-10, max_residual: float = 1e-8,
-                        options: dict | None = None, prefix: str = "cea_") -> ComplexModes:
+                        band_hz: tuple[float, float] | None = None, options: dict | None = None,
+                        prefix: str = "cea_") -> ComplexModes:
     """Complex modes of (λ²M + λC + K)x = 0 with Im λ > 0, ``nev`` of them near ``target_hz``.
+
+    At least ``nev`` pairs must converge; those with Im λ/2π inside ``band_hz`` (all when None)
+    are residual-checked and returned.  Rigid-body modes (λ ≈ 0) are kept out by a band with
+    a positive lower end: their residual relative to ‖K‖ is not meaningful.
 
     ``method``: ``"linear"`` (C must be None: non-symmetric EPS on K x = θ M x, θ = −λ²),
     ``"pep"`` (TOAR on the quadratic), or ``"auto"`` (linear when C is None, else PEP).
@@ -264,6 +270,14 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
     finally:
         solver.destroy()
     lams = np.array(lams, dtype=complex)
+    n_found = len(lams)
+    if band_hz is not None:
+        f = lams.imag / TWO_PI
+        keep = np.flatnonzero((f >= band_hz[0]) & (f <= band_hz[1]))
+        for j in sorted(set(range(n_found)) - set(keep.tolist())):
+            xrs[j].destroy()
+            xis[j].destroy()
+        lams, xrs, xis = lams[keep], [xrs[i] for i in keep], [xis[i] for i in keep]
     res = np.empty(len(lams))
     for j, (lam, xr, xi) in enumerate(zip(lams, xrs, xis)):
         _m_normalise(M, xr, xi)
@@ -272,7 +286,7 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
     lams, res = lams[order], res[order]
     xrs, xis = [xrs[i] for i in order], [xis[i] for i in order]
     what = f"complex-mode {'EPS' if method == 'linear' else 'PEP'} (prefix {prefix!r})"
-    _check(len(lams), nev, res, max_residual, what, lams.imag / TWO_PI)
+    _check(n_found, nev, res, max_residual, what, lams.imag / TWO_PI)
     return ComplexModes(lams, xrs, xis, res, method)
 
 

@@ -161,9 +161,11 @@ def validate(raw: dict) -> dict:
     if not isinstance(scene["title"], str):
         raise SceneError("title: must be a string")
     geo = raw.get("geometry")
-    if not isinstance(geo, dict) or "builder" not in geo:
+    if not isinstance(geo, dict):
+        raise SceneError("geometry: required table")
+    if "builder" not in geo:
         raise SceneError("geometry.builder: required; one of " + str(sorted(GEOMETRY)))
-    if geo["builder"] not in GEOMETRY:
+    if not isinstance(geo["builder"], str) or geo["builder"] not in GEOMETRY:
         raise SceneError(f"geometry.builder: must be one of {sorted(GEOMETRY)} (got {geo['builder']!r})")
     scene["geometry"] = _check_fields(geo, GEOMETRY[geo["builder"]], "geometry")
     builder = geo["builder"]
@@ -184,7 +186,10 @@ def validate(raw: dict) -> dict:
         raise SceneError(f"materials.{missing[0]}: required (no material for this part)")
 
     scene["interfaces"] = {}
-    for name, table in (raw.get("interfaces") or {}).items():
+    interfaces = raw.get("interfaces", {})
+    if not isinstance(interfaces, dict):
+        raise SceneError(f"interfaces: must be a table of interfaces (got {type(interfaces).__name__})")
+    for name, table in interfaces.items():
         t = _check_fields(table, INTERFACE, f"interfaces.{name}")
         if t["face"] not in faces:
             raise SceneError(f"interfaces.{name}.face: unknown face {t['face']!r}; faces: {sorted(faces)}")

@@ -1,0 +1,52 @@
+"""Shared fixtures: ring models assembled once per session and reused across tests."""
+from __future__ import annotations
+
+import functools
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+from mpi4py import MPI
+
+ROOT = Path(__file__).resolve().parents[1]
+RING = dict(mean_radius=0.05, width=0.005, thickness=0.004)
+MAT = dict(E=3e9, nu=0.4, rho=1400.0)
+
+
+@functools.lru_cache(maxsize=None)
+def ring_mesh(width: float = 0.005, thickness: float = 0.004, mesh_size: float = 0.0025, order: int = 2):
+    from geometry import annular_disc_mesh
+
+    return annular_disc_mesh(MPI.COMM_WORLD, mean_radius=0.05, width=width, thickness=thickness,
+                             mesh_size=mesh_size, order=order)
+
+
+@functools.lru_cache(maxsize=None)
+def ring_operators(width=0.005, thickness=0.004, mesh_size=0.0025, kn=1e10, mu=0.3, sliding=(1, 1),
+                   nu=0.4, alpha=0.0, beta=0.0, degree=2, clamped=()):
+    """Operators of the ring between two plates (kn = 0: free ring without plates)."""
+    from fem_squeal.assembly import assemble_operators
+    from fem_squeal.model import Material, ModelSpec, RigidPlate
+
+    plates = () if kn == 0 else (RigidPlate("top", kn, mu, sliding[0]), RigidPlate("bottom", kn, mu, sliding[1]))
+    spec = ModelSpec({"disc": Material(3e9, nu, 1400.0, alpha, beta)}, plates, tuple(clamped), degree)
+    return assemble_operators(ring_mesh(width, thickness, mesh_size), spec)
+
+
+def clean_env() -> dict[str, str]:
+    """Environment for child processes.  ``os.environ`` is Python's snapshot from start-up; the
+    C environ (used when ``env=None``) also holds the PMIX_/OMPI_ variables that this process's
+    singleton MPI_Init added, and those make a child ``mpirun`` misbehave."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMIX_", "OMPI_COMM", "OMPI_MCA_orte"))}
+    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    return env
+
+
+@pytest.fixture(scope="session")
+def mpirun():
+    """Command prefix for 2 MPI ranks, or skip when mpirun is missing."""
+    exe = shutil.which("mpirun")
+    if exe is None:
+        pytest.skip("mpirun not installed")
+    return [exe, "-n", "2", "--oversubscribe"]

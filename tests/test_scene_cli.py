@@ -1,0 +1,119 @@
+"""Scene validation, --set overrides and the CLI's handling of bad input."""
+from __future__ import annotations
+
+import subprocess
+import sys
+import tomllib
+
+import pytest
+from conftest import ROOT, clean_env
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from fem_squeal.scene import SceneError, apply_overrides, load_scene, model_spec, validate
+
+SCENE = ROOT / "scenes" / "ryzhik_ring.toml"
+
+
+def raw():
+    return tomllib.loads(SCENE.read_text())
+
+
+def test_bundled_scene_validates_with_defaults():
+    s = load_scene(SCENE)
+    assert s["discretisation"]["degree"] == 2
+    assert s["analyses"]["cea"]["method"] == "auto"
+    spec = model_spec(s)
+    assert {p.face for p in spec.plates} == {"top", "bottom"}
+    assert all(p.sliding == 1 and p.mu == 0.3 and p.kn == 1e10 for p in spec.plates)
+
+
+def test_set_overrides_nested_values():
+    s = load_scene(SCENE, ["geometry.width=0.004", "interfaces.top_plate.sliding=-1",
+                           "analyses.cea.band_hz=[10, 300]"])
+    assert s["geometry"]["width"] == 0.004
+    assert s["interfaces"]["top_plate"]["sliding"] == -1
+    assert s["analyses"]["cea"]["band_hz"] == [10, 300]
+
+
+@pytest.mark.parametrize("override, message", [
+    ("geometry.width=-0.005", r"^geometry\.width: must be > 0 \(got -0\.005\)$"),
+    ("geometry.width=0.2", r"^geometry\.width: must be < 2 \* mean_radius$"),
+    ("geometry.widht=0.005", r"^geometry\.widht: unknown key; allowed: \["),
+    ("materials.disc.nu=0.5", r"^materials\.disc\.nu: must be in \(-1, 0\.5\)"),
+    ("materials.disc.E=high", r"^materials\.disc\.E: must be int or float \(got 'high'\)$"),
+    ("interfaces.top_plate.face=rim", r"^interfaces\.top_plate\.face: unknown face 'rim'; faces: \["),
+    ("interfaces.top_plate.sliding=2", r"^interfaces\.top_plate\.sliding: must be one of \[-1, 0, 1\]"),
+    ("analyses.cea.band_hz=[5000, 100]", r"^analyses\.cea\.band_hz: must be increasing"),
+    ("analyses.cea.method=qz", r"^analyses\.cea\.method: must be one of"),
+    ("analyses.masa.n=3", r"^analyses\.masa: unknown analysis; available:"),
+    ("boundary.clamped=['rim']", r"^boundary\.clamped\[0\]: unknown face 'rim'"),
+    ("geometry.builder=brake", r"^geometry\.builder: must be one of"),
+])
+def test_bad_values_name_the_key_and_the_reason(override, message):
+    with pytest.raises(SceneError, match=message):
+        load_scene(SCENE, [override])
+
+
+def test_missing_required_key():
+    r = raw()
+    del r["materials"]["disc"]["rho"]
+    with pytest.raises(SceneError, match=r"^materials\.disc\.rho: required"):
+        validate(r)
+
+
+def test_cli_bad_value_is_one_line_and_writes_nothing(tmp_path):
+    out = tmp_path / "o"
+    p = subprocess.run([sys.executable, "-m", "fem_squeal.cli", "run", str(SCENE),
+                        "--set", "geometry.width=-1", "-o", str(out)], capture_output=True, text=True,
+                       env=clean_env())
+    assert p.returncode == 2
+    assert p.stderr.strip().splitlines() == ["fem-squeal: error: geometry.width: must be > 0 (got -1)"]
+    assert not out.exists()
+
+
+# Fuzz: random mutations of the bundled scene must give SceneError or a valid scene, never a crash.
+values = st.one_of(st.integers(-5, 5), st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=5),
+                   st.booleans(), st.lists(st.integers(-3, 3), max_size=3), st.none())
+
+
+def _paths(d, prefix=()):
+    for k, v in d.items():
+        yield prefix + (k,)
+        if isinstance(v, dict):
+            yield from _paths(v, prefix + (k,))
+
+
+PATHS = sorted(_paths(raw()))
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(st.sampled_from(PATHS), values, st.booleans()), min_size=1, max_size=4))
+def test_fuzzed_scenes_give_clear_errors(mutations):
+    r = raw()
+    for path, value, delete in mutations:
+        node = r
+        for p in path[:-1]:
+            node = node.get(p) if isinstance(node, dict) else None
+        if not isinstance(node, dict):
+            continue
+        if delete:
+            node.pop(path[-1], None)
+        elif value is None:
+            node[path[-1]] = {}
+        else:
+            node[path[-1]] = value
+    try:
+        s = validate(r)
+    except SceneError as e:
+        assert str(e).split(":")[0], e
+        assert "\n" not in str(e)
+    else:
+        model_spec(s)
+
+
+def test_override_syntax_errors():
+    with pytest.raises(SceneError, match="expected key.path=value"):
+        apply_overrides(raw(), ["geometry.width"])
+    with pytest.raises(SceneError, match="is not a table"):
+        apply_overrides(raw(), ["title.x=1"])

@@ -100,8 +100,9 @@ def main() -> None:
         full = len(r["unstable"]) == 5
         ferr = f"{max(fe):.2e}" if full else f"{max(fe):.2e} (k={sorted(r['unstable'])})" if fe else "n/a"
         gerr = f"{max(ge):.2e}" if full else f"{max(ge):.2e}" if ge else "n/a"
-        lines.append(f"| {r['degree']} | {r['mesh_size']} | {r['dofs']} | {r['t_mesh']:.2f} | {r['t_assembly']:.2f} | "
-                     f"{r['t_eig']:.2f} | {r['t_total']:.2f} | {r['peak_rss_mb_per_rank']:.0f} | {ferr} | {gerr} |")
+        lines.append(f"| {r['degree']} | {r['mesh_size']} | {r['dofs']} | {r['t_mesh']:.2f} | "
+                     f"{r['t_assembly']:.2f} | {r['t_eig']:.2f} | {r['t_total']:.2f} | "
+                     f"{r['peak_rss_mb_per_rank']:.0f} | {ferr} | {gerr} |")
     text = "\n".join(lines)
     print(text)
     out = ROOT / "benchmarks" / "out"

@@ -40,7 +40,8 @@ for k in range(2, 7):
     pair = [x for x in modes if x["nodal_diameter"] == k]
     unstable = [x for x in pair if x["unstable"]]
     if len(pair) != 2 or len(unstable) != 1:
-        failures.append(f"k={k}: expected one quadruple ±σ±iω, got {[(x['freq_hz'], x['real_part']) for x in pair]}")
+        got = [(x["freq_hz"], x["real_part"]) for x in pair]
+        failures.append(f"k={k}: expected one quadruple ±σ±iω, got {got}")
         continue
     u, s = unstable[0], next(x for x in pair if not x["unstable"])
     omega = 2 * rt.math.pi * u["freq_hz"]
@@ -59,7 +60,8 @@ for k in range(2, 7):
         failures.append(f"k={k}: Re λ {u['real_part']:.4f} vs corrected formula {cor:.4f} (> 1 %)")
     # Plates slide in +θ: the unstable wave follows them (reversing the sliding flips it).
     if u["travelling_direction"] != plate["sliding"]:
-        failures.append(f"k={k}: unstable wave travels {u['travelling_direction']}, plates slide {plate['sliding']}")
+        failures.append(f"k={k}: unstable wave travels {u['travelling_direction']}, "
+                        f"plates slide {plate['sliding']}")
 
 if comm.rank == 0:
     print(f"results: {outdir / 'results.json'}; mode shapes: {outdir / 'complex_modes.xdmf'}")

@@ -1,7 +1,8 @@
 """Assemble the PETSc operators of a model: K (elastic + contact springs), K_f, M, C.
 
 All matrices are assembled into the cell sparsity pattern of K, so K − K_f is a cheap
-subset-pattern AXPY (facet-only forms keep fewer entries after PETSc's assembly squeeze).  Dirichlet (clamped) DOFs get 1 on the diagonal of K and 0 on those of
+subset-pattern AXPY (facet-only forms keep fewer entries after PETSc's assembly
+squeeze).  Dirichlet (clamped) DOFs get 1 on the diagonal of K and 0 on those of
 M, C and K_f: they become infinite eigenvalues that shift-invert never returns.
 """
 from __future__ import annotations

@@ -143,6 +143,22 @@ def _m_normalise(M: PETSc.Mat, xr: PETSc.Vec, xi: PETSc.Vec) -> None:
         w.destroy()
 
 
+def _shift_invert_eps(A: PETSc.Mat, B: PETSc.Mat, problem_type, nev: int, target: float, tol: float,
+                      prefix: str) -> SLEPc.EPS:
+    """Krylov–Schur EPS for A x = θ B x, shift-and-invert at the real ``target``, nearest first."""
+    eps = SLEPc.EPS().create(A.getComm())
+    eps.setOptionsPrefix(prefix)
+    eps.setOperators(A, B)
+    eps.setProblemType(problem_type)
+    eps.setType(SLEPc.EPS.Type.KRYLOVSCHUR)
+    eps.setDimensions(nev, max(2 * nev, nev + 16))
+    eps.setTolerances(tol, 200)
+    eps.getST().setType(SLEPc.ST.Type.SINVERT)
+    eps.setTarget(target)
+    eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
+    return eps
+
+
 def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, tol: float = 1e-10,
                      max_residual: float = 1e-8, options: dict | None = None,
                      prefix: str = "real_") -> RealModes:
@@ -150,17 +166,8 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     if nev < 1:
         raise ValueError(f"n_modes: must be >= 1 (got {nev})")
     set_options(prefix, options, DIRECT_SOLVER_OPTIONS)
-    eps = SLEPc.EPS().create(K.getComm())
+    eps = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GHEP, nev, (TWO_PI * target_hz) ** 2, tol, prefix)
     try:
-        eps.setOptionsPrefix(prefix)
-        eps.setOperators(K, M)
-        eps.setProblemType(SLEPc.EPS.ProblemType.GHEP)
-        eps.setType(SLEPc.EPS.Type.KRYLOVSCHUR)
-        eps.setDimensions(nev, max(2 * nev, nev + 16))
-        eps.setTolerances(tol, 200)
-        eps.getST().setType(SLEPc.ST.Type.SINVERT)
-        eps.setTarget((TWO_PI * target_hz) ** 2)
-        eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
         eps.setFromOptions()
         eps.solve()
         nconv = eps.getConverged()
@@ -227,16 +234,8 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
     comm = K.getComm()
     lams, xrs, xis = [], [], []
     if method == "linear":
-        solver = SLEPc.EPS().create(comm)
-        solver.setOptionsPrefix(prefix)
-        solver.setOperators(K, M)
-        solver.setProblemType(SLEPc.EPS.ProblemType.GNHEP)
-        solver.setType(SLEPc.EPS.Type.KRYLOVSCHUR)
-        solver.setDimensions(nev, max(2 * nev, nev + 16))
-        solver.setTolerances(tol, 200)
-        solver.getST().setType(SLEPc.ST.Type.SINVERT)
-        solver.setTarget((TWO_PI * target_hz) ** 2)
-        solver.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
+        solver = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GNHEP, nev, (TWO_PI * target_hz) ** 2,
+                                   tol, prefix)
         n_wanted = nev
     else:
         solver = SLEPc.PEP().create(comm)

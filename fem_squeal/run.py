@@ -104,7 +104,7 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
         timings["cea"] = time.perf_counter() - t
         lo, hi = a["band_hz"]
         rows, fields = [], []
-        for j, (lam, r, xr, xi) in enumerate(zip(cm.eigenvalues, cm.residuals, cm.vectors_re, cm.vectors_im)):
+        for lam, r, xr, xi in zip(cm.eigenvalues, cm.residuals, cm.vectors_re, cm.vectors_im):
             d = basis.describe(xr, xi)
             rows.append({"index": len(rows), "freq_hz": lam.imag / (2 * np.pi), "real_part": lam.real,
                          "damping_ratio": -lam.real / abs(lam), "residual": r,

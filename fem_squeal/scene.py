@@ -25,9 +25,10 @@ from __future__ import annotations
 import copy
 import math
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from fem_squeal.model import Material, ModelSpec, RigidPlate
 from fem_squeal.tags import GEOMETRY_TAGS

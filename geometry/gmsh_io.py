@@ -1,7 +1,8 @@
 """Build a gmsh model on rank 0 and distribute it as a dolfinx mesh with cell and facet tags."""
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 from mpi4py import MPI
 

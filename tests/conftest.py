@@ -14,7 +14,7 @@ RING = dict(mean_radius=0.05, width=0.005, thickness=0.004)
 MAT = dict(E=3e9, nu=0.4, rho=1400.0)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def ring_mesh(width: float = 0.005, thickness: float = 0.004, mesh_size: float = 0.0025, order: int = 2):
     from geometry import annular_disc_mesh
 
@@ -22,7 +22,7 @@ def ring_mesh(width: float = 0.005, thickness: float = 0.004, mesh_size: float =
                              mesh_size=mesh_size, order=order)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def ring_operators(width=0.005, thickness=0.004, mesh_size=0.0025, kn=1e10, mu=0.3, sliding=(1, 1),
                    nu=0.4, alpha=0.0, beta=0.0, degree=2, clamped=()):
     """Operators of the ring between two plates (kn = 0: free ring without plates)."""

@@ -95,7 +95,7 @@ def test_growth_rates_match_corrected_ring_formula_on_a_fine_mesh():
 
 
 def test_each_pair_becomes_a_quadruple(default_ring):
-    for k, (up, down, _) in default_ring.items():
+    for up, down, _ in default_ring.values():
         assert up.real > 0 > down.real
         # σ+iω and −σ+iω come from θ and conj(θ) of the same real EPS: mirror to round-off
         assert abs(up.real + down.real) < 1e-8 * abs(up)
@@ -129,7 +129,7 @@ def test_growth_rate_is_linear_in_mu(default_ring):
 
 def test_growth_rate_vanishes_without_poisson_contraction():
     res = cea_by_k(ring_operators(nu=0.0))
-    for k, (up, down, _) in res.items():
+    for k, (up, _down, _) in res.items():
         # ν = 0: in-plane modes have u_z ≡ 0, K_f φ = 0, so friction only couples one way
         # (triangular) and the in-plane eigenvalues stay imaginary to round-off.
         assert abs(up.real) < 1e-8 * abs(up), (k, up)

@@ -83,9 +83,9 @@ def _norm_inf(A: PETSc.Mat | None) -> float:
 
 
 def _sort_key(lam: np.ndarray, rel: float = 1e-7) -> np.ndarray:
-    """Order by frequency; eigenvalues whose frequencies agree to ``rel`` (PEP resolves the two
-    halves of a quadruple to ~1e-9) are ordered by real part,
-    so that the order does not depend on round-off (e.g. the two halves of a quadruple)."""
+    """Order by frequency; eigenvalues whose frequencies agree to ``rel`` are ordered by real part,
+    so that the order does not depend on round-off (PEP resolves the two halves of a quadruple
+    ±σ + iω to ~1e-9 relative in ω)."""
     order = np.argsort(lam.imag, kind="stable")
     groups, g = np.zeros(len(lam)), 0
     for j in range(1, len(order)):
@@ -236,7 +236,6 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
     if method == "linear":
         solver = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GNHEP, nev, (TWO_PI * target_hz) ** 2,
                                    tol, prefix)
-        n_wanted = nev
     else:
         solver = SLEPc.PEP().create(comm)
         solver.setOptionsPrefix(prefix)

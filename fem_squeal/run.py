@@ -23,7 +23,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from mpi4py import MPI
 
 from fem_squeal.scene import model_spec
@@ -104,11 +103,11 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
         timings["cea"] = time.perf_counter() - t
         lo, hi = a["band_hz"]
         rows, fields = [], []
-        for lam, r, xr, xi in zip(cm.eigenvalues, cm.residuals, cm.vectors_re, cm.vectors_im):
+        for f, re, zeta, r, xr, xi in zip(cm.freqs_hz, cm.real_parts, cm.damping_ratios, cm.residuals,
+                                          cm.vectors_re, cm.vectors_im):
             d = basis.describe(xr, xi)
-            rows.append({"index": len(rows), "freq_hz": lam.imag / (2 * np.pi), "real_part": lam.real,
-                         "damping_ratio": -lam.real / abs(lam), "residual": r,
-                         "unstable": bool(lam.real > 0), **d._asdict()})
+            rows.append({"index": len(rows), "freq_hz": f, "real_part": re, "damping_ratio": zeta,
+                         "residual": r, "unstable": bool(re > 0), **d._asdict()})
             fields.append((xr, xi))
         results["complex_modes"] = rows
         results["n_unstable"] = sum(r["unstable"] for r in rows)

@@ -1,9 +1,12 @@
-"""Assemble the PETSc operators of a model: K (elastic + contact springs), K_f, M, C.
+"""Assemble the PETSc operators of a model: K (elastic + springs), K_f, M, C, loads, interfaces.
 
-All matrices are assembled into the cell sparsity pattern of K, so K − K_f is a cheap
-subset-pattern AXPY (facet-only forms keep fewer entries after PETSc's assembly
-squeeze).  Dirichlet (clamped) DOFs get 1 on the diagonal of K and 0 on those of
-M, C and K_f: they become infinite eigenvalues that shift-invert never returns.
+The operator is λ²M + λC + (K + K_f): ``Kf`` is stored with the sign it has in the operator.
+Volume forms are assembled into the cell sparsity pattern of K; spring and bonded interfaces
+(built from the interface operator G) add entries between bodies.  Contact interfaces are kept
+apart as :class:`~fem_squeal.interface.InterfaceOperator` s: their K_c, K_f depend on which
+points are closed, which the preload decides (:func:`linearise`).  Dirichlet (clamped) DOFs
+get 1 on the diagonal of K and 0 on those of M, C, K_f and the interface matrices: they become
+infinite eigenvalues that shift-invert never returns.
 """
 from __future__ import annotations
 
@@ -18,7 +21,8 @@ from dolfinx.fem import petsc as fem_petsc
 from petsc4py import PETSc
 
 from fem_squeal import forms
-from fem_squeal.model import ModelSpec
+from fem_squeal import interface as itf
+from fem_squeal.model import Interface, ModelSpec
 
 # The JIT's compiler driver logs INFO lines through the root logger: keep only warnings from it.
 logging.getLogger().addFilter(lambda rec: rec.name != "root" or rec.levelno >= logging.WARNING)
@@ -27,24 +31,28 @@ JIT_PARAMS = {"cffi_extra_compile_args": ["-O2"]}
 
 
 class Operators(NamedTuple):
-    """Assembled operators of λ²M + λC + (K − K_f) (all PETSc ``aij``, same pattern)."""
+    """Assembled operators of λ²M + λC + (K + K_f) (PETSc ``aij``)."""
 
     V: fem.FunctionSpace
-    K: PETSc.Mat          # elasticity + contact springs (symmetric), 1 on clamped diagonals
+    K: PETSc.Mat          # elasticity + springs (+ closed contact after linearise), symmetric
     Kf: PETSc.Mat | None  # friction stiffness incl. μ and sliding sign (asymmetric) or None
     M: PETSc.Mat
     C: PETSc.Mat | None   # Rayleigh damping or None
     M_axial: PETSc.Mat    # mass of the motion along the axis, for in-plane/out-of-plane shares
     bc_dofs: np.ndarray   # local indices of clamped DOFs (blocked x bs)
+    f: PETSc.Vec | None = None                       # pressure loads (0 on clamped DOFs)
+    contacts: tuple = ()                             # ((Interface, InterfaceOperator), ...)
+    K_parts: dict | None = None                      # part -> elastic stiffness (no BC rows)
+    M_parts: dict | None = None                      # part -> (M, M_axial) of that part
 
     def K_total(self) -> PETSc.Mat:
-        """K − K_f as a new matrix (K itself when there is no friction)."""
+        """K + K_f as a new matrix (K itself when there is no friction)."""
         if self.Kf is None:
             return self.K
         A = self.K.copy()
-        # K_f is assembled into K's pattern, but PETSc squeezes its unused slots at assembly:
-        # its pattern is a subset of K's, never the same (SAME_NONZERO_PATTERN gives wrong sums).
-        A.axpy(-1.0, self.Kf, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        # K_f's pattern is a subset of K's at best (PETSc squeezes unused slots at assembly, so
+        # SAME_NONZERO_PATTERN would give wrong sums): let PETSc merge the patterns.
+        A.axpy(1.0, self.Kf, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
         return A
 
 
@@ -60,8 +68,71 @@ def _assemble(form, pattern: fem.FormMetaClass, bcs, diagonal: float) -> PETSc.M
     return A
 
 
-def assemble_operators(mesh_data, spec: ModelSpec) -> Operators:
-    """Build V = [P_degree]³ on the mesh and assemble K, K_f, M, C and M_axial (see module doc)."""
+def _owned_global_rows(A: PETSc.Mat, V, local_dofs: np.ndarray) -> np.ndarray:
+    bs = V.dofmap.index_map_bs
+    n_owned = V.dofmap.index_map.size_local * bs
+    lo = A.getOwnershipRange()[0]
+    local_dofs = np.asarray(local_dofs)
+    return (local_dofs[local_dofs < n_owned] + lo).astype(PETSc.IntType)
+
+
+def _add(A: PETSc.Mat, B: PETSc.Mat, alpha: float = 1.0) -> None:
+    A.axpy(alpha, B, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+
+
+def _face_tag(mesh_data, face: str, present: set[int], where: str) -> int:
+    if face not in mesh_data.faces:
+        raise KeyError(f"{where}: face {face!r} not in mesh; faces: {sorted(mesh_data.faces)}")
+    tag = mesh_data.faces[face]
+    if tag not in present:
+        raise ValueError(f"{where}: mesh has no facets tagged {tag} ({face})")
+    return tag
+
+
+def build_interface(V, mesh_data, spec: ModelSpec, it: Interface) -> itf.InterfaceOperator:
+    """The operator G of interface ``it`` (slave/master faces looked up by name)."""
+    for face in (it.slave, it.master):
+        if face not in mesh_data.faces:
+            raise KeyError(f"interfaces.{it.name}: face {face!r} not in mesh; faces: {sorted(mesh_data.faces)}")
+    return itf.interface_operator(V, mesh_data.facet_tags, mesh_data.faces[it.slave],
+                                  mesh_data.faces[it.master], sliding=float(it.sliding), axis=spec.axis,
+                                  quadrature_degree=spec.interface_quadrature_degree, name=it.name)
+
+
+def linearise(ops: Operators, active: dict[str, np.ndarray] | None = None,
+              friction: bool = True) -> Operators:
+    """Operators with the contact interfaces' K_c and K_f added for the closed points.
+
+    ``active[name]`` flags the closed quadrature points of each contact (None: all closed, the
+    linear route).  Returns new K and K_f (the inputs are not modified)."""
+    if not ops.contacts:
+        return ops
+    K = ops.K.copy()
+    Kf = ops.Kf.copy() if ops.Kf is not None else None
+    bc_rows = _owned_global_rows(K, ops.V, ops.bc_dofs)
+    for it, op in ops.contacts:
+        a = None if active is None else active[it.name]
+        Kc = itf.contact_stiffness(op, it.kn, a)
+        Kc.zeroRowsColumns(bc_rows, diag=0.0)
+        _add(K, Kc)
+        Kc.destroy()
+        if friction and it.has_friction:
+            F = itf.friction_stiffness(op, it.kn, it.mu, a)
+            F.zeroRowsColumns(bc_rows, diag=0.0)
+            if Kf is None:
+                Kf = F
+            else:
+                _add(Kf, F)
+                F.destroy()
+    return ops._replace(K=K, Kf=Kf)
+
+
+def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
+                       describe_part: str | None = None) -> Operators:
+    """Build V = [P_degree]³ on the mesh and assemble K, K_f, M, C, M_axial, loads and interfaces.
+
+    ``parts``: also assemble each part's elastic stiffness (strain-energy shares, parametric
+    stiffness); ``describe_part``: also that part's M and M_axial (its nodal diameters)."""
     mesh, cell_tags, facet_tags = mesh_data.mesh, mesh_data.cell_tags, mesh_data.facet_tags
     if spec.degree == 1:
         warnings.warn("degree 1: P1 tetrahedra lock in bending (ring frequencies +2 % at 158k DOFs, "
@@ -103,17 +174,22 @@ def assemble_operators(mesh_data, spec: ModelSpec) -> Operators:
     x = ufl.SpatialCoordinate(mesh)
     a_f = None
     for plate in spec.plates:
-        if plate.face not in mesh_data.faces:
-            raise KeyError(f"interfaces: face {plate.face!r} not in mesh; faces: {sorted(mesh_data.faces)}")
-        ftag = mesh_data.faces[plate.face]
-        if ftag not in present_faces:
-            raise ValueError(f"interfaces: mesh has no facets tagged {ftag} ({plate.face})")
+        ftag = _face_tag(mesh_data, plate.face, present_faces, "interfaces")
         if plate.kn > 0:
             a_K = a_K + forms.contact_form(u, v, plate.kn, n, ds(ftag))
             if plate.mu > 0 and plate.sliding != 0:
                 s = forms.circumferential_direction(x, float(plate.sliding))
-                f = forms.friction_form(u, v, plate.kn, plate.mu, n, s, ds(ftag))
+                # the traction μ k_n (u·n) s is a load: it enters the operator as −a_f
+                f = -forms.friction_form(u, v, plate.kn, plate.mu, n, s, ds(ftag))
                 a_f = f if a_f is None else a_f + f
+    for gs in spec.ground_springs:
+        ftag = _face_tag(mesh_data, gs.face, present_faces, "boundary.ground_springs")
+        a_K = a_K + forms.ground_spring_form(u, v, gs.k_axial, gs.k_transverse, axis_c, ds(ftag))
+    L = None
+    for pr in spec.pressures:
+        ftag = _face_tag(mesh_data, pr.face, present_faces, "loads.pressure")
+        lp = forms.pressure_load_form(v, pr.p, n, ds(ftag))
+        L = lp if L is None else L + lp
 
     bcs, bc_dofs = [], np.zeros(0, dtype=np.int32)
     if spec.clamped:
@@ -137,4 +213,40 @@ def assemble_operators(mesh_data, spec: ModelSpec) -> Operators:
     Mz = _assemble(_compile(a_Mz, qd), fK, bcs, 0.0)
     C = _assemble(_compile(a_C, qd), fK, bcs, 0.0) if a_C is not None else None
     Kf = _assemble(_compile(a_f, qd), fK, bcs, 0.0) if a_f is not None else None
-    return Operators(V, K, Kf, M, C, Mz, bc_dofs)
+
+    f = None
+    if L is not None:
+        fL = _compile(L, qd)
+        f = fem_petsc.assemble_vector(fL)
+        f.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem_petsc.set_bc(f, bcs)
+
+    contacts = []
+    bc_rows = _owned_global_rows(K, V, bc_dofs)
+    for it in spec.interfaces:
+        op = build_interface(V, mesh_data, spec, it)
+        if it.kind == "contact":
+            contacts.append((it, op))
+            continue
+        kt = it.kn if it.kind == "bonded" else it.kt
+        S = itf.spring_stiffness(op, it.kn, kt)
+        S.zeroRowsColumns(bc_rows, diag=0.0)
+        _add(K, S)
+        S.destroy()
+        op.destroy()
+
+    K_parts = M_parts = None
+    if parts:
+        K_parts = {}
+        for part, mat in spec.materials.items():
+            fp = _compile(forms.stiffness_form(u, v, mat.E, mat.nu, dx(mesh_data.volumes[part])), qd)
+            K_parts[part] = _assemble(fp, fp, [], 0.0)
+    if describe_part is not None:
+        if describe_part not in spec.materials:
+            raise KeyError(f"describe_part: no part {describe_part!r}; parts: {sorted(spec.materials)}")
+        mat, dxp = spec.materials[describe_part], dx(mesh_data.volumes[describe_part])
+        fm = _compile(forms.mass_form(u, v, mat.rho, dxp), qd)
+        M_parts = {describe_part: (_assemble(fm, fm, [], 0.0),
+                                   _assemble(_compile(forms.axial_mass_form(u, v, mat.rho, dxp, axis_c), qd),
+                                             fm, [], 0.0))}
+    return Operators(V, K, Kf, M, C, Mz, bc_dofs, f, tuple(contacts), K_parts, M_parts)

@@ -6,12 +6,17 @@ Notation: u trial, v test, n outward unit normal of the body's face, s unit slid
 * mass           a_M(u, v) = ∫ ρ u·v dx     (axial part ∫ ρ (u·a)(v·a) dx for energy shares)
 * contact        a_c(u, v) = ∫ k_n (u·n)(v·n) ds        (penalty to a rigid plate, symmetric)
 * friction       a_f(u, v) = ∫ μ k_n (u·n)(s·v) ds      (asymmetric)
+* ground spring  a_g(u, v) = ∫ k_a (u·a)(v·a) + k_t (u − (u·a)a)·(v − (v·a)a) ds
+* pressure load  L_p(v)    = −∫ p (v·n) ds
 
 The friction *traction* on the body is t_f = μ k_n (u·n) s: a closure u·n > 0 into the plate raises
 the pressure by k_n u·n and the friction force by μ times that, along the direction in which the
 plate slides relative to the body.  Moving it to the left-hand side gives the operator
 
-    M ü + C u̇ + (K + K_c − K_f) u = 0,          K_f = assembled a_f.
+    M ü + C u̇ + (K + K_c − a_f) u = 0.
+
+The assembly stores the friction stiffness as it enters the operator (``Operators.Kf`` = −a_f,
+the same sign as the interface operator's μ G_sᵀ k_n G_n).
 
 For a disc about the z axis s = ±e_θ: +1 for a plate sliding in +θ relative to the disc (forward).
 """
@@ -58,7 +63,7 @@ def contact_form(u, v, kn, n, ds):
 
 
 def friction_form(u, v, kn, mu, n, s, ds):
-    """a_f(u, v) = ∫ μ k_n (u·n)(s·v) ds  (enters the operator as −K_f)."""
+    """a_f(u, v) = ∫ μ k_n (u·n)(s·v) ds  (enters the operator with a minus sign)."""
     return mu * kn * ufl.dot(u, n) * ufl.dot(s, v) * ds
 
 
@@ -68,3 +73,14 @@ def circumferential_direction(x, sign: float = 1.0, axis: str = "z"):
         raise ValueError(f"axis: only 'z' is supported (got {axis!r})")
     r = ufl.sqrt(x[0] ** 2 + x[1] ** 2)
     return ufl.as_vector((-sign * x[1] / r, sign * x[0] / r, 0.0))
+
+
+def ground_spring_form(u, v, k_axial, k_transverse, axis, ds):
+    """a_g(u, v) = ∫ k_a (u·a)(v·a) + k_t (u − (u·a)a)·(v − (v·a)a) ds (springs to ground)."""
+    ua, va = ufl.dot(u, axis), ufl.dot(v, axis)
+    return (k_axial * ua * va + k_transverse * ufl.dot(u - ua * axis, v - va * axis)) * ds
+
+
+def pressure_load_form(v, p, n, ds):
+    """L_p(v) = −∫ p (v·n) ds: a pressure pushes the face inwards."""
+    return -p * ufl.dot(v, n) * ds

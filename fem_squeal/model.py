@@ -1,4 +1,4 @@
-"""Plain descriptions of the physics of a model: materials, rigid plates, boundary conditions.
+"""Plain descriptions of the physics of a model: materials, plates, interfaces, springs, loads.
 
 These are validated values (the scene loader builds them); the assembly turns them into matrices.
 """
@@ -52,6 +52,66 @@ class RigidPlate:
 
 
 @dataclass(frozen=True)
+class Interface:
+    """Coupling of two deformable faces through the interface operator G (see ``interface``).
+
+    ``kind``:
+      * ``contact``: unilateral penalty k_n [N/m³] on the normal gap, friction μ with the master
+        sliding along ``sliding``·e_θ relative to the slave (+1 forward, −1 backward, 0 none);
+      * ``spring``: elastic layer k_n normal, k_t [N/m³] in both tangential directions;
+      * ``bonded``: a tie, a spring layer with k_n = k_t (large).
+    The slave face carries the quadrature points (the finer or softer side: the lining)."""
+
+    name: str
+    slave: str
+    master: str
+    kind: str = "contact"
+    kn: float = 0.0
+    kt: float = 0.0
+    mu: float = 0.0
+    sliding: int = 1
+
+    def __post_init__(self):
+        if self.kind not in ("contact", "spring", "bonded"):
+            raise ValueError(f"kind: must be 'contact', 'spring' or 'bonded' (got {self.kind!r})")
+        if not self.kn > 0:
+            raise ValueError(f"kn: must be > 0 (got {self.kn})")
+        if not self.kt >= 0 or not self.mu >= 0:
+            raise ValueError("kt, mu: must be >= 0")
+        if self.kind != "contact" and self.mu > 0:
+            raise ValueError(f"mu: only contact interfaces have friction (kind {self.kind!r})")
+        if self.sliding not in (-1, 0, 1):
+            raise ValueError(f"sliding: must be -1, 0 or +1 (got {self.sliding})")
+
+    @property
+    def has_friction(self) -> bool:
+        return self.kind == "contact" and self.mu > 0 and self.sliding != 0
+
+
+@dataclass(frozen=True)
+class GroundSpring:
+    """Distributed springs from a face to ground [N/m³]: k_axial along the axis, k_transverse across.
+
+    Guide pins and the anchor bracket: the caliper and the pads slide axially (small k_axial)."""
+
+    face: str
+    k_axial: float
+    k_transverse: float
+
+    def __post_init__(self):
+        if self.k_axial < 0 or self.k_transverse < 0 or self.k_axial + self.k_transverse <= 0:
+            raise ValueError("k_axial, k_transverse: must be >= 0, not both 0")
+
+
+@dataclass(frozen=True)
+class Pressure:
+    """Uniform pressure p [Pa] on a face (pushes along −n, n the face's outward normal)."""
+
+    face: str
+    p: float
+
+
+@dataclass(frozen=True)
 class ModelSpec:
     """Everything the assembly needs besides the mesh: materials per part, plates, clamps, degree."""
 
@@ -61,6 +121,10 @@ class ModelSpec:
     degree: int = 2
     quadrature_degree: int | None = None
     axis: tuple[float, float, float] = field(default=(0.0, 0.0, 1.0))
+    interfaces: tuple[Interface, ...] = ()
+    ground_springs: tuple[GroundSpring, ...] = ()
+    pressures: tuple[Pressure, ...] = ()
+    interface_quadrature_degree: int = 4
 
     @property
     def has_damping(self) -> bool:
@@ -68,4 +132,9 @@ class ModelSpec:
 
     @property
     def has_friction(self) -> bool:
-        return any(p.mu > 0 and p.sliding != 0 and p.kn > 0 for p in self.plates)
+        return any(p.mu > 0 and p.sliding != 0 and p.kn > 0 for p in self.plates) or \
+            any(i.has_friction for i in self.interfaces)
+
+    @property
+    def contacts(self) -> tuple[Interface, ...]:
+        return tuple(i for i in self.interfaces if i.kind == "contact")

@@ -76,7 +76,8 @@ def test_friction_form_moment_and_sign(sliding):
     ops = ring_operators(sliding=(sliding, 0))
     uz, rot = rigid_modes(ops)[2], rigid_modes(ops)[3]
     expect = sliding * 0.3 * 1e10 * 2 * math.pi * (RO ** 3 - RI ** 3) / 3
-    assert quad(ops.Kf, uz, rot) == pytest.approx(expect, rel=GEOM_TOL)
+    # Operators.Kf is the friction stiffness as it enters the operator: −a_f
+    assert -quad(ops.Kf, uz, rot) == pytest.approx(expect, rel=GEOM_TOL)
     # asymmetric: a rotation does not close the gap, so it produces no friction force
     assert abs(quad(ops.Kf, rot, uz)) <= 1e-10 * abs(expect)
 
@@ -86,7 +87,7 @@ def test_friction_cancels_for_opposite_sliding_under_uniform_closure():
     uz, rot = rigid_modes(ops)[2], rigid_modes(ops)[3]
     # u_z = 1: top u·n = +1 with s = +e_θ, bottom u·n = −1 with s = −e_θ: same torque twice
     expect = 2 * 0.3 * 1e10 * 2 * math.pi * (RO ** 3 - RI ** 3) / 3
-    assert quad(ops.Kf, uz, rot) == pytest.approx(expect, rel=GEOM_TOL)
+    assert -quad(ops.Kf, uz, rot) == pytest.approx(expect, rel=GEOM_TOL)
     ops2 = ring_operators(sliding=(1, 1))
     assert abs(quad(ops2.Kf, uz, rot)) <= 1e-8 * expect
 

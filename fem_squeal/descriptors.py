@@ -83,3 +83,25 @@ class CircumferentialBasis:
         direction = 0 if abs(tau) < 0.5 else int(np.sign(tau))
         share = float(power[k] / e_tot) if e_tot > 0 else 0.0
         return ModeDescriptors(float(1.0 - e_ax / e_tot), k, share, tau, direction)
+
+
+def strain_energy_shares(K_parts: dict[str, PETSc.Mat], xr: PETSc.Vec, xi: PETSc.Vec | None = None,
+                         groups: dict[str, tuple[str, ...]] | None = None) -> dict[str, float]:
+    """Share of each part (or group of parts) in the strain energy of a mode.
+
+    For x = xr + i xi and symmetric part stiffnesses K_p: E_p = xrᵀK_p xr + xiᵀK_p xi (twice the
+    time-averaged strain energy of Re(x e^{iωt})); shares are E_p / Σ_q E_q."""
+    t = xr.duplicate()
+    energy = {}
+    for part, Kp in K_parts.items():
+        Kp.mult(xr, t)
+        e = xr.dot(t)
+        if xi is not None:
+            Kp.mult(xi, t)
+            e += xi.dot(t)
+        energy[part] = e
+    t.destroy()
+    total = sum(energy.values())
+    if groups:
+        energy = {g: sum(energy[p] for p in parts if p in energy) for g, parts in groups.items()}
+    return {k: (float(v / total) if total > 0 else 0.0) for k, v in energy.items()}

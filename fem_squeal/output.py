@@ -7,6 +7,7 @@ import math
 import os
 import shutil
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -47,35 +48,17 @@ def write_json_atomic(path: Path, data: dict) -> None:
         raise
 
 
-def write_modes_xdmf(comm, path: Path, V, modes: list[tuple[object, object | None]], names=("re", "im")) -> None:
-    """Write mode shapes (real part, imaginary part or None) as a time series t = mode index.
-
-    Functions are interpolated into the mesh's coordinate space (XDMF needs that degree)."""
-    from dolfinx import fem
-    from dolfinx.io import XDMFFile
-
+@contextmanager
+def _atomic_xdmf(comm, path: Path):
+    """Yield a temporary path for a collective XDMF write; rank 0 moves .xdmf/.h5 into place."""
     path = Path(path)
-    mesh = V.mesh
     tmpdir = None
     if comm.rank == 0:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmpdir = tempfile.mkdtemp(prefix=".xdmf.", dir=path.parent)
     tmpdir = Path(comm.bcast(tmpdir, root=0))
     try:
-        W = fem.VectorFunctionSpace(mesh, ("Lagrange", mesh.geometry.cmap.degree))
-        src = fem.Function(V)
-        fr, fi = fem.Function(W, name=f"mode_{names[0]}"), fem.Function(W, name=f"mode_{names[1]}")
-        with XDMFFile(comm, str(tmpdir / path.name), "w") as xdmf:
-            xdmf.write_mesh(mesh)
-            for j, (xr, xi) in enumerate(modes):
-                for vec, f in ((xr, fr), (xi, fi)):
-                    if vec is None:
-                        f.x.array[:] = 0.0
-                    else:
-                        src.x.array[: vec.getLocalSize()] = vec.array_r
-                        src.x.scatter_forward()
-                        f.interpolate(src)
-                    xdmf.write_function(f, float(j))
+        yield tmpdir / path.name
         comm.barrier()
         if comm.rank == 0:
             for suffix in (".xdmf", ".h5"):
@@ -86,3 +69,65 @@ def write_modes_xdmf(comm, path: Path, V, modes: list[tuple[object, object | Non
         comm.barrier()
         if comm.rank == 0:
             shutil.rmtree(tmpdir, ignore_errors=True)
+
+
+def _coordinate_space(V, scalar: bool):
+    from dolfinx import fem
+
+    el = ("Lagrange", V.mesh.geometry.cmap.degree)
+    return fem.FunctionSpace(V.mesh, el) if scalar else fem.VectorFunctionSpace(V.mesh, el)
+
+
+def write_modes_xdmf(comm, path: Path, V, modes: list[tuple[object, object | None]], names=("re", "im")) -> None:
+    """Write mode shapes (real part, imaginary part or None) as a time series t = mode index.
+
+    Functions are interpolated into the mesh's coordinate space (XDMF needs that degree)."""
+    from dolfinx import fem
+    from dolfinx.io import XDMFFile
+
+    W = _coordinate_space(V, scalar=False)
+    src = fem.Function(V)
+    fr, fi = fem.Function(W, name=f"mode_{names[0]}"), fem.Function(W, name=f"mode_{names[1]}")
+    with _atomic_xdmf(comm, path) as tmp, XDMFFile(comm, str(tmp), "w") as xdmf:
+        xdmf.write_mesh(V.mesh)
+        for j, (xr, xi) in enumerate(modes):
+            for vec, f in ((xr, fr), (xi, fi)):
+                if vec is None:
+                    f.x.array[:] = 0.0
+                else:
+                    src.x.array[: vec.getLocalSize()] = vec.array_r
+                    src.x.scatter_forward()
+                    f.interpolate(src)
+                xdmf.write_function(f, float(j))
+
+
+def write_fields_xdmf(comm, path: Path, fields: dict[str, object]) -> None:
+    """Write dolfinx Functions (any Lagrange degree, same mesh) into one XDMF file at t = 0."""
+    from dolfinx import fem
+    from dolfinx.io import XDMFFile
+
+    first = next(iter(fields.values()))
+    mesh = first.function_space.mesh
+    with _atomic_xdmf(comm, path) as tmp, XDMFFile(comm, str(tmp), "w") as xdmf:
+        xdmf.write_mesh(mesh)
+        for name, f in fields.items():
+            W = _coordinate_space(f.function_space, scalar=len(f.ufl_shape) == 0)
+            g = fem.Function(W, name=name)
+            g.interpolate(f)
+            xdmf.write_function(g, 0.0)
+
+
+def save_figure_atomic(fig, path: Path, dpi: int = 120) -> None:
+    """Save a matplotlib figure through a temporary file and ``os.replace`` (rank 0 only)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=dpi)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise

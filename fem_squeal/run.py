@@ -1,20 +1,28 @@
-"""Run a validated scene: mesh → operators → real modes and/or CEA → descriptors → outputs.
+"""Run a validated scene: mesh → operators → preload → real modes and/or CEA → descriptors → outputs.
 
 Each stage is a function of the scene and the upstream results, and only the stages that the
 requested analyses need are run (a scene without ``analyses.real_modes`` solves no real modes).
 Outputs go to ``outdir``: ``results.json`` (schema below, written atomically by rank 0) and XDMF
 files of the mode shapes.
 
-results.json (schema_version 1)
+results.json (schema_version 2)
 -------------------------------
 scene            the validated scene (all defaults filled in)
 model            dofs, cells, ranks, degree
 timings_s        wall time per stage
+preload          (models with contact interfaces) mode, iterations, history [[closed points,
+                 ‖R‖/‖f‖]], and per interface: normal_force [N], friction_force [N],
+                 contact_area [m²], area [m²], peak_pressure [Pa], closed_share
 real_modes       [{freq_hz, residual, in_plane_share, nodal_diameter, nodal_share}]
 complex_modes    [{index, freq_hz, real_part [1/s], damping_ratio, residual, unstable,
                    in_plane_share, nodal_diameter, nodal_share, travelling_index,
-                   travelling_direction}]   (Im λ > 0, inside analyses.cea.band_hz)
+                   travelling_direction, energy_shares {component: share}}]
+                 (Im λ > 0, inside analyses.cea.band_hz; descriptors of describe_part;
+                 energy_shares only for models with several parts)
 n_unstable       number of complex modes with Re λ > 0
+
+Files: real_modes.xdmf, complex_modes.xdmf (mode_re, mode_im), preload.xdmf
+(preload_displacement, contact_pressure), contact_pressure.png.
 """
 from __future__ import annotations
 
@@ -23,11 +31,13 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from mpi4py import MPI
 
 from fem_squeal.scene import model_spec
+from fem_squeal.tags import COMPONENT_GROUPS
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
 
 def build_mesh(comm: MPI.Comm, scene: dict):
@@ -45,11 +55,60 @@ def cea_target_hz(cea: dict) -> float:
     return cea["target_hz"] or math.sqrt(0.5 * (lo * lo + hi * hi))
 
 
+def describe_part(scene: dict, volumes: dict[str, int]) -> str | None:
+    """The part whose nodal diameters are reported: analyses.cea.describe_part, else "disc"."""
+    part = scene["analyses"].get("cea", {}).get("describe_part", "")
+    if part:
+        return part
+    return "disc" if "disc" in volumes and len(volumes) > 1 else None
+
+
+def _preload_outputs(comm, outdir: Path, ops, pre, write_fields: bool, title: str) -> dict[str, Any]:
+    """Summary of the preload for results.json; pressure PNG and XDMF (pressure, displacement)."""
+    from dolfinx import fem
+
+    from fem_squeal import plots
+    from fem_squeal.interface import project_to_nodes
+    from fem_squeal.output import write_fields_xdmf
+
+    summary: dict[str, Any] = {}
+    plot_data = {}
+    for it, op in ops.contacts:
+        p = pre.pressure[it.name]
+        area = op.area(comm)
+        summary[it.name] = {
+            "normal_force": pre.normal_force[it.name], "friction_force": pre.friction_force[it.name],
+            "contact_area": pre.contact_area[it.name], "area": area,
+            "closed_share": pre.contact_area[it.name] / area if area > 0 else 0.0,
+            "peak_pressure": comm.allreduce(float(np.max(p, initial=0.0)), op=MPI.MAX),
+        }
+        xs, ps = comm.gather(op.x, root=0), comm.gather(p, root=0)
+        if comm.rank == 0:
+            plot_data[it.name] = (np.concatenate(xs), np.concatenate(ps))
+    if comm.rank == 0:
+        plots.contact_pressure(outdir / "contact_pressure.png", plot_data, title)
+    if write_fields:
+        V = ops.V
+        S = fem.FunctionSpace(V.mesh, ("Lagrange", V.ufl_element().degree()))
+        assert S.dofmap.index_map.size_local == V.dofmap.index_map.size_local
+        p_h = fem.Function(S, name="contact_pressure")
+        for it, op in ops.contacts:
+            dofs, vals = project_to_nodes(op, pre.pressure[it.name], comm)
+            p_h.vector.setValues(dofs.astype(np.int32), vals)
+        p_h.vector.assemble()
+        p_h.x.scatter_forward()
+        u = fem.Function(V, name="preload_displacement")
+        u.x.array[: pre.u.getLocalSize()] = pre.u.array_r
+        u.x.scatter_forward()
+        write_fields_xdmf(comm, outdir / "preload.xdmf", {"preload_displacement": u, "contact_pressure": p_h})
+    return summary
+
+
 def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
               write_fields: bool = True, log=print) -> dict[str, Any]:
     """Run every analysis of ``scene`` and write the outputs; returns the results dictionary."""
-    from fem_squeal.assembly import assemble_operators
-    from fem_squeal.descriptors import CircumferentialBasis
+    from fem_squeal.assembly import assemble_operators, linearise
+    from fem_squeal.descriptors import CircumferentialBasis, strain_energy_shares
     from fem_squeal.eigen import solve_complex_modes, solve_real_modes
     from fem_squeal.output import write_json_atomic, write_modes_xdmf
 
@@ -64,19 +123,45 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
     md = build_mesh(comm, scene)
     timings["mesh"] = time.perf_counter() - t
     t = time.perf_counter()
-    ops = assemble_operators(md, spec)
+    ana = scene["analyses"]
+    part = describe_part(scene, md.volumes)
+    ops = assemble_operators(md, spec, parts="cea" in ana and len(spec.materials) > 1, describe_part=part)
     timings["assembly"] = time.perf_counter() - t
     ndofs = ops.V.dofmap.index_map.size_global * ops.V.dofmap.index_map_bs
     ncells = md.mesh.topology.index_map(3).size_global
     say(f"[fem_squeal] {ncells} cells, {ndofs} DOFs (P{spec.degree}) on {comm.size} rank(s); "
         f"mesh {timings['mesh']:.2f} s, assembly {timings['assembly']:.2f} s")
-    basis = CircumferentialBasis(ops.V, ops.M, ops.M_axial)
+    Md, Mzd = ops.M_parts[part] if part else (ops.M, ops.M_axial)
+    basis = CircumferentialBasis(ops.V, Md, Mzd)
     results: dict[str, Any] = {
         "schema_version": SCHEMA_VERSION, "scene": scene,
         "model": {"dofs": ndofs, "cells": ncells, "ranks": comm.size, "degree": spec.degree},
         "timings_s": timings,
     }
-    ana = scene["analyses"]
+
+    if ops.contacts:
+        pl = scene["preload"]
+        t = time.perf_counter()
+        if pl["mode"] == "nonlinear":
+            from fem_squeal.preload import solve_preload
+
+            pre = solve_preload(ops, friction=pl["friction"], tol=pl["tol"], max_iterations=pl["max_iterations"],
+                                options=petsc_options)
+            lin = linearise(ops, pre.active)
+            timings["preload"] = time.perf_counter() - t
+            results["preload"] = {"mode": "nonlinear", "iterations": pre.iterations, "history": pre.history,
+                                  "interfaces": _preload_outputs(comm, outdir, ops, pre, write_fields,
+                                                                 scene["title"])}
+            say(f"[fem_squeal] preload: {pre.iterations} Newton iterations, "
+                + ", ".join(f"{k} N = {v['normal_force']:.4g} N, closed {100 * v['closed_share']:.1f} %"
+                            for k, v in results["preload"]["interfaces"].items())
+                + f"; {timings['preload']:.2f} s")
+        else:
+            lin = linearise(ops, None)
+            timings["preload"] = time.perf_counter() - t
+            results["preload"] = {"mode": "all_closed"}
+        ops.K.destroy()
+        ops = lin
 
     if "real_modes" in ana:
         a = ana["real_modes"]
@@ -108,6 +193,9 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
             d = basis.describe(xr, xi)
             rows.append({"index": len(rows), "freq_hz": f, "real_part": re, "damping_ratio": zeta,
                          "residual": r, "unstable": bool(re > 0), **d._asdict()})
+            if ops.K_parts:
+                groups = COMPONENT_GROUPS.get(scene["geometry"]["builder"])
+                rows[-1]["energy_shares"] = strain_energy_shares(ops.K_parts, xr, xi, groups)
             fields.append((xr, xi))
         results["complex_modes"] = rows
         results["n_unstable"] = sum(r["unstable"] for r in rows)

@@ -10,19 +10,31 @@ Sections
 title            free text
 geometry         builder = "annular_disc": mean_radius, width, thickness [m], mesh_size [m],
                  order (1 or 2; 2 = curved second-order tetrahedra)
+                 builder = "brake_corner": every field of ``geometry.brake_corner.BrakeCornerParams``
+                 (dimensions [m], angles [deg], mesh sizes [m], matching) plus order
 materials.<part> E [Pa], nu, rho [kg/m³], rayleigh_alpha [1/s], rayleigh_beta [s]
 interfaces.<name> type = "rigid_plate": face, kn [N/m³], mu, sliding (+1 forward: the plate
                  slides in +e_θ relative to the body; −1 backward; 0 none)
-boundary         clamped = [face names] (all displacement components fixed)
-discretisation   degree (1 or 2), quadrature_degree (0 = automatic)
+                 type = "contact": slave, master (faces), kn [N/m³], mu, sliding (+1: the master
+                 slides in +e_θ relative to the slave, i.e. the disc turns forward)
+                 type = "spring": slave, master, kn, kt [N/m³];  type = "bonded": slave, master, kn
+boundary         clamped = [face names] (all displacement components fixed);
+                 ground_springs.<name>: face, k_axial, k_transverse [N/m³]
+loads            pressure.<name>: face, p [Pa] (pushes the face inwards)
+preload          mode ("nonlinear": active-set Newton then linearise about the closed points;
+                 "all_closed": every contact point closed, no static solve), friction (sliding
+                 friction in the static step), tol, max_iterations
+discretisation   degree (1 or 2), quadrature_degree (0 = automatic), interface_quadrature_degree
 analyses.real_modes  n_modes, target_hz, tol, max_residual
 analyses.cea         n_modes, target_hz, band_hz = [lo, hi], method ("auto"|"linear"|"pep"),
-                     tol, max_residual
+                     tol, max_residual, describe_part (part whose nodal diameters are reported;
+                     "" = "disc" if the model has one, else all)
 solver           petsc_options = { key = value } (given with their prefix, e.g. "cea_st_type")
 """
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import tomllib
 from collections.abc import Callable
@@ -30,7 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fem_squeal.model import Material, ModelSpec, RigidPlate
+from fem_squeal.model import GroundSpring, Interface, Material, ModelSpec, Pressure, RigidPlate
 from fem_squeal.tags import GEOMETRY_TAGS
 
 
@@ -74,6 +86,24 @@ def nonempty_str(v):
 
 REAL = (int, float)
 
+
+def _dataclass_fields(cls) -> dict[str, Field]:
+    """Scene fields of a parameter dataclass: its defaults, its types (None = optional real)."""
+    out = {}
+    for f in dataclasses.fields(cls):
+        d = f.default
+        kind = bool if isinstance(d, bool) else REAL if isinstance(d, (int, float)) or d is None else type(d)
+        out[f.name] = Field(kind, d, None, f.metadata.get("doc", ""))
+    return out
+
+
+def _brake_corner_fields() -> dict[str, Field]:
+    from geometry.brake_corner import BrakeCornerParams
+
+    return {"builder": Field(str), **_dataclass_fields(BrakeCornerParams),
+            "order": Field(int, 2, one_of(1, 2), "geometry order: 2 = curved tetrahedra")}
+
+
 GEOMETRY = {
     "annular_disc": {
         "builder": Field(str),
@@ -83,6 +113,7 @@ GEOMETRY = {
         "mesh_size": Field(REAL, check=positive, doc="target element size [m]"),
         "order": Field(int, 2, one_of(1, 2), "geometry order: 2 = curved tetrahedra"),
     },
+    "brake_corner": _brake_corner_fields(),
 }
 MATERIAL = {
     "E": Field(REAL, check=positive, doc="Young's modulus [Pa]"),
@@ -91,18 +122,39 @@ MATERIAL = {
     "rayleigh_alpha": Field(REAL, 0.0, non_negative, "mass-proportional damping [1/s]"),
     "rayleigh_beta": Field(REAL, 0.0, non_negative, "stiffness-proportional damping [s]"),
 }
-INTERFACE = {
-    "type": Field(str, "rigid_plate", one_of("rigid_plate")),
-    "face": Field(str, check=nonempty_str, doc="face name of the geometry"),
-    "kn": Field(REAL, check=non_negative, doc="penalty stiffness per area [N/m³]"),
-    "mu": Field(REAL, 0.0, non_negative, "friction coefficient"),
-    "sliding": Field(int, 1, one_of(-1, 0, 1), "+1 forward (+e_θ), -1 backward, 0 none"),
+_TYPE = Field(str, "rigid_plate", one_of("rigid_plate", "contact", "spring", "bonded"))
+_PAIR = {"slave": Field(str, check=nonempty_str, doc="slave face (quadrature side: the lining)"),
+         "master": Field(str, check=nonempty_str, doc="master face (the disc)")}
+_FRICTION = {"mu": Field(REAL, 0.0, non_negative, "friction coefficient"),
+             "sliding": Field(int, 1, one_of(-1, 0, 1), "+1 forward (+e_θ), -1 backward, 0 none")}
+INTERFACES = {
+    "rigid_plate": {"type": _TYPE, "face": Field(str, check=nonempty_str, doc="face name of the geometry"),
+                    "kn": Field(REAL, check=non_negative, doc="penalty stiffness per area [N/m³]"), **_FRICTION},
+    "contact": {"type": _TYPE, **_PAIR, "kn": Field(REAL, check=positive, doc="penalty [N/m³]"), **_FRICTION},
+    "spring": {"type": _TYPE, **_PAIR, "kn": Field(REAL, check=positive, doc="normal stiffness [N/m³]"),
+               "kt": Field(REAL, 0.0, non_negative, "tangential stiffness [N/m³]")},
+    "bonded": {"type": _TYPE, **_PAIR, "kn": Field(REAL, 1e14, positive, "tie penalty [N/m³]")},
 }
+GROUND_SPRING = {
+    "face": Field(str, check=nonempty_str),
+    "k_axial": Field(REAL, 0.0, non_negative, "stiffness along the axis [N/m³]"),
+    "k_transverse": Field(REAL, 0.0, non_negative, "stiffness across the axis [N/m³]"),
+}
+PRESSURE = {"face": Field(str, check=nonempty_str), "p": Field(REAL, check=None, doc="pressure [Pa]")}
 SECTIONS = {
-    "boundary": {"clamped": Field(list, [], None, "faces with all displacements fixed")},
+    "boundary": {"clamped": Field(list, [], None, "faces with all displacements fixed"),
+                 "ground_springs": Field(dict, {}, None, "name -> {face, k_axial, k_transverse}")},
+    "loads": {"pressure": Field(dict, {}, None, "name -> {face, p}")},
+    "preload": {
+        "mode": Field(str, "nonlinear", one_of("nonlinear", "all_closed")),
+        "friction": Field(bool, True, None, "sliding friction in the static step"),
+        "tol": Field(REAL, 1e-9, positive, "Newton tolerance on ‖R‖/‖f‖"),
+        "max_iterations": Field(int, 25, positive),
+    },
     "discretisation": {
         "degree": Field(int, 2, one_of(1, 2), "Lagrange degree (P1 locks in bending)"),
         "quadrature_degree": Field(int, 0, non_negative, "0 = estimated by the form compiler"),
+        "interface_quadrature_degree": Field(int, 4, positive, "slave-surface quadrature of interfaces"),
     },
     "solver": {"petsc_options": Field(dict, {}, None, "PETSc options, with their solver prefix")},
 }
@@ -117,6 +169,7 @@ ANALYSES = {
         "band_hz": Field(list, [0.0, 10000.0], band, "frequency band kept in the results"),
         "method": Field(str, "auto", one_of("auto", "linear", "pep")),
         "tol": Field(REAL, 1e-10, positive), "max_residual": Field(REAL, 1e-8, positive),
+        "describe_part": Field(str, "", None, "part for nodal diameters; '' = disc if present"),
     },
 }
 
@@ -137,7 +190,7 @@ def _check_fields(table: Any, fields: dict[str, Field], path: str) -> dict:
             continue
         v = table[name]
         kinds = f.kind if isinstance(f.kind, tuple) else (f.kind,)
-        if isinstance(v, bool) or not isinstance(v, kinds):
+        if (isinstance(v, bool) and bool not in kinds) or not isinstance(v, kinds):
             want = " or ".join(k.__name__ for k in kinds)
             raise SceneError(f"{key}: must be {want} (got {v!r})")
         if isinstance(v, float) and not math.isfinite(v):
@@ -173,6 +226,15 @@ def validate(raw: dict) -> dict:
     volumes, faces = GEOMETRY_TAGS[builder]
     if builder == "annular_disc" and scene["geometry"]["width"] >= 2 * scene["geometry"]["mean_radius"]:
         raise SceneError("geometry.width: must be < 2 * mean_radius")
+    if builder == "brake_corner":
+        from geometry.brake_corner import BrakeCornerParams
+
+        params = {k: v for k, v in scene["geometry"].items() if k not in ("builder", "order")}
+        try:
+            BrakeCornerParams(**params)
+        except (ValueError, TypeError) as e:
+            msg = str(e)
+            raise SceneError(msg if msg.startswith("geometry.") else f"geometry: {msg}") from None
 
     mats = raw.get("materials")
     if not isinstance(mats, dict) or not mats:
@@ -190,17 +252,45 @@ def validate(raw: dict) -> dict:
     interfaces = raw.get("interfaces", {})
     if not isinstance(interfaces, dict):
         raise SceneError(f"interfaces: must be a table of interfaces (got {type(interfaces).__name__})")
+    def known_face(face, key):
+        if face not in faces:
+            raise SceneError(f"{key}: unknown face {face!r}; faces: {sorted(faces)}")
+
     for name, table in interfaces.items():
-        t = _check_fields(table, INTERFACE, f"interfaces.{name}")
-        if t["face"] not in faces:
-            raise SceneError(f"interfaces.{name}.face: unknown face {t['face']!r}; faces: {sorted(faces)}")
+        key = f"interfaces.{name}"
+        if not isinstance(table, dict):
+            raise SceneError(f"{key}: must be a table (got {type(table).__name__})")
+        kind = table.get("type", "rigid_plate")
+        if not isinstance(kind, str) or kind not in INTERFACES:
+            raise SceneError(f"{key}.type: must be one of {sorted(INTERFACES)} (got {kind!r})")
+        t = _check_fields(table, INTERFACES[kind], key)
+        for side in ("face", "slave", "master"):
+            if side in t:
+                known_face(t[side], f"{key}.{side}")
+        if "slave" in t and t["slave"] == t["master"]:
+            raise SceneError(f"{key}.master: must differ from the slave face ({t['slave']!r})")
         scene["interfaces"][name] = t
 
     for sec, fields in SECTIONS.items():
         scene[sec] = _check_fields(raw.get(sec, {}), fields, sec)
     for i, f in enumerate(scene["boundary"]["clamped"]):
-        if f not in faces:
-            raise SceneError(f"boundary.clamped[{i}]: unknown face {f!r}; faces: {sorted(faces)}")
+        if not isinstance(f, str):
+            raise SceneError(f"boundary.clamped[{i}]: must be a face name (got {f!r})")
+        known_face(f, f"boundary.clamped[{i}]")
+    for sec, sub, fields in (("boundary", "ground_springs", GROUND_SPRING), ("loads", "pressure", PRESSURE)):
+        checked = {}
+        for name, table in scene[sec][sub].items():
+            key = f"{sec}.{sub}.{name}"
+            t = _check_fields(table, fields, key)
+            known_face(t["face"], f"{key}.face")
+            if sub == "ground_springs" and t["k_axial"] + t["k_transverse"] <= 0:
+                raise SceneError(f"{key}: k_axial and k_transverse must not both be 0")
+            checked[name] = t
+        scene[sec][sub] = checked
+    has_contact = any(t["type"] == "contact" for t in scene["interfaces"].values())
+    if has_contact and scene["preload"]["mode"] == "nonlinear" and not scene["loads"]["pressure"]:
+        raise SceneError("loads.pressure: required for preload.mode = 'nonlinear' with contact interfaces "
+                         "(or set preload.mode = 'all_closed')")
 
     ana = raw.get("analyses")
     if not isinstance(ana, dict) or not ana:
@@ -210,6 +300,9 @@ def validate(raw: dict) -> dict:
         if name not in ANALYSES:
             raise SceneError(f"analyses.{name}: unknown analysis; available: {sorted(ANALYSES)}")
         scene["analyses"][name] = _check_fields(table, ANALYSES[name], f"analyses.{name}")
+    part = scene["analyses"].get("cea", {}).get("describe_part", "")
+    if part and part not in volumes:
+        raise SceneError(f"analyses.cea.describe_part: unknown part {part!r}; parts: {sorted(volumes)}")
     return scene
 
 
@@ -257,5 +350,14 @@ def model_spec(scene: dict) -> ModelSpec:
     mats = {p: Material(**m) for p, m in scene["materials"].items()}
     plates = tuple(RigidPlate(t["face"], float(t["kn"]), float(t["mu"]), int(t["sliding"]))
                    for t in scene["interfaces"].values() if t["type"] == "rigid_plate")
-    qd = scene["discretisation"]["quadrature_degree"] or None
-    return ModelSpec(mats, plates, tuple(scene["boundary"]["clamped"]), scene["discretisation"]["degree"], qd)
+    interfaces = tuple(
+        Interface(name, t["slave"], t["master"], t["type"], float(t["kn"]), float(t.get("kt", 0.0)),
+                  float(t.get("mu", 0.0)), int(t.get("sliding", 0)))
+        for name, t in scene["interfaces"].items() if t["type"] != "rigid_plate")
+    springs = tuple(GroundSpring(t["face"], float(t["k_axial"]), float(t["k_transverse"]))
+                    for t in scene["boundary"]["ground_springs"].values())
+    pressures = tuple(Pressure(t["face"], float(t["p"])) for t in scene["loads"]["pressure"].values())
+    d = scene["discretisation"]
+    return ModelSpec(mats, plates, tuple(scene["boundary"]["clamped"]), d["degree"],
+                     d["quadrature_degree"] or None, interfaces=interfaces, ground_springs=springs, pressures=pressures,
+                     interface_quadrature_degree=d["interface_quadrature_degree"])

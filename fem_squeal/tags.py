@@ -34,6 +34,13 @@ BRAKE_CORNER_FACES = MappingProxyType({
     "backplate_abutment": 35,      # backplate end faces on the anchor bracket (springs to ground)
 })
 
+#: Components whose strain-energy shares the brake CEA reports (seed 002, Fig. 6).
+BRAKE_CORNER_GROUPS = MappingProxyType({
+    "disc": ("disc",), "linings": ("lining_inner", "lining_outer"),
+    "backplates": ("backplate_inner", "backplate_outer"), "caliper": ("caliper",), "piston": ("piston",),
+})
+COMPONENT_GROUPS = MappingProxyType({"brake_corner": BRAKE_CORNER_GROUPS})
+
 GEOMETRY_TAGS = MappingProxyType({
     "annular_disc": (ANNULAR_DISC_VOLUMES, ANNULAR_DISC_FACES),
     "brake_corner": (BRAKE_CORNER_VOLUMES, BRAKE_CORNER_FACES),

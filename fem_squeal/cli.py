@@ -16,11 +16,13 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--petsc-option", action="append", default=[], metavar="KEY=VALUE",
                    help="PETSc option with its prefix, e.g. cea_st_pc_factor_mat_solver_type=superlu_dist")
     r.add_argument("-o", "--outdir", type=Path, default=None, help="output folder (default out/<scene>)")
+    r.add_argument("--no-fields", action="store_true", help="skip the XDMF field files (results.json and PNG only)")
     args = p.parse_args(argv)
 
     from mpi4py import MPI
 
     from fem_squeal.eigen import EigenSolveError
+    from fem_squeal.preload import PreloadError
     from fem_squeal.scene import SceneError, load_scene
 
     comm = MPI.COMM_WORLD
@@ -40,8 +42,8 @@ def main(argv: list[str] | None = None) -> int:
 
     outdir = args.outdir or Path("out") / args.scene.stem
     try:
-        run_scene(scene, outdir, comm)
-    except (EigenSolveError, ValueError, KeyError) as e:
+        run_scene(scene, outdir, comm, write_fields=not args.no_fields)
+    except (EigenSolveError, PreloadError, ValueError, KeyError) as e:
         print(f"fem-squeal: error (rank {comm.rank}): {e}", file=sys.stderr)
         return 3
     if comm.rank == 0:

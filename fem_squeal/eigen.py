@@ -20,6 +20,10 @@ from slepc4py import SLEPc
 
 TWO_PI = 2.0 * np.pi
 
+# Scalar scaling of λ balances |λ|²‖M‖ against ‖K‖ (stiff bonded/contact penalties make ‖K‖
+# large); residual extraction picks the best eigenvector from the TOAR basis.  Measured on the
+# damped coarse brake: max relative residual 1.2e-7 without, 4e-13 with, at the same cost.
+PEP_OPTIONS = {"pep_scale": "scalar", "pep_extract": "residual"}
 DIRECT_SOLVER_OPTIONS = {
     "st_ksp_type": "preonly",
     "st_pc_type": "lu",
@@ -69,13 +73,19 @@ class ComplexModes:
 
 
 def set_options(prefix: str, options: dict[str, object] | None, defaults: dict[str, object]) -> None:
-    """Write ``defaults`` then ``options`` under ``prefix`` into the PETSc options database,
-    keeping any value already given on the command line (``-<prefix><key>``)."""
+    """Write ``defaults`` (keys without prefix) under ``prefix`` into the PETSc options database,
+    keeping any value already given on the command line (``-<prefix><key>``), then ``options``
+    (full names with their solver prefix, e.g. ``cea_st_pc_factor_mat_solver_type``: the
+    scene's ``solver.petsc_options``), which win."""
     db = PETSc.Options()
-    for key, value in {**defaults, **(options or {})}.items():
-        name = f"{prefix}{key}"
-        if key in (options or {}) or not db.hasName(name):
-            db[name] = value if not isinstance(value, bool) else ("true" if value else "false")
+
+    def text(value):
+        return value if not isinstance(value, bool) else ("true" if value else "false")
+    for key, value in defaults.items():
+        if not db.hasName(f"{prefix}{key}"):
+            db[f"{prefix}{key}"] = text(value)
+    for name, value in (options or {}).items():
+        db[name.lstrip("-")] = text(value)
 
 
 def _norm_inf(A: PETSc.Mat | None) -> float:
@@ -230,7 +240,8 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
         raise ValueError("method: 'linear' needs an undamped model (C = 0); use 'pep'")
     if method not in ("linear", "pep"):
         raise ValueError(f"method: must be 'auto', 'linear' or 'pep' (got {method!r})")
-    set_options(prefix, options, DIRECT_SOLVER_OPTIONS)
+    set_options(prefix, options, DIRECT_SOLVER_OPTIONS if method == "linear" else
+                {**DIRECT_SOLVER_OPTIONS, **PEP_OPTIONS})
     comm = K.getComm()
     lams, xrs, xis = [], [], []
     if method == "linear":

@@ -36,15 +36,18 @@ def to_dolfinx(comm: MPI.Comm, build: Callable[[object], None], *, order: int,
         gmsh.model.add("fem_squeal")
         error = None
         if comm.rank == 0:
-            build(gmsh.model)
-            gmsh.model.mesh.generate(3)
-            if order == 2:
-                gmsh.model.mesh.setOrder(2)
-            groups = {(d, t) for d, t in gmsh.model.getPhysicalGroups()}
-            missing = [f"volume {n}={t}" for n, t in volumes.items() if (3, t) not in groups]
-            missing += [f"face {n}={t}" for n, t in faces.items() if (2, t) not in groups]
-            if missing:
-                error = f"gmsh model lacks physical groups: {', '.join(missing)}"
+            try:
+                build(gmsh.model)
+                gmsh.model.mesh.generate(3)
+                if order == 2:
+                    gmsh.model.mesh.setOrder(2)
+                groups = {(d, t) for d, t in gmsh.model.getPhysicalGroups()}
+                missing = [f"volume {n}={t}" for n, t in volumes.items() if (3, t) not in groups]
+                missing += [f"face {n}={t}" for n, t in faces.items() if (2, t) not in groups]
+                if missing:
+                    error = f"gmsh model lacks physical groups: {', '.join(missing)}"
+            except Exception as e:  # broadcast, or the other ranks would wait forever
+                error = f"geometry: {e}"
         error = comm.bcast(error, root=0)
         if error:
             raise ValueError(error)

@@ -83,4 +83,4 @@ def test_too_few_converged_pairs_is_an_error():
     ops = ring_operators()
     with pytest.raises(EigenSolveError, match="of 16 requested eigenpairs converged"):
         solve_complex_modes(ops.K_total(), ops.M, None, 16, TARGET, band_hz=BAND,
-                            options={"eps_max_it": 1, "eps_ncv": 17}, prefix="starved_")
+                            options={"starved_eps_max_it": 1, "starved_eps_ncv": 17}, prefix="starved_")

@@ -45,7 +45,8 @@ for name, v in pre.items():
 
 # --- the complex modes -------------------------------------------------------------------------
 modes = res["complex_modes"]
-say(f"\n{'f [Hz]':>9} {'Re λ [1/s]':>11} {'ζ':>8} {'ND':>3}  strain energy: disc/linings/backplates/caliper/piston")
+say(f"\n{'f [Hz]':>9} {'Re λ [1/s]':>11} {'ζ':>8} {'ND':>3}  "
+    "strain energy: disc/linings/backplates/caliper/piston")
 for m in modes:
     e = m["energy_shares"]
     flag = "  UNSTABLE" if m["unstable"] else ""

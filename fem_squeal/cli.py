@@ -16,7 +16,8 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--petsc-option", action="append", default=[], metavar="KEY=VALUE",
                    help="PETSc option with its prefix, e.g. cea_st_pc_factor_mat_solver_type=superlu_dist")
     r.add_argument("-o", "--outdir", type=Path, default=None, help="output folder (default out/<scene>)")
-    r.add_argument("--no-fields", action="store_true", help="skip the XDMF field files (results.json and PNG only)")
+    r.add_argument("--no-fields", action="store_true",
+                   help="skip the XDMF field files (results.json and PNG only)")
     args = p.parse_args(argv)
 
     from mpi4py import MPI

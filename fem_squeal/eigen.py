@@ -69,7 +69,7 @@ class ComplexModes:
     @property
     def damping_ratios(self) -> np.ndarray:
         """ζ = −Re λ / |λ| (negative for unstable modes)."""
-        return -self.eigenvalues.real / np.abs(self.eigenvalues)
+        return 0.0 - self.eigenvalues.real / np.abs(self.eigenvalues)  # 0.0 - x: no "-0.0"
 
 
 def set_options(prefix: str, options: dict[str, object] | None, defaults: dict[str, object]) -> None:

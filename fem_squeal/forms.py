@@ -84,3 +84,17 @@ def ground_spring_form(u, v, k_axial, k_transverse, axis, ds):
 def pressure_load_form(v, p, n, ds):
     """L_p(v) = −∫ p (v·n) ds: a pressure pushes the face inwards."""
     return -p * ufl.dot(v, n) * ds
+
+
+def voigt_strain(u):
+    """Engineering strains (ε_xx, ε_yy, ε_zz, γ_yz, γ_xz, γ_xy)."""
+    e = strain(u)
+    return ufl.as_vector([e[0, 0], e[1, 1], e[2, 2], 2 * e[1, 2], 2 * e[0, 2], 2 * e[0, 1]])
+
+
+def material_stiffness_form(u, v, mat, dx):
+    """a_K(u, v) = ∫ (C ε(u))·ε(v) dx: isotropic form, or Voigt form of an anisotropic C (6×6)."""
+    if not getattr(mat, "transversely_isotropic", False):
+        return stiffness_form(u, v, mat.E, mat.nu, dx)
+    C = ufl.as_matrix(mat.voigt_stiffness().tolist())
+    return ufl.dot(C * voigt_strain(u), voigt_strain(v)) * dx

@@ -6,16 +6,44 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class Material:
-    """Isotropic linear-elastic material with Rayleigh damping C = αM + βK."""
+    """Linear-elastic material with Rayleigh damping C = αM + βK.
+
+    Isotropic (E, ν), or transversely isotropic about the model axis (a friction lining pressed
+    through its thickness) when E_axial, nu_axial and G_axial are given: E, ν act in the plane
+    normal to the axis, E_axial along it, nu_axial = −ε_plane/ε_axial under axial stress and
+    G_axial is the shear modulus of planes containing the axis."""
 
     E: float
     nu: float
     rho: float
     rayleigh_alpha: float = 0.0
     rayleigh_beta: float = 0.0
+    E_axial: float | None = None
+    nu_axial: float | None = None
+    G_axial: float | None = None
+
+    @property
+    def transversely_isotropic(self) -> bool:
+        return self.E_axial is not None
+
+    def voigt_stiffness(self) -> np.ndarray:
+        """6×6 stiffness in Voigt order (xx, yy, zz, yz, xz, xy), engineering shear strains,
+        axis = z: the inverse of the compliance
+        S = [[1/E, −ν/E, −ν_a/E_a], [−ν/E, 1/E, −ν_a/E_a], [−ν_a/E_a, −ν_a/E_a, 1/E_a]] ⊕
+            diag(1/G_a, 1/G_a, 2(1+ν)/E)."""
+        E, nu = self.E, self.nu
+        Ea, nua, Ga = (self.E_axial, self.nu_axial, self.G_axial) if self.transversely_isotropic else \
+            (E, nu, E / (2 * (1 + nu)))
+        S = np.zeros((6, 6))
+        S[:3, :3] = [[1 / E, -nu / E, -nua / Ea], [-nu / E, 1 / E, -nua / Ea], [-nua / Ea, -nua / Ea, 1 / Ea]]
+        S[3, 3] = S[4, 4] = 1 / Ga
+        S[5, 5] = 2 * (1 + nu) / E
+        return np.linalg.inv(S)
 
     def __post_init__(self):
         if not self.E > 0:
@@ -26,6 +54,16 @@ class Material:
             raise ValueError(f"rho: must be > 0 (got {self.rho})")
         if self.rayleigh_alpha < 0 or self.rayleigh_beta < 0:
             raise ValueError("rayleigh_alpha, rayleigh_beta: must be >= 0")
+        ti = (self.E_axial, self.nu_axial, self.G_axial)
+        if any(v is not None for v in ti):
+            if any(v is None for v in ti):
+                raise ValueError("E_axial, nu_axial, G_axial: give all three for a transversely "
+                                 "isotropic material")
+            if not (self.E_axial > 0 and self.G_axial > 0):
+                raise ValueError(f"E_axial, G_axial: must be > 0 (got {self.E_axial}, {self.G_axial})")
+            if np.min(np.linalg.eigvalsh(self.voigt_stiffness())) <= 0:
+                raise ValueError(f"nu_axial: {self.nu_axial} with E = {self.E}, E_axial = {self.E_axial} and "
+                                 f"nu = {self.nu} gives a stiffness that is not positive definite")
 
 
 @dataclass(frozen=True)

@@ -125,8 +125,12 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
     t = time.perf_counter()
     ana = scene["analyses"]
     part = describe_part(scene, md.volumes)
-    ops = assemble_operators(md, spec, parts="cea" in ana and len(spec.materials) > 1, describe_part=part)
+    sub: dict[str, float] = {}
+    ops = assemble_operators(md, spec, parts="cea" in ana and len(spec.materials) > 1, describe_part=part,
+                             timings=sub)
     timings["assembly"] = time.perf_counter() - t
+    if ops.contacts or spec.interfaces:
+        timings["interface_operators"] = sub["interfaces"]
     ndofs = ops.V.dofmap.index_map.size_global * ops.V.dofmap.index_map_bs
     ncells = md.mesh.topology.index_map(3).size_global
     say(f"[fem_squeal] {ncells} cells, {ndofs} DOFs (P{spec.degree}) on {comm.size} rank(s); "

@@ -12,7 +12,8 @@ geometry         builder = "annular_disc": mean_radius, width, thickness [m], me
                  order (1 or 2; 2 = curved second-order tetrahedra)
                  builder = "brake_corner": every field of ``geometry.brake_corner.BrakeCornerParams``
                  (dimensions [m], angles [deg], mesh sizes [m], matching) plus order
-materials.<part> E [Pa], nu, rho [kg/m³], rayleigh_alpha [1/s], rayleigh_beta [s]
+materials.<part> E [Pa], nu, rho [kg/m³], rayleigh_alpha [1/s], rayleigh_beta [s];
+                 E_axial [Pa], nu_axial, G_axial [Pa] (all three: transversely isotropic about the axis)
 interfaces.<name> type = "rigid_plate": face, kn [N/m³], mu, sliding (+1 forward: the plate
                  slides in +e_θ relative to the body; −1 backward; 0 none)
                  type = "contact": slave, master (faces), kn [N/m³], mu, sliding (+1: the master
@@ -121,6 +122,9 @@ MATERIAL = {
     "rho": Field(REAL, check=positive, doc="density [kg/m³]"),
     "rayleigh_alpha": Field(REAL, 0.0, non_negative, "mass-proportional damping [1/s]"),
     "rayleigh_beta": Field(REAL, 0.0, non_negative, "stiffness-proportional damping [s]"),
+    "E_axial": Field(REAL, None, positive, "transversely isotropic: modulus along the axis [Pa]"),
+    "nu_axial": Field(REAL, None, None, "transversely isotropic: in-plane contraction under axial stress"),
+    "G_axial": Field(REAL, None, positive, "transversely isotropic: shear modulus of axial planes [Pa]"),
 }
 _TYPE = Field(str, "rigid_plate", one_of("rigid_plate", "contact", "spring", "bonded"))
 _PAIR = {"slave": Field(str, check=nonempty_str, doc="slave face (quadrature side: the lining)"),
@@ -243,7 +247,11 @@ def validate(raw: dict) -> dict:
     for part, table in mats.items():
         if part not in volumes:
             raise SceneError(f"materials.{part}: unknown part; parts of {builder}: {sorted(volumes)}")
-        scene["materials"][part] = _check_fields(table, MATERIAL, f"materials.{part}")
+        scene["materials"][part] = m = _check_fields(table, MATERIAL, f"materials.{part}")
+        try:
+            Material(**m)
+        except ValueError as e:
+            raise SceneError(f"materials.{part}.{e}") from None
     missing = sorted(set(volumes) - set(mats))
     if missing:
         raise SceneError(f"materials.{missing[0]}: required (no material for this part)")
@@ -359,5 +367,5 @@ def model_spec(scene: dict) -> ModelSpec:
     pressures = tuple(Pressure(t["face"], float(t["p"])) for t in scene["loads"]["pressure"].values())
     d = scene["discretisation"]
     return ModelSpec(mats, plates, tuple(scene["boundary"]["clamped"]), d["degree"],
-                     d["quadrature_degree"] or None, interfaces=interfaces, ground_springs=springs, pressures=pressures,
-                     interface_quadrature_degree=d["interface_quadrature_degree"])
+                     d["quadrature_degree"] or None, interfaces=interfaces, ground_springs=springs,
+                     pressures=pressures, interface_quadrature_degree=d["interface_quadrature_degree"])

@@ -188,3 +188,18 @@ def test_brake_scene_same_on_one_and_two_ranks(tmp_path, mpirun):
     for k in pa:
         assert pb[k]["normal_force"] == pytest.approx(pa[k]["normal_force"], rel=1e-9)
         assert pb[k]["contact_area"] == pytest.approx(pa[k]["contact_area"], rel=1e-9)
+
+
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_brake_demo_runs_and_checks_itself(ranks, mpirun, tmp_path):
+    cmd = [sys.executable, str(ROOT / "demos" / "brake_corner_cea.py"), str(tmp_path), "--set", COARSE[0],
+           "--set", "analyses.cea.n_modes=20", "--set", "analyses.cea.band_hz=[0.0, 5000.0]"]
+    if ranks == 2:
+        cmd = mpirun + cmd
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=900, env=clean_env(), cwd=ROOT)
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert p.stdout.count("check passed") == 1  # printed on rank 0 only
+    for name in ("results.json", "contact_pressure.png", "preload.xdmf", "preload.h5", "complex_modes.xdmf"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    assert (tmp_path / "contact_pressure.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not [f for f in tmp_path.iterdir() if f.name.startswith(".")]  # no temporary leftovers

@@ -5,7 +5,10 @@ import math
 
 import numpy as np
 import pytest
-from conftest import ring_operators
+import ufl
+from conftest import ring_mesh, ring_operators
+from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
 from petsc4py import PETSc
 
 R, B, H = 0.05, 0.005, 0.004
@@ -103,3 +106,41 @@ def test_rayleigh_damping_matrix():
 def test_p1_warns_about_locking():
     with pytest.warns(UserWarning, match="lock"):
         ring_operators(mesh_size=0.004, degree=1, kn=0.0)
+
+
+def test_transversely_isotropic_stiffness():
+    """The Voigt form: equal constants reproduce the isotropic matrix; uniform axial strain ε_z
+    and shear γ_xz store ½C₃₃ε²V and ½C₅₅γ²V with C from inverting the compliance (1e-12)."""
+    from dolfinx import fem
+
+    from fem_squeal import forms
+    from fem_squeal.model import Material
+
+    md = ring_mesh()
+    V = fem.VectorFunctionSpace(md.mesh, ("Lagrange", 2))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    iso = Material(3e9, 0.4, 1400.0)
+    same = Material(3e9, 0.4, 1400.0, E_axial=3e9, nu_axial=0.4, G_axial=3e9 / 2.8)
+    ti = Material(8e9, 0.3, 2500.0, E_axial=3e9, nu_axial=0.15, G_axial=1.5e9)
+
+    def mat(m):
+        A = fem_petsc.assemble_matrix(fem.form(forms.material_stiffness_form(u, v, m, ufl.dx)))
+        A.assemble()
+        return A
+    A, B = mat(iso), mat(same)
+    B.axpy(-1.0, A)
+    assert B.norm() <= 1e-12 * A.norm()
+    C = ti.voigt_stiffness()
+    K = mat(ti)
+    vol = fem.assemble_scalar(fem.form(fem.Constant(md.mesh, 1.0) * ufl.dx(domain=md.mesh)))
+    for field, c in ((lambda x: np.vstack([0 * x[0], 0 * x[0], 1e-3 * x[2]]), C[2, 2]),
+                     (lambda x: np.vstack([1e-3 * x[2], 0 * x[0], 0 * x[0]]), C[4, 4])):
+        f = fem.Function(V)
+        f.interpolate(field)
+        x = K.createVecRight()
+        x.array[:] = f.x.array[: x.getLocalSize()]
+        y = K.createVecLeft()
+        K.mult(x, y)
+        assert 0.5 * x.dot(y) == pytest.approx(0.5 * c * 1e-6 * MPI.COMM_WORLD.allreduce(vol), rel=1e-10)
+    with pytest.raises(ValueError, match="nu_axial"):
+        Material(8e9, 0.3, 2500.0, E_axial=3e9, nu_axial=0.9, G_axial=1.5e9)

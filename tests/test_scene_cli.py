@@ -55,6 +55,40 @@ def test_bad_values_name_the_key_and_the_reason(override, message):
         load_scene(SCENE, [override])
 
 
+BRAKE = ROOT / "scenes" / "brake_corner.toml"
+
+
+@pytest.mark.parametrize("override, message", [
+    ("geometry.disc_thickness=-0.02", r"^geometry\.disc_thickness: "),
+    ("geometry.lining_outer_radius=0.2", r"^geometry\.lining_outer_radius: "),
+    ("geometry.matching=1", r"^geometry\.matching: must be bool"),
+    ("interfaces.pad_inner.master=rim", r"^interfaces\.pad_inner\.master: unknown face 'rim'; faces: \["),
+    ("interfaces.pad_inner.master=lining_inner_contact", r"^interfaces\.pad_inner\.master: must differ"),
+    ("interfaces.pad_inner.kn=0", r"^interfaces\.pad_inner\.kn: must be > 0"),
+    ("interfaces.pad_inner.type=glue", r"^interfaces\.pad_inner\.type: must be one of"),
+    ("interfaces.piston_pad.mu=0.3", r"^interfaces\.piston_pad\.mu: unknown key"),
+    ("boundary.ground_springs.guide_pins={face='caliper_guide'}",
+     r"^boundary\.ground_springs\.guide_pins: k_axial and"),
+    ("loads.pressure.piston.face=rim", r"^loads\.pressure\.piston\.face: unknown face 'rim'"),
+    ("loads.pressure={}", r"^loads\.pressure: required for preload\.mode = 'nonlinear'"),
+    ("preload.mode=linear", r"^preload\.mode: must be one of"),
+    ("materials.lining_inner.E_axial=3e9", r"^materials\.lining_inner\.E_axial, nu_axial, G_axial: give all"),
+    ("analyses.cea.describe_part=rotor", r"^analyses\.cea\.describe_part: unknown part 'rotor'"),
+])
+def test_bad_brake_values_name_the_key_and_the_reason(override, message):
+    with pytest.raises(SceneError, match=message):
+        load_scene(BRAKE, [override])
+
+
+def test_brake_scene_builds_its_model_spec():
+    spec = model_spec(load_scene(BRAKE, ["materials.lining_inner.E_axial=3e9", "materials.lining_inner.nu_axial=0.1",
+                                         "materials.lining_inner.G_axial=1.5e9"]))
+    assert {i.name for i in spec.contacts} == {"pad_inner", "pad_outer"}
+    assert spec.materials["lining_inner"].transversely_isotropic
+    assert not spec.materials["lining_outer"].transversely_isotropic
+    assert len(spec.pressures) == 2 and len(spec.ground_springs) == 2
+
+
 def test_missing_required_key():
     r = raw()
     del r["materials"]["disc"]["rho"]
@@ -85,12 +119,15 @@ def _paths(d, prefix=()):
 
 
 PATHS = sorted(_paths(raw()))
+BRAKE_PATHS = sorted(_paths(tomllib.loads(BRAKE.read_text())))
 
 
+@pytest.mark.parametrize("scene, paths", [(SCENE, PATHS), (BRAKE, BRAKE_PATHS)], ids=["ring", "brake"])
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(st.lists(st.tuples(st.sampled_from(PATHS), values, st.booleans()), min_size=1, max_size=4))
-def test_fuzzed_scenes_give_clear_errors(mutations):
-    r = raw()
+@given(data=st.data())
+def test_fuzzed_scenes_give_clear_errors(scene, paths, data):
+    mutations = data.draw(st.lists(st.tuples(st.sampled_from(paths), values, st.booleans()), min_size=1, max_size=4))
+    r = tomllib.loads(scene.read_text())
     for path, value, delete in mutations:
         node = r
         for p in path[:-1]:

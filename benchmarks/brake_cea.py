@@ -1,0 +1,114 @@
+"""Brake corner CEA: wall time, memory and mesh convergence of the unstable modes.
+
+Each case runs ``scenes/brake_corner.toml`` in a fresh process (peak memory per case) and reports
+DOFs, the wall time split into mesh / assembly (volume forms) / interface operators / preload /
+eigensolve, the peak RSS per rank, and the unstable modes.  The unstable modes of each mesh are
+matched to those of the finest mesh (nearest frequency with the same disc nodal diameter) and
+their frequency and growth-rate differences are tabulated.
+
+    .venv/bin/python benchmarks/brake_cea.py [--ranks 2] [--quick]
+
+Writes benchmarks/out/brake_cea_<ranks>ranks.md and .json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CASES = [("0.012", False), ("0.008", False), ("0.008", True), ("0.00615", False)]
+QUICK = [("0.016", False), ("0.012", False)]
+
+
+def run_case(mesh_size: str, matching: bool) -> dict:
+    from mpi4py import MPI
+
+    from fem_squeal.run import run_scene
+    from fem_squeal.scene import load_scene
+
+    comm = MPI.COMM_WORLD
+    scene = load_scene(ROOT / "scenes" / "brake_corner.toml",
+                       [f"geometry.mesh_size={mesh_size}", f"geometry.matching={str(matching).lower()}"])
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = comm.bcast(tmp, root=0)
+        res = run_scene(scene, tmp, comm, write_fields=False, log=lambda *a, **k: None)
+    rss = comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX) / 1024
+    t = res["timings_s"]
+    return {"mesh_size": float(mesh_size), "matching": matching, "ranks": comm.size, "dofs": res["model"]["dofs"],
+            "timings": t, "peak_rss_mb_per_rank": rss, "n_modes": len(res["complex_modes"]),
+            "unstable": [[m["freq_hz"], m["real_part"], m["nodal_diameter"]] for m in res["complex_modes"]
+                         if m["unstable"]],
+            "preload": {k: v["normal_force"] for k, v in res["preload"]["interfaces"].items()}}
+
+
+def spawn(mesh_size: str, matching: bool, ranks: int) -> dict:
+    cmd = [sys.executable, __file__, "--case", mesh_size, str(int(matching))]
+    if ranks > 1:
+        cmd = ["mpirun", "-n", str(ranks), "--oversubscribe"] + cmd
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    out = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--case", nargs=2)
+    ap.add_argument("--ranks", type=int, default=2)
+    ap.add_argument("--quick", action="store_true", help="two coarse meshes (smoke)")
+    a = ap.parse_args()
+    if a.case:
+        r = run_case(a.case[0], bool(int(a.case[1])))
+        from mpi4py import MPI
+        if MPI.COMM_WORLD.rank == 0:
+            print(json.dumps(r))
+        return
+    rows = [spawn(h, m, a.ranks) for h, m in (QUICK if a.quick else CASES)]
+    ref = min(rows, key=lambda r: r["mesh_size"])
+    lines = [f"Brake corner CEA (scene defaults, 0-10 kHz, mu 0.4), {a.ranks} rank(s).", "",
+             "| mesh size [m] | pad/disc mesh | DOFs | mesh [s] | assembly [s] | interfaces [s] | preload [s] | "
+             "eigensolve [s] | total [s] | peak RSS/rank [MB] | modes | unstable |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        t = r["timings"]
+        asm = t["assembly"] - t["interface_operators"]
+        total = sum(t[k] for k in ("mesh", "assembly", "preload", "cea"))
+        lines.append(f"| {r['mesh_size']} | {'matching' if r['matching'] else 'non-matching'} | {r['dofs']} | "
+                     f"{t['mesh']:.1f} | {asm:.1f} | {t['interface_operators']:.1f} | {t['preload']:.1f} | "
+                     f"{t['cea']:.1f} | {total:.1f} | {r['peak_rss_mb_per_rank']:.0f} | {r['n_modes']} | "
+                     f"{len(r['unstable'])} |")
+    lines += ["", f"Unstable modes (Re λ > 0) against the finest mesh ({ref['dofs']} DOFs): frequency [Hz] and "
+              "growth rate Re λ [1/s]; relative differences in brackets.", ""]
+    head = "| ND | " + " | ".join(f"{r['mesh_size']}{' m' if not r['matching'] else ' m, matching'}"
+                                  for r in rows) + " |"
+    lines += [head, "|" + "---|" * (len(rows) + 1)]
+    for f_ref, re_ref, nd in ref["unstable"]:
+        cells = []
+        for r in rows:
+            cand = [u for u in r["unstable"] if u[2] == nd]
+            if not cand:
+                cells.append("—")
+                continue
+            f, re, _ = min(cand, key=lambda u: abs(u[0] - f_ref))
+            if abs(f / f_ref - 1) > 0.05:
+                cells.append("—")
+                continue
+            diff = "" if r is ref else f" ({f / f_ref - 1:+.1e} / {re / re_ref - 1:+.1e})"
+            cells.append(f"{f:.1f} / {re:.1f}{diff}")
+        lines.append(f"| {nd} | " + " | ".join(cells) + " |")
+    text = "\n".join(lines)
+    print(text)
+    out = ROOT / "benchmarks" / "out"
+    out.mkdir(parents=True, exist_ok=True)
+    suffix = f"_{a.ranks}ranks" + ("_quick" if a.quick else "")
+    (out / f"brake_cea{suffix}.md").write_text(text + "\n")
+    (out / f"brake_cea{suffix}.json").write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -64,6 +64,7 @@ class InterfaceOperator(NamedTuple):
     normal: np.ndarray   # master normal n at the projections
     t1: np.ndarray       # tangent t₁
     n_global: int        # number of points over all ranks
+    n_remote: int = 0    # points (all ranks) whose master facet lives on another rank
 
     def area(self, comm: MPI.Comm) -> float:
         return comm.allreduce(float(self.weight.sum()), op=MPI.SUM)
@@ -142,6 +143,7 @@ class MasterSurface(NamedTuple):
     lf: np.ndarray       # (F,) local facet index
     dofs: np.ndarray     # (F, ndofs) global DOF blocks of the cell
     centroid: np.ndarray  # (F, 3)
+    rank: np.ndarray     # (F,) rank that owns the facet
 
 
 def _gather_master(V, facets: np.ndarray, bbox: tuple[np.ndarray, np.ndarray] | None) -> MasterSurface:
@@ -162,13 +164,13 @@ def _gather_master(V, facets: np.ndarray, bbox: tuple[np.ndarray, np.ndarray] | 
     else:
         centroid = np.zeros((0, 3))
     comm = mesh.comm
-    parts = comm.allgather((gx, lf, dofs, centroid))
+    parts = comm.allgather((gx, lf, dofs, centroid, np.full(len(lf), comm.rank)))
     nn = max(p[0].shape[1] for p in parts)
     parts = [p for p in parts if len(p[1])]
     if not parts:
         return MasterSurface(np.zeros((0, nn, 3)), np.zeros(0, np.int32), np.zeros((0, nd), np.int64),
-                             np.zeros((0, 3)))
-    return MasterSurface(*(np.concatenate([p[i] for p in parts]) for i in range(4)))
+                             np.zeros((0, 3)), np.zeros(0, int))
+    return MasterSurface(*(np.concatenate([p[i] for p in parts]) for i in range(5)))
 
 
 def project(points: np.ndarray, master: MasterSurface, cmap_el, *, candidates: int = 8,
@@ -294,7 +296,8 @@ def interface_operator(V, facet_tags, slave_tag: int, master_tag: int, *, slidin
     Bs = sp.csr_matrix((phi.ravel(), (np.repeat(np.arange(nq), nd), slave_blocks.ravel())),
                        shape=(nq, imap.size_global))
     Bs.sum_duplicates()
-    return InterfaceOperator(G[0], G[1], G[2], Bs, sp_.weight, gap0, sp_.x, n, t1, n_global)
+    n_remote = comm.allreduce(int(np.sum(master.rank[fac] != comm.rank)), op=MPI.SUM)
+    return InterfaceOperator(G[0], G[1], G[2], Bs, sp_.weight, gap0, sp_.x, n, t1, n_global, n_remote)
 
 
 def _row_vec(G: PETSc.Mat, values: np.ndarray) -> PETSc.Vec:

@@ -213,3 +213,37 @@ def test_linearised_operator_reproduces_the_preload():
     r = apply(lin.K_total(), pre.u)
     r.axpy(-1.0, ops.f)
     assert r.norm() <= 1e-9 * ops.f.norm()
+
+
+def test_all_closed_route_equals_the_preload_when_everything_is_closed():
+    from fem_squeal.assembly import linearise
+
+    _, ops, pre = preloaded()
+    assert all(a.all() for a in pre.active.values())
+    A = linearise(ops, pre.active).K_total()
+    B = linearise(ops, None).K_total()
+    B.axpy(-1.0, A, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+    assert B.norm() <= 1e-14 * A.norm()
+
+
+@pytest.mark.mpi
+def test_interface_tests_pass_on_two_ranks_with_pairs_across_ranks(mpirun):
+    """Every test of this file again under mpirun -n 2, where slave points meet master facets
+    owned by the other rank (checked: n_remote > 0)."""
+    import subprocess
+    import sys
+
+    from conftest import ROOT, clean_env
+
+    p = subprocess.run(mpirun + [sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider",
+                                 "-m", "not mpi", str(ROOT / "tests" / "test_interface.py")],
+                       capture_output=True, text=True, timeout=900, env=clean_env(), cwd=ROOT)
+    assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
+
+
+def test_pairs_across_ranks_are_counted():
+    _, _, op = blocks_op(False)
+    if COMM.size > 1:
+        assert op.n_remote > 0
+    else:
+        assert op.n_remote == 0

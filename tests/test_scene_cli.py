@@ -81,8 +81,9 @@ def test_bad_brake_values_name_the_key_and_the_reason(override, message):
 
 
 def test_brake_scene_builds_its_model_spec():
-    spec = model_spec(load_scene(BRAKE, ["materials.lining_inner.E_axial=3e9", "materials.lining_inner.nu_axial=0.1",
-                                         "materials.lining_inner.G_axial=1.5e9"]))
+    ti = ["materials.lining_inner.E_axial=3e9", "materials.lining_inner.nu_axial=0.1",
+          "materials.lining_inner.G_axial=1.5e9"]
+    spec = model_spec(load_scene(BRAKE, ti))
     assert {i.name for i in spec.contacts} == {"pad_inner", "pad_outer"}
     assert spec.materials["lining_inner"].transversely_isotropic
     assert not spec.materials["lining_outer"].transversely_isotropic
@@ -126,7 +127,8 @@ BRAKE_PATHS = sorted(_paths(tomllib.loads(BRAKE.read_text())))
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data())
 def test_fuzzed_scenes_give_clear_errors(scene, paths, data):
-    mutations = data.draw(st.lists(st.tuples(st.sampled_from(paths), values, st.booleans()), min_size=1, max_size=4))
+    mutation = st.tuples(st.sampled_from(paths), values, st.booleans())
+    mutations = data.draw(st.lists(mutation, min_size=1, max_size=4))
     r = tomllib.loads(scene.read_text())
     for path, value, delete in mutations:
         node = r

@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import resource
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import casework  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = [("0.012", False), ("0.008", False), ("0.008", True), ("0.00615", False)]
@@ -48,12 +49,7 @@ def run_case(mesh_size: str, matching: bool) -> dict:
 
 
 def spawn(mesh_size: str, matching: bool, ranks: int) -> dict:
-    cmd = [sys.executable, __file__, "--case", mesh_size, str(int(matching))]
-    if ranks > 1:
-        cmd = ["mpirun", "-n", str(ranks), "--oversubscribe"] + cmd
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-    out = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True).stdout
-    return json.loads(out.strip().splitlines()[-1])
+    return casework.spawn(__file__, [mesh_size, str(int(matching))], ranks)
 
 
 def main() -> None:
@@ -63,10 +59,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="two coarse meshes (smoke)")
     a = ap.parse_args()
     if a.case:
-        r = run_case(a.case[0], bool(int(a.case[1])))
-        from mpi4py import MPI
-        if MPI.COMM_WORLD.rank == 0:
-            print(json.dumps(r))
+        casework.report(run_case(a.case[0], bool(int(a.case[1]))))
         return
     rows = [spawn(h, m, a.ranks) for h, m in (QUICK if a.quick else CASES)]
     ref = min(rows, key=lambda r: r["mesh_size"])

@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import resource
-import subprocess
 import sys
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import casework  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 P2_SIZES = [0.004, 0.003, 0.002, 0.0015]
@@ -59,12 +60,7 @@ def run_case(degree: int, mesh_size: float) -> dict:
 
 
 def spawn(degree: int, mesh_size: float, ranks: int) -> dict:
-    cmd = [sys.executable, __file__, "--case", str(degree), str(mesh_size)]
-    if ranks > 1:
-        cmd = ["mpirun", "-n", str(ranks), "--oversubscribe"] + cmd
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-    out = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True).stdout
-    return json.loads(out.strip().splitlines()[-1])
+    return casework.spawn(__file__, [str(degree), str(mesh_size)], ranks)
 
 
 def main() -> None:
@@ -74,10 +70,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="two meshes per degree, coarse reference (smoke)")
     a = ap.parse_args()
     if a.case:
-        r = run_case(int(a.case[0]), float(a.case[1]))
-        from mpi4py import MPI
-        if MPI.COMM_WORLD.rank == 0:
-            print(json.dumps(r))
+        casework.report(run_case(int(a.case[0]), float(a.case[1])))
         return
     cases = [(2, h) for h in P2_SIZES] + [(1, h) for h in P1_SIZES]
     ref_case = REF

@@ -92,11 +92,8 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
             gn = op.Gn.createVecLeft()
             op.Gn.mult(u, gn)
             g = op.gap0 + gn.array
-            if k == 0:
-                g = np.where(op.gap0 <= 1e-12 * h, np.minimum(g, -0.0), g)
-                closed[it.name] = op.gap0 <= 1e-12 * h
-            else:
-                closed[it.name] = g < 0.0
+            # first step: the touching points (g₀ ≈ 0, where σ = 0 still) start closed
+            closed[it.name] = op.gap0 <= 1e-12 * h if k == 0 else g < 0.0
             gaps[it.name] = g
             sig, dsig = _traction(g, it.kn, k3)
             if k == 0:

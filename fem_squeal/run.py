@@ -90,7 +90,8 @@ def _preload_outputs(comm, outdir: Path, ops, pre, write_fields: bool, title: st
     if write_fields:
         V = ops.V
         S = fem.FunctionSpace(V.mesh, ("Lagrange", V.ufl_element().degree()))
-        assert S.dofmap.index_map.size_local == V.dofmap.index_map.size_local
+        if S.dofmap.index_map.size_local != V.dofmap.index_map.size_local:
+            raise RuntimeError("contact pressure output: scalar and vector spaces number their nodes differently")
         p_h = fem.Function(S, name="contact_pressure")
         for it, op in ops.contacts:
             dofs, vals = project_to_nodes(op, pre.pressure[it.name], comm)

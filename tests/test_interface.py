@@ -24,10 +24,10 @@ RT = 1e-12
 
 
 @functools.cache
-def blocks_op(matching: bool = False, h_lower: float = 0.3, h_upper: float = 0.21, sliding: float = 1.0):
+def blocks_op(matching: bool = False, h_lower: float = 0.3, h_upper: float = 0.21):
     md = two_blocks(COMM, h_lower=h_lower, h_upper=h_upper, matching=matching)
     V = fem.VectorFunctionSpace(md.mesh, ("Lagrange", 2))
-    op = itf.interface_operator(V, md.facet_tags, FACES["slave"], FACES["master"], sliding=sliding)
+    op = itf.interface_operator(V, md.facet_tags, FACES["slave"], FACES["master"])
     return md, V, op
 
 
@@ -111,7 +111,9 @@ def test_contact_stiffness_symmetric_psd_and_friction_sign():
     for _ in range(5):
         x.array[:] = rng.standard_normal(x.getLocalSize())
         assert x.dot(apply(Kc, x)) >= -1e-12 * Kc.norm() * x.dot(x)
-    _, _, back = blocks_op(False, sliding=-1.0)
+    md, V, _ = blocks_op(False)
+    # same mesh and partition (a second mesh build may be partitioned differently)
+    back = itf.interface_operator(V, md.facet_tags, FACES["slave"], FACES["master"], sliding=-1.0)
     F, Fb = itf.friction_stiffness(op, 2.0e9, 0.4), itf.friction_stiffness(back, 2.0e9, 0.4)
     Fb.axpy(1.0, F, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
     assert Fb.norm() <= 1e-14 * F.norm()
@@ -164,15 +166,23 @@ def test_slave_block_equals_ufl_surface_form(matching):
 
 
 def test_non_matching_converges_to_matching():
-    """Contact energy of a smooth non-polynomial gap: the non-matching value approaches the
-    matching one as the master mesh is refined (both approach ∫ k_n g² dA)."""
+    """Contact energy of a smooth non-polynomial gap (the lower body moves by
+    w = 1e-3 sin 3x cos 4y along z, the upper one is still): the non-matching value approaches the
+    matching one as the master mesh is refined (both approach ∫ k_n w² dA)."""
     def energy(matching, h_lower):
         md, V, op = blocks_op(matching, h_lower=h_lower, h_upper=0.1)
-        def gap(X):
-            return np.where(X[2] < 0.5 - 1e-9, 1e-3 * np.sin(3 * X[0]) * np.cos(4 * X[1]), 0.0)
-        x = vec_of(V, lambda X: np.vstack([0 * X[0], 0 * X[0], gap(X)]))
+        dofs = fem.locate_dofs_topological(V, 3, md.cell_tags.indices[md.cell_tags.values == 1])
+        X = V.tabulate_dof_coordinates()
+        u = fem.Function(V)
+        u.x.array.reshape(-1, 3)[dofs, 2] = 1e-3 * np.sin(3 * X[dofs, 0]) * np.cos(4 * X[dofs, 1])
+        x = PETSc.Vec().createMPI((V.dofmap.index_map.size_local * 3, None), comm=COMM)
+        x.array[:] = u.x.array[: x.getLocalSize()]
         return x.dot(apply(itf.contact_stiffness(op, 1.0), x))
     ref = energy(True, 0.1)
+    x0, y0, _, dx_, dy_, _ = UPPER
+    exact = 1e-6 * (0.5 * (dx_ - (np.sin(6 * (x0 + dx_)) - np.sin(6 * x0)) / 6)) * \
+        (0.5 * (dy_ + (np.sin(8 * (y0 + dy_)) - np.sin(8 * y0)) / 8))
+    assert ref == pytest.approx(exact, rel=1e-3)        # P2 interpolation error at h = 0.1
     errs = [abs(energy(False, h) - ref) / ref for h in (0.3, 0.15, 0.075)]
     assert errs[2] < errs[0] / 4, errs
 
@@ -247,3 +257,22 @@ def test_pairs_across_ranks_are_counted():
         assert op.n_remote > 0
     else:
         assert op.n_remote == 0
+
+
+def test_pressure_projection_is_exact_for_linear_fields():
+    """The L² projection on the slave surface reproduces a linear field at the surface nodes."""
+    _, V, op = blocks_op(False)
+    p = 1.0 + 2.0 * op.x[:, 0] + 3.0 * op.x[:, 1]
+    dofs, vals = itf.project_to_nodes(op, p, COMM)
+    imap = V.dofmap.index_map
+    owned = V.tabulate_dof_coordinates()[: imap.size_local]
+    gidx = imap.local_to_global(np.arange(imap.size_local, dtype=np.int32))
+    parts = COMM.gather((gidx, owned), root=0)
+    if COMM.rank == 0:
+        coords = np.zeros((imap.size_global, 3))
+        for g, c in parts:
+            coords[g] = c
+        x = coords[dofs]
+        assert len(dofs) > 10
+        assert np.allclose(vals, 1.0 + 2.0 * x[:, 0] + 3.0 * x[:, 1], rtol=1e-10, atol=1e-10)
+        assert np.allclose(x[:, 2], 0.5)

@@ -19,8 +19,9 @@ pressure by −k_n g; the friction force on the slave is μ p s with s the veloc
 relative to the slave (the disc drags the pad), giving +μ k_n G_sᵀG_n in the operator.
 Nodal lumping would be wrong for P2 triangles (their vertex weights vanish), hence quadrature.
 
-Rows are owned by the rank that owns the slave facet; master facets near the slave surface are
-gathered on every rank, so pairs whose two sides live on different ranks need no special case.
+Rows are owned by the rank that owns the slave facet (ghost facets are skipped); master facets
+near the slave surface are gathered on every rank, so pairs whose two sides live on different
+ranks need no special case.
 """
 from __future__ import annotations
 
@@ -255,8 +256,12 @@ def interface_operator(V, facet_tags, slave_tag: int, master_tag: int, *, slidin
     ``sliding`` = ±1 orients t₁ along ±e_θ (the master's motion relative to the slave)."""
     mesh = V.mesh
     comm = mesh.comm
-    slave_facets = facet_tags.indices[facet_tags.values == slave_tag]
-    master_facets = facet_tags.indices[facet_tags.values == master_tag]
+    # owned facets only: meshes read by gmshio carry ghost cells, so a facet on the partition
+    # boundary is present on two ranks and would be counted twice
+    n_owned = mesh.topology.index_map(mesh.topology.dim - 1).size_local
+    tagged = facet_tags.indices[facet_tags.indices < n_owned], facet_tags.values[facet_tags.indices < n_owned]
+    slave_facets = tagged[0][tagged[1] == slave_tag]
+    master_facets = tagged[0][tagged[1] == master_tag]
     for tag, what, f in ((slave_tag, "slave", slave_facets), (master_tag, "master", master_facets)):
         if comm.allreduce(len(f), op=MPI.SUM) == 0:
             raise ValueError(f"interfaces.{name}: the mesh has no facets tagged {tag} ({what} side)")

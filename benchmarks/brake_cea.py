@@ -13,7 +13,6 @@ Writes benchmarks/out/brake_cea_<ranks>ranks.md and .json.
 from __future__ import annotations
 
 import argparse
-import json
 import resource
 import sys
 import tempfile
@@ -94,13 +93,7 @@ def main() -> None:
             diff = "" if r is ref else f" ({f / f_ref - 1:+.1e} / {re / re_ref - 1:+.1e})"
             cells.append(f"{f:.1f} / {re:.1f}{diff}")
         lines.append(f"| {nd} | " + " | ".join(cells) + " |")
-    text = "\n".join(lines)
-    print(text)
-    out = ROOT / "benchmarks" / "out"
-    out.mkdir(parents=True, exist_ok=True)
-    suffix = f"_{a.ranks}ranks" + ("_quick" if a.quick else "")
-    (out / f"brake_cea{suffix}.md").write_text(text + "\n")
-    (out / f"brake_cea{suffix}.json").write_text(json.dumps(rows, indent=1))
+    casework.save("brake_cea", lines, rows, a.ranks, a.quick)
 
 
 if __name__ == "__main__":

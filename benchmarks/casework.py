@@ -24,3 +24,16 @@ def report(result: dict) -> None:
 
     if MPI.COMM_WORLD.rank == 0:
         print(json.dumps(result))
+
+
+def save(name: str, lines: list[str], rows: list[dict], ranks: int, quick: bool) -> None:
+    """Print the table and write benchmarks/out/<name>_<ranks>ranks[_quick].md and .json."""
+    from pathlib import Path
+
+    text = "\n".join(lines)
+    print(text)
+    out = Path(__file__).resolve().parent / "out"
+    out.mkdir(parents=True, exist_ok=True)
+    suffix = f"_{ranks}ranks" + ("_quick" if quick else "")
+    (out / f"{name}{suffix}.md").write_text(text + "\n")
+    (out / f"{name}{suffix}.json").write_text(json.dumps(rows, indent=1))

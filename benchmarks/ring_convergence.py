@@ -11,7 +11,6 @@ Writes benchmarks/out/ring_convergence.md (Markdown table) and .json.
 from __future__ import annotations
 
 import argparse
-import json
 import resource
 import sys
 import time
@@ -96,13 +95,7 @@ def main() -> None:
         lines.append(f"| {r['degree']} | {r['mesh_size']} | {r['dofs']} | {r['t_mesh']:.2f} | "
                      f"{r['t_assembly']:.2f} | {r['t_eig']:.2f} | {r['t_total']:.2f} | "
                      f"{r['peak_rss_mb_per_rank']:.0f} | {ferr} | {gerr} |")
-    text = "\n".join(lines)
-    print(text)
-    out = ROOT / "benchmarks" / "out"
-    out.mkdir(parents=True, exist_ok=True)
-    suffix = f"_{a.ranks}ranks" + ("_quick" if a.quick else "")
-    (out / f"ring_convergence{suffix}.md").write_text(text + "\n")
-    (out / f"ring_convergence{suffix}.json").write_text(json.dumps(rows, indent=1))
+    casework.save("ring_convergence", lines, rows, a.ranks, a.quick)
 
 
 if __name__ == "__main__":

@@ -99,6 +99,31 @@ def build_interface(V, mesh_data, spec: ModelSpec, it: Interface) -> itf.Interfa
                                   quadrature_degree=spec.interface_quadrature_degree, name=it.name)
 
 
+def contact_matrices(ops: Operators, stiffness: dict[str, np.ndarray] | None = None,
+                     friction: bool = True) -> tuple[PETSc.Mat | None, PETSc.Mat | None]:
+    """Σ K_c and Σ K_f over the contact interfaces, zero on the clamped DOFs.
+
+    ``stiffness[name]`` is the normal stiffness dσ/dg at each quadrature point of that contact
+    (k_n where closed, 0 where open, for the linear penalty); None: k_n everywhere (all closed).
+    K_f only for ``friction`` and interfaces with friction; None where there is nothing to add."""
+    bc_rows = _owned_global_rows(ops.K, ops.V, ops.bc_dofs)
+    total: list[PETSc.Mat | None] = [None, None]
+    for it, op in ops.contacts:
+        k = it.kn if stiffness is None else stiffness[it.name]
+        mats = [itf.contact_stiffness(op, k)]
+        mats.append(itf.friction_stiffness(op, k, it.mu) if friction and it.has_friction else None)
+        for j, A in enumerate(mats):
+            if A is None:
+                continue
+            A.zeroRowsColumns(bc_rows, diag=0.0)
+            if total[j] is None:
+                total[j] = A
+            else:
+                _add(total[j], A)
+                A.destroy()
+    return total[0], total[1]
+
+
 def linearise(ops: Operators, active: dict[str, np.ndarray] | None = None,
               friction: bool = True) -> Operators:
     """Operators with the contact interfaces' K_c and K_f added for the closed points.
@@ -107,23 +132,20 @@ def linearise(ops: Operators, active: dict[str, np.ndarray] | None = None,
     linear route).  Returns new K and K_f (the inputs are not modified)."""
     if not ops.contacts:
         return ops
+    stiffness = None if active is None else \
+        {it.name: it.kn * active[it.name].astype(float) for it, _ in ops.contacts}
+    Kc, Fc = contact_matrices(ops, stiffness, friction)
     K = ops.K.copy()
-    Kf = ops.Kf.copy() if ops.Kf is not None else None
-    bc_rows = _owned_global_rows(K, ops.V, ops.bc_dofs)
-    for it, op in ops.contacts:
-        a = None if active is None else active[it.name]
-        Kc = itf.contact_stiffness(op, it.kn, a)
-        Kc.zeroRowsColumns(bc_rows, diag=0.0)
-        _add(K, Kc)
-        Kc.destroy()
-        if friction and it.has_friction:
-            F = itf.friction_stiffness(op, it.kn, it.mu, a)
-            F.zeroRowsColumns(bc_rows, diag=0.0)
-            if Kf is None:
-                Kf = F
-            else:
-                _add(Kf, F)
-                F.destroy()
+    _add(K, Kc)
+    Kc.destroy()
+    Kf = ops.Kf
+    if Fc is not None:
+        if Kf is None:
+            Kf = Fc
+        else:
+            Kf = Kf.copy()
+            _add(Kf, Fc)
+            Fc.destroy()
     return ops._replace(K=K, Kf=Kf)
 
 

@@ -327,16 +327,16 @@ def weighted_product(Gl: PETSc.Mat, Gr: PETSc.Mat, d: np.ndarray) -> PETSc.Mat:
     return P
 
 
-def contact_stiffness(op: InterfaceOperator, kn: float, active: np.ndarray | None = None) -> PETSc.Mat:
-    """K_c = G_nᵀ diag(k_n w a) G_n over the active points a (all if None)."""
-    d = kn * op.weight * (1.0 if active is None else active.astype(float))
-    return weighted_product(op.Gn, op.Gn, d)
+def contact_stiffness(op: InterfaceOperator, k) -> PETSc.Mat:
+    """K_c = G_nᵀ diag(k w) G_n, k the normal stiffness dσ/dg per point (or one value):
+    k_n at closed points and 0 at open ones for the linear penalty."""
+    return weighted_product(op.Gn, op.Gn, k * op.weight)
 
 
-def friction_stiffness(op: InterfaceOperator, kn: float, mu: float, active: np.ndarray | None = None) -> PETSc.Mat:
-    """K_f = μ G_sᵀ diag(k_n w a) G_n (G_s = G_t₁ oriented along the sliding direction)."""
-    d = mu * kn * op.weight * (1.0 if active is None else active.astype(float))
-    return weighted_product(op.Gt1, op.Gn, d)
+def friction_stiffness(op: InterfaceOperator, k, mu: float) -> PETSc.Mat:
+    """K_f = μ G_sᵀ diag(k w) G_n (G_s = G_t₁ oriented along the sliding direction), k as in
+    :func:`contact_stiffness`."""
+    return weighted_product(op.Gt1, op.Gn, mu * k * op.weight)
 
 
 def spring_stiffness(op: InterfaceOperator, kn: float, kt: float) -> PETSc.Mat:

@@ -22,8 +22,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fem_squeal import interface as itf
-from fem_squeal.assembly import Operators, _add, _owned_global_rows
+from fem_squeal.assembly import Operators, _add, _owned_global_rows, contact_matrices
 from fem_squeal.eigen import set_options
 
 
@@ -120,16 +119,10 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         prev = closed
         # Jacobian and Newton step
         J = ops.K.copy()
-        for it, op in ops.contacts:
-            d = op.weight * tangents[it.name]
-            P = itf.weighted_product(op.Gn, op.Gn, d)
-            if friction and it.has_friction:
-                Q = itf.weighted_product(op.Gt1, op.Gn, it.mu * d)
-                _add(P, Q)
-                Q.destroy()
-            P.zeroRowsColumns(bc_rows, diag=0.0)
-            _add(J, P)
-            P.destroy()
+        for A in contact_matrices(ops, tangents, friction):
+            if A is not None:
+                _add(J, A)
+                A.destroy()
         ksp = _lu(J, options, prefix)
         R.scale(-1.0)
         ksp.solve(R, du)
@@ -141,11 +134,9 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         u.axpy(1.0, du)
     for v in (R, du, t):
         v.destroy()
-    pressure = {n: np.where(g < 0, -(_traction(g, it.kn, k3)[0]), 0.0) for (it, _), (n, g)
-                in zip(ops.contacts, gaps.items())}
-    normal, fric, area = {}, {}, {}
+    pressure, normal, fric, area = {}, {}, {}, {}
     for it, op in ops.contacts:
-        p = pressure[it.name]
+        pressure[it.name] = p = 0.0 - _traction(gaps[it.name], it.kn, k3)[0]  # no "-0.0"
         normal[it.name] = comm.allreduce(float(op.weight @ p), op=MPI.SUM)
         fric[it.name] = it.mu * normal[it.name] if it.has_friction and friction else 0.0
         area[it.name] = comm.allreduce(float(op.weight @ (gaps[it.name] < 0)), op=MPI.SUM)

@@ -130,7 +130,7 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
     ops = assemble_operators(md, spec, parts="cea" in ana and len(spec.materials) > 1, describe_part=part,
                              timings=sub)
     timings["assembly"] = time.perf_counter() - t
-    if ops.contacts or spec.interfaces:
+    if spec.interfaces:
         timings["interface_operators"] = sub["interfaces"]
     ndofs = ops.V.dofmap.index_map.size_global * ops.V.dofmap.index_map_bs
     ncells = md.mesh.topology.index_map(3).size_global

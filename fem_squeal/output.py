@@ -30,15 +30,16 @@ def _clean(o):
     return o
 
 
-def write_json_atomic(path: Path, data: dict) -> None:
-    """Write ``data`` as JSON to ``path`` atomically (call on one rank only)."""
+def _write_atomic(path: Path, write, mode: str = "w") -> None:
+    """Write ``path`` through a temporary file in the same folder and ``os.replace``: readers
+    see the old file or the whole new one, never a part (call on one rank only)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
         os.fchmod(fd, 0o644)
-        with os.fdopen(fd, "w") as f:
-            json.dump(_clean(data), f, indent=1)
+        with os.fdopen(fd, mode) as f:
+            write(f)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
@@ -46,6 +47,16 @@ def write_json_atomic(path: Path, data: dict) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def write_json_atomic(path: Path, data: dict) -> None:
+    """Write ``data`` as JSON to ``path`` atomically (call on one rank only)."""
+    _write_atomic(path, lambda f: json.dump(_clean(data), f, indent=1))
+
+
+def write_npz_atomic(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Write ``arrays`` to a ``.npz`` atomically (call on one rank only)."""
+    _write_atomic(path, lambda f: np.savez(f, **arrays), "wb")
 
 
 @contextmanager

@@ -1,0 +1,209 @@
+"""Mode tracking along a one-parameter path (a μ or E sweep) by MAC continuation.
+
+Branches start at ``start`` (μ = 0: the frictionless parents, labelled M1, M2, … by frequency)
+and are continued outwards in both directions.  A step p_a → p_b is accepted when
+
+* the Hungarian assignment that maximises Σ MAC(y_ref, y_b) gives every branch a MAC ≥
+  ``mac_min`` (MAC(a, b) = |aᴴb|² / (|a|²|b|²); the reduced basis is M-orthonormal, so this is
+  the mass-weighted MAC of the lifted shapes), and
+* no two branches swap their frequency order inside the step.
+
+Otherwise the step is bisected (the reduced solve is cheap), down to ``max_depth`` halvings.  A
+veering (weak coupling: the curves repel, the shapes rotate over a parameter width ∝ the
+coupling) is resolved by the bisection and followed without a swap; a true crossing (no coupling)
+keeps MAC ≈ 1 on both sides however small the step, and is accepted at the finest level.  Where
+the MAC stays ambiguous at the finest level (near an exceptional point the two shapes become
+parallel, or on a point of exact degeneracy) the assignment adds the distance to a linear
+eigenvalue prediction, and the reference shapes of the ambiguous branches are not updated.
+
+After tracking, every change of stability of a branch between two grid values (Re λ crossing
+``growth_tol``·|λ|, see :func:`~fem_squeal.reduced.eigensolve.unstable`) is an event; its
+critical parameter (Re λ = 0: the Hopf point with damping, the exceptional point without, where
+LAPACK returns real θ and hence Re λ = 0 exactly before it) is refined by bisection on the reduced
+model to ``tol`` and its partner is the branch nearest in frequency.  An event whose partner frequency agrees to ``coalescence_rtol``
+is a coalescence (mode coupling: for the undamped model, an exceptional point).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from fem_squeal.reduced.eigensolve import TWO_PI
+
+Solver = Callable[[float], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass
+class CriticalPoint:
+    """A change of stability of ``branch`` between two grid values (refined to ``value``)."""
+
+    branch: int
+    partner: int | None
+    value: float                    # refined critical parameter
+    bracket: tuple[float, float]    # the grid values around it
+    freq_hz: float
+    kind: str                       # "coalescence" or "single"
+    onset: bool                     # True: becomes unstable moving away from the start
+    labels: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict:
+        return {"branch": self.branch, "partner": self.partner, "value": self.value,
+                "bracket": list(self.bracket), "freq_hz": self.freq_hz, "kind": self.kind,
+                "onset": self.onset, "labels": list(self.labels)}
+
+
+@dataclass
+class Tracking:
+    """Branch-ordered eigenvalues: ``eigenvalues[k, j]`` is branch j at ``values[k]``."""
+
+    values: np.ndarray
+    eigenvalues: np.ndarray
+    parents_hz: np.ndarray
+    labels: list[str]
+    events: list[CriticalPoint] = field(default_factory=list)
+    solves: int = 0
+    ambiguous_steps: int = 0
+
+    @property
+    def freqs_hz(self) -> np.ndarray:
+        return self.eigenvalues.imag / TWO_PI
+
+    def as_dict(self) -> dict:
+        return {"values": self.values, "freq_hz": self.freqs_hz, "real_part": self.eigenvalues.real,
+                "parents_hz": self.parents_hz, "labels": self.labels,
+                "events": [e.as_dict() for e in self.events], "solves": self.solves,
+                "ambiguous_steps": self.ambiguous_steps}
+
+
+def mac_matrix(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """MAC between the columns of A and of B (complex allowed)."""
+    num = np.abs(A.conj().T @ B) ** 2
+    den = np.outer(np.sum(np.abs(A) ** 2, axis=0), np.sum(np.abs(B) ** 2, axis=0))
+    return num / np.where(den > 0, den, 1.0)
+
+
+def _order_swaps(fa: np.ndarray, fb: np.ndarray, rtol: float) -> bool:
+    """True if two branches change their frequency order between two points (strictly, beyond
+    ``rtol``·scale at both ends)."""
+    scale = rtol * max(np.max(np.abs(fa)), 1e-300)
+    da = fa[:, None] - fa[None, :]
+    db = fb[:, None] - fb[None, :]
+    return bool(np.any((da > scale) & (db < -scale)))
+
+
+class _Walker:
+    def __init__(self, solve: Solver, mac_min: float, max_depth: int, order_rtol: float):
+        self.solve, self.mac_min, self.max_depth, self.order_rtol = solve, mac_min, max_depth, order_rtol
+        self.solves = 0
+        self.ambiguous = 0
+
+    def eig(self, p: float):
+        self.solves += 1
+        return self.solve(p)
+
+    def step(self, st: dict, p_b: float, depth: int = 0) -> dict:
+        lam_b, Y_b = self.eig(p_b)
+        mac = mac_matrix(st["Y"], Y_b)
+        rows, cols = linear_sum_assignment(-mac)
+        assigned = np.empty_like(cols)
+        assigned[rows] = cols
+        best = mac[np.arange(len(assigned)), assigned]
+        ok = bool(np.all(best >= self.mac_min)) and \
+            not _order_swaps(st["lam"].imag, lam_b[assigned].imag, self.order_rtol)
+        if not ok and depth < self.max_depth:
+            mid = 0.5 * (st["p"] + p_b)
+            return self.step(self.step(st, mid, depth + 1), p_b, depth + 1)
+        Y_new = st["Y"].copy()
+        if not ok:
+            self.ambiguous += 1
+            # eigenvalue prediction by linear extrapolation, mixed with the MAC
+            if st["p_prev"] is not None and st["p"] != st["p_prev"]:
+                pred = st["lam"] + (st["lam"] - st["lam_prev"]) * (p_b - st["p"]) / (st["p"] - st["p_prev"])
+            else:
+                pred = st["lam"]
+            scale = np.maximum(np.abs(st["lam"] - pred), 1e-6 * np.abs(st["lam"]) + 1e-300)
+            cost = np.abs(pred[:, None] - lam_b[None, :]) / scale[:, None] + (1.0 - mac)
+            rows, cols = linear_sum_assignment(cost)
+            assigned[rows] = cols
+            best = mac[np.arange(len(assigned)), assigned]
+            sure = best >= self.mac_min
+            Y_new[:, sure] = Y_b[:, assigned[sure]]
+        else:
+            Y_new = Y_b[:, assigned]
+        return {"p": p_b, "lam": lam_b[assigned], "Y": Y_new, "p_prev": st["p"], "lam_prev": st["lam"]}
+
+
+def track(solve: Solver, values: np.ndarray, *, start: float | None = None, mac_min: float = 0.8,
+          max_depth: int = 10, order_rtol: float = 1e-9, growth_tol: float = 1e-6,
+          coalescence_rtol: float = 1e-3, tol: float = 1e-10, labels: list[str] | None = None) -> Tracking:
+    """Track every eigenvalue of ``solve(p) -> (λ (m,), Y (m, m))`` over the sorted ``values``.
+
+    ``start`` (default 0 if inside the range, else the first value) is where branches are
+    labelled; critical points are refined to ``tol`` × (range of values)."""
+    values = np.asarray(values, float)
+    if values.ndim != 1 or values.size < 2 or np.any(np.diff(values) <= 0):
+        raise ValueError("values: must be at least 2 strictly increasing numbers")
+    if start is None:
+        start = 0.0 if values[0] <= 0.0 <= values[-1] else float(values[0])
+    walker = _Walker(solve, mac_min, max_depth, order_rtol)
+    lam0, Y0 = walker.eig(start)
+    m = lam0.size
+    parents_hz = lam0.imag / TWO_PI
+    labels = labels or [f"M{j + 1}" for j in range(m)]
+    out = np.empty((values.size, m), complex)
+    for side in (values[values >= start], values[values < start][::-1]):
+        st = {"p": start, "lam": lam0, "Y": Y0, "p_prev": None, "lam_prev": None}
+        for p in side:
+            if p != start:
+                st = walker.step(st, float(p))
+            out[np.searchsorted(values, p)] = st["lam"]
+    tr = Tracking(values, out, parents_hz, labels)
+    tr.events = _events(tr, solve, start, growth_tol, coalescence_rtol, tol * (values[-1] - values[0]))
+    tr.solves, tr.ambiguous_steps = walker.solves, walker.ambiguous
+    return tr
+
+
+def _growth(lam: np.ndarray) -> np.ndarray:
+    return lam.real / np.maximum(np.abs(lam), 1e-300)
+
+
+def _events(tr: Tracking, solve: Solver, start: float, growth_tol: float, coalescence_rtol: float,
+            tol: float) -> list[CriticalPoint]:
+    v, lam = tr.values, tr.eigenvalues
+    grow = _growth(lam) > growth_tol
+    events = []
+    k0 = int(np.searchsorted(v, start))
+    for k in range(v.size - 1):
+        outward = k >= k0  # walking away from the start: increasing p on the right, decreasing on the left
+        for j in np.flatnonzero(grow[k] != grow[k + 1]):
+            lo, hi = v[k], v[k + 1]
+            la, lb = lam[k, j], lam[k + 1, j]
+            g_lo = bool(grow[k, j])  # the refinement keeps unstable_at(a) == g_lo
+
+            def unstable_at(p, la=la, lb=lb, lo=lo, hi=hi):
+                guess = la + (lb - la) * (p - lo) / (hi - lo)
+                ev = solve(p)[0]
+                return ev[np.argmin(np.abs(ev - guess))].real > 0.0
+
+            a, b = lo, hi
+            while b - a > tol:
+                mid = 0.5 * (a + b)
+                if unstable_at(mid) == g_lo:
+                    a = mid
+                else:
+                    b = mid
+            crit = 0.5 * (a + b)
+            k_un = k + 1 if grow[k + 1, j] else k
+            f = lam[k_un].imag
+            others = np.delete(np.arange(lam.shape[1]), j)
+            partner = int(others[np.argmin(np.abs(f[others] - f[j]))]) if others.size else None
+            close = partner is not None and abs(f[partner] - f[j]) <= coalescence_rtol * abs(f[j])
+            onset = (not g_lo) if outward else g_lo
+            events.append(CriticalPoint(
+                int(j), partner, float(crit), (float(lo), float(hi)), float(f[j] / TWO_PI),
+                "coalescence" if close else "single", bool(onset),
+                (tr.labels[j],) + ((tr.labels[partner],) if partner is not None else ())))
+    return events

@@ -38,3 +38,87 @@ def contact_pressure(path: Path, data: dict[str, tuple[np.ndarray, np.ndarray]],
     fig.tight_layout()
     save_figure_atomic(fig, path)
     plt.close(fig)
+
+
+def root_locus(path: Path, values: np.ndarray, lam: np.ndarray, unstable: np.ndarray, xlabel: str,
+               band_hz: tuple[float, float], labels: list[str] | None = None, title: str = "") -> None:
+    """Frequency and real part of every tracked branch against the swept parameter (seed 001
+    Figs. 3-4, 8): stable points grey, unstable points red; branches inside ``band_hz`` only."""
+    from fem_squeal.output import save_figure_atomic
+
+    plt = _pyplot()
+    f = lam.imag / (2 * np.pi)
+    keep = np.flatnonzero(np.any((f >= band_hz[0]) & (f <= band_hz[1]), axis=0))
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 8), sharex=True)
+    for j in keep:
+        a1.plot(values, f[:, j], "-", color="0.75", lw=0.7)
+        a2.plot(values, lam[:, j].real, "-", color="0.75", lw=0.7)
+        u = unstable[:, j]
+        if u.any():
+            a1.plot(values[u], f[u, j], ".", color="tab:red", ms=3)
+            a2.plot(values[u], lam[u, j].real, ".", color="tab:red", ms=3)
+            if labels:
+                k = np.flatnonzero(u)[-1]
+                a2.annotate(labels[j], (values[k], lam[k, j].real), fontsize=7)
+    a1.set_ylabel("frequency [Hz]")
+    a1.set_ylim(*band_hz)
+    a2.set_ylabel("Re λ [1/s]")
+    a2.set_xlabel(xlabel)
+    a2.axhline(0.0, color="k", lw=0.5)
+    if title:
+        a1.set_title(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def complex_plane(path: Path, lam: np.ndarray, band_hz: tuple[float, float], growth_tol: float = 1e-6,
+                  title: str = "") -> None:
+    """All eigenvalues of a sweep in the complex plane (seed 001 Figs. 2, 9): Re λ against frequency."""
+    from fem_squeal.output import save_figure_atomic
+
+    plt = _pyplot()
+    lam = np.ravel(lam)
+    f = lam.imag / (2 * np.pi)
+    sel = (f >= band_hz[0]) & (f <= band_hz[1])
+    bad = lam.real > growth_tol * np.abs(lam)
+    fig, ax = plt.subplots(figsize=(8, 5))
+    ax.plot(lam.real[sel & ~bad], f[sel & ~bad], ".", color="0.6", ms=2, label="stable")
+    ax.plot(lam.real[sel & bad], f[sel & bad], ".", color="tab:red", ms=2, label="unstable")
+    ax.axvline(0.0, color="k", lw=0.5)
+    ax.set_xlabel("Re λ [1/s]")
+    ax.set_ylabel("frequency [Hz]")
+    ax.legend(loc="upper left")
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def stability_maps(path: Path, mu: np.ndarray, E: np.ndarray, counts: np.ndarray, total: np.ndarray,
+                   bands_hz: list[tuple[float, float]], E_label: str, title: str = "") -> None:
+    """Number of unstable modes per band over the (sign(v)μ, E) plane, one panel per band and the
+    total (seed 001 Figs. 17-19); counts[b] has shape (n_E, n_mu)."""
+    from fem_squeal.output import save_figure_atomic
+
+    plt = _pyplot()
+    n = len(bands_hz) + 1
+    cols = min(n, 4)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.4 * rows), squeeze=False)
+    panels = [(f"{lo:.0f}-{hi:.0f} Hz", c) for (lo, hi), c in zip(bands_hz, counts)] + [("all bands", total)]
+    for ax, (name, c) in zip(axes.ravel(), panels):
+        im = ax.pcolormesh(mu, E, c, shading="nearest", cmap="magma_r", vmin=0, vmax=max(int(c.max()), 1))
+        fig.colorbar(im, ax=ax, label="unstable modes")
+        ax.axvline(0.0, color="k", lw=0.4)
+        ax.set_title(name, fontsize=9)
+        ax.set_xlabel("sign(v) μ")
+        ax.set_ylabel(E_label)
+    for ax in axes.ravel()[n:]:
+        ax.axis("off")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)

@@ -20,9 +20,17 @@ complex_modes    [{index, freq_hz, real_part [1/s], damping_ratio, residual, uns
                  (Im λ > 0, inside analyses.cea.band_hz; descriptors of describe_part;
                  energy_shares only for models with several parts)
 n_unstable       number of complex modes with Re λ > 0
+reduced          size, parameters, mu0, rounds [{cut_hz, modes, sampled_modes, static, dropped,
+                 size, change, seconds}], converged, tol, estimated_error, lifted_residuals
+                 [{point, freq_hz, real_part, backward_error}], verification [{point,
+                 max_rel_error, n_unstable_full, n_unstable_reduced, full_cea_s, ...}]
+sweep            parameter, values, critical [{branch, partner, value, bracket, freq_hz, kind,
+                 onset, labels}], solves, seconds (branches in sweep.json)
+map              parameter, points, seconds, seconds_per_point, axes, bands_hz, counts, total
 
 Files: real_modes.xdmf, complex_modes.xdmf (mode_re, mode_im), preload.xdmf
-(preload_displacement, contact_pressure), contact_pressure.png.
+(preload_displacement, contact_pressure), contact_pressure.png; reduced_model.npz,
+sweep.json, root_locus.png, complex_plane.png, stability_map.npz/png (fem_squeal.studies).
 """
 from __future__ import annotations
 
@@ -127,8 +135,9 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
     ana = scene["analyses"]
     part = describe_part(scene, md.volumes)
     sub: dict[str, float] = {}
-    ops = assemble_operators(md, spec, parts="cea" in ana and len(spec.materials) > 1, describe_part=part,
-                             timings=sub)
+    studies = {"reduced", "sweep", "map"} & set(ana)
+    ops = assemble_operators(md, spec, parts=bool(studies) or ("cea" in ana and len(spec.materials) > 1),
+                             describe_part=part, timings=sub)
     timings["assembly"] = time.perf_counter() - t
     if spec.interfaces:
         timings["interface_operators"] = sub["interfaces"]
@@ -144,6 +153,7 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
         "timings_s": timings,
     }
 
+    pre = None
     if ops.contacts:
         pl = scene["preload"]
         t = time.perf_counter()
@@ -209,6 +219,11 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
             f"{results['n_unstable']} unstable, {timings['cea']:.2f} s")
         if write_fields:
             write_modes_xdmf(comm, outdir / "complex_modes.xdmf", ops.V, fields)
+
+    if studies:
+        from fem_squeal.studies import run_studies
+
+        results.update(run_studies(comm, scene, spec, ops, pre, outdir, say, timings))
 
     if rank0:
         write_json_atomic(outdir / "results.json", results)

@@ -30,6 +30,12 @@ analyses.real_modes  n_modes, target_hz, tol, max_residual
 analyses.cea         n_modes, target_hz, band_hz = [lo, hi], method ("auto"|"linear"|"pep"),
                      tol, max_residual, describe_part (part whose nodal diameters are reported;
                      "" = "disc" if the model has one, else all)
+analyses.reduced     band_hz, tol, cut_factors, static_correction, sigma_hz, growth_tol, verify
+                     (modal projection with error control; pulled in by sweep and map)
+analyses.sweep       parameter ("mu" = sign(v)μ, or "E.<part>" [Pa]), range = [first, last], n:
+                     one-parameter sweep on the reduced model with mode tracking
+analyses.map         mu_max, n_mu, part, E_range = [E_min, E_max] [Pa], n_E, n_bands: unstable
+                     modes per frequency band over the (sign(v)μ, E) design (seed 001 Figs. 17-19)
 solver           petsc_options = { key = value } (given with their prefix, e.g. "cea_st_type")
 """
 from __future__ import annotations
@@ -79,6 +85,22 @@ def band(v):
     if len(v) != 2 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
         return f"must be [low, high] in Hz (got {v!r})"
     return None if 0 <= v[0] < v[1] else f"must be increasing and >= 0 (got {v!r})"
+
+
+def increasing(min_len: int, low: float | None = None):
+    def check(v):
+        if len(v) < min_len or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+            return f"must be a list of at least {min_len} numbers (got {v!r})"
+        if any(b <= a for a, b in zip(v, v[1:])):
+            return f"must be increasing (got {v!r})"
+        if low is not None and v[0] <= low:
+            return f"must be > {low} (got {v!r})"
+        return None
+    return check
+
+
+def at_least(n):
+    return lambda v: None if v >= n else f"must be >= {n} (got {v})"
 
 
 def nonempty_str(v):
@@ -174,6 +196,29 @@ ANALYSES = {
         "method": Field(str, "auto", one_of("auto", "linear", "pep")),
         "tol": Field(REAL, 1e-10, positive), "max_residual": Field(REAL, 1e-8, positive),
         "describe_part": Field(str, "", None, "part for nodal diameters; '' = disc if present"),
+    },
+    "reduced": {
+        "band_hz": Field(list, [0.0, 10000.0], band, "band of interest of the reduced model"),
+        "tol": Field(REAL, 1e-3, positive, "allowed relative change of the unstable eigenvalues"),
+        "cut_factors": Field(list, [1.25, 1.6, 2.0, 2.5], increasing(2, 1.0),
+                             "modes up to factor × band top, one basis per factor until tol is met"),
+        "static_correction": Field(bool, True, None, "add (K + σM)⁻¹ K_f Φ"),
+        "sigma_hz": Field(REAL, 0.0, non_negative, "shift σ = (2π f)² of the correction; 0 = 0.1 × cut"),
+        "growth_tol": Field(REAL, 1e-6, positive, "unstable: Re λ > growth_tol |λ|"),
+        "verify": Field(bool, False, None, "full CEA at the check points, compared with the reduced"),
+    },
+    "sweep": {
+        "parameter": Field(str, "mu", None, "'mu' (sign(v)μ) or 'E.<part>' (Young's modulus [Pa])"),
+        "range": Field(list, [-1.0, 1.0], increasing(2), "[first, last] value"),
+        "n": Field(int, 101, at_least(2), "number of values"),
+    },
+    "map": {
+        "mu_max": Field(REAL, 1.0, positive, "sign(v)μ from -mu_max to mu_max"),
+        "n_mu": Field(int, 101, at_least(2)),
+        "part": Field(str, "disc", nonempty_str, "part whose Young's modulus is varied"),
+        "E_range": Field(list, [], None, "[E_min, E_max] [Pa]; [] = nominal ± 20 %"),
+        "n_E": Field(int, 21, at_least(2)),
+        "n_bands": Field(int, 6, positive, "equal frequency ranges of analyses.reduced.band_hz"),
     },
 }
 
@@ -311,7 +356,42 @@ def validate(raw: dict) -> dict:
     part = scene["analyses"].get("cea", {}).get("describe_part", "")
     if part and part not in volumes:
         raise SceneError(f"analyses.cea.describe_part: unknown part {part!r}; parts: {sorted(volumes)}")
+    _check_reduced(scene, volumes)
     return scene
+
+
+def _check_reduced(scene: dict, volumes) -> None:
+    """Cross-checks of analyses.reduced/sweep/map (which pull in analyses.reduced)."""
+    ana = scene["analyses"]
+    if not ({"sweep", "map"} & set(ana) or "reduced" in ana):
+        return
+    ana.setdefault("reduced", _check_fields({}, ANALYSES["reduced"], "analyses.reduced"))
+    frictional = [n for n, t in scene["interfaces"].items()
+                  if t["type"] in ("rigid_plate", "contact") and t.get("mu", 0) > 0 and t.get("sliding", 0)]
+    mus = {scene["interfaces"][n]["mu"] for n in frictional}
+    if not frictional:
+        raise SceneError("analyses.reduced: needs an interface with friction (mu > 0, sliding != 0); "
+                         "its friction stiffness sets the μ direction of the reduced model")
+    if len(mus) > 1:
+        raise SceneError(f"interfaces: frictional interfaces have different mu {sorted(mus)}; the reduced "
+                         "model scales one common friction coefficient")
+    if "sweep" in ana:
+        par = ana["sweep"]["parameter"]
+        if par != "mu":
+            if not par.startswith("E.") or par[2:] not in volumes:
+                raise SceneError(f"analyses.sweep.parameter: must be 'mu' or 'E.<part>' with a part of "
+                                 f"{sorted(volumes)} (got {par!r})")
+            if ana["sweep"]["range"][0] <= 0:
+                raise SceneError(f"analyses.sweep.range: Young's modulus must be > 0 "
+                                 f"(got {ana['sweep']['range']})")
+    if "map" in ana:
+        m = ana["map"]
+        if m["part"] not in volumes:
+            raise SceneError(f"analyses.map.part: unknown part {m['part']!r}; parts: {sorted(volumes)}")
+        if m["E_range"]:
+            msg = increasing(2, 0.0)(m["E_range"])
+            if msg or len(m["E_range"]) != 2:
+                raise SceneError(f"analyses.map.E_range: {msg or 'must be [E_min, E_max]'}")
 
 
 def parse_value(text: str) -> Any:

@@ -5,7 +5,9 @@ and are continued outwards in both directions.  A step p_a → p_b is accepted w
 
 * the Hungarian assignment that maximises Σ MAC(y_ref, y_b) gives every branch a MAC ≥
   ``mac_min`` (MAC(a, b) = |aᴴb|² / (|a|²|b|²); the reduced basis is M-orthonormal, so this is
-  the mass-weighted MAC of the lifted shapes), and
+  the mass-weighted MAC of the lifted shapes; for a group of eigenvalues closer than they move
+  over the step, such as the sin/cos pairs of an axisymmetric disc, the MAC with the group's
+  subspace), and
 * no two branches swap their frequency order inside the step.
 
 Otherwise the step is bisected (the reduced solve is cheap), down to ``max_depth`` halvings.  A
@@ -20,8 +22,8 @@ After tracking, every change of stability of a branch between two grid values (R
 ``growth_tol``·|λ|, see :func:`~fem_squeal.reduced.eigensolve.unstable`) is an event; its
 critical parameter (Re λ = 0: the Hopf point with damping, the exceptional point without, where
 LAPACK returns real θ and hence Re λ = 0 exactly before it) is refined by bisection on the reduced
-model to ``tol`` and its partner is the branch nearest in frequency.  An event whose partner frequency agrees to ``coalescence_rtol``
-is a coalescence (mode coupling: for the undamped model, an exceptional point).
+model to ``tol`` and its partner is the branch nearest in frequency.  An event whose partner
+frequency agrees to ``coalescence_rtol`` is a coalescence (mode coupling: for the undamped model, an exceptional point).
 """
 from __future__ import annotations
 
@@ -94,29 +96,54 @@ def _order_swaps(fa: np.ndarray, fb: np.ndarray, rtol: float) -> bool:
     return bool(np.any((da > scale) & (db < -scale)))
 
 
+def _group_mac(mac: np.ndarray, Y_ref: np.ndarray, Y_b: np.ndarray, lam_a: np.ndarray, lam_b: np.ndarray,
+               assigned: np.ndarray, rtol: float) -> np.ndarray:
+    """MAC of each branch's new vector with the subspace of its group at the start of the step.
+
+    Eigenvalues that are closer at p_a than they move over the step (or equal to ``rtol``) form
+    a group: their shapes may mix arbitrarily within the step (at an exactly or nearly
+    degenerate pair, e.g. the sin/cos pairs of an axisymmetric disc that friction turns into
+    travelling waves), so only the group's subspace is meaningful."""
+    best = mac[np.arange(len(assigned)), assigned]
+    move = np.abs(lam_b[assigned] - lam_a)
+    gap = np.abs(lam_a[:, None] - lam_a[None, :])
+    group = gap <= 2.0 * np.maximum(move[:, None], move[None, :]) + rtol * np.abs(lam_a)[:, None]
+    for i in np.flatnonzero(group.sum(axis=1) > 1):
+        Q = np.linalg.qr(Y_ref[:, group[i]])[0]
+        y = Y_b[:, assigned[i]]
+        best[i] = max(best[i], np.sum(np.abs(Q.conj().T @ y) ** 2) / np.sum(np.abs(y) ** 2))
+    return best
+
+
 class _Walker:
-    def __init__(self, solve: Solver, mac_min: float, max_depth: int, order_rtol: float):
+    def __init__(self, solve: Solver, mac_min: float, max_depth: int, order_rtol: float,
+                 cluster_rtol: float, budget: int):
         self.solve, self.mac_min, self.max_depth, self.order_rtol = solve, mac_min, max_depth, order_rtol
+        self.cluster_rtol, self.budget = cluster_rtol, budget
+        self.left = budget
         self.solves = 0
         self.ambiguous = 0
 
     def eig(self, p: float):
         self.solves += 1
+        self.left -= 1
         return self.solve(p)
 
     def step(self, st: dict, p_b: float, depth: int = 0) -> dict:
+        if depth == 0:
+            self.left = self.budget  # bisection budget of this grid interval
         lam_b, Y_b = self.eig(p_b)
         mac = mac_matrix(st["Y"], Y_b)
         rows, cols = linear_sum_assignment(-mac)
         assigned = np.empty_like(cols)
         assigned[rows] = cols
-        best = mac[np.arange(len(assigned)), assigned]
+        best = _group_mac(mac, st["Y"], Y_b, st["lam"], lam_b, assigned, self.cluster_rtol)
         ok = bool(np.all(best >= self.mac_min)) and \
             not _order_swaps(st["lam"].imag, lam_b[assigned].imag, self.order_rtol)
-        if not ok and depth < self.max_depth:
+        if not ok and depth < self.max_depth and self.left >= 2:
             mid = 0.5 * (st["p"] + p_b)
             return self.step(self.step(st, mid, depth + 1), p_b, depth + 1)
-        Y_new = st["Y"].copy()
+        Y_new = st["Y"].astype(complex)
         if not ok:
             self.ambiguous += 1
             # eigenvalue prediction by linear extrapolation, mixed with the MAC
@@ -128,8 +155,8 @@ class _Walker:
             cost = np.abs(pred[:, None] - lam_b[None, :]) / scale[:, None] + (1.0 - mac)
             rows, cols = linear_sum_assignment(cost)
             assigned[rows] = cols
-            best = mac[np.arange(len(assigned)), assigned]
-            sure = best >= self.mac_min
+            sure = _group_mac(mac, st["Y"], Y_b, st["lam"], lam_b, assigned, self.cluster_rtol) \
+                >= self.mac_min
             Y_new[:, sure] = Y_b[:, assigned[sure]]
         else:
             Y_new = Y_b[:, assigned]
@@ -137,18 +164,21 @@ class _Walker:
 
 
 def track(solve: Solver, values: np.ndarray, *, start: float | None = None, mac_min: float = 0.8,
-          max_depth: int = 10, order_rtol: float = 1e-9, growth_tol: float = 1e-6,
+          max_depth: int = 10, budget: int = 48, order_rtol: float = 1e-9, cluster_rtol: float = 1e-8,
+          growth_tol: float = 1e-6,
           coalescence_rtol: float = 1e-3, tol: float = 1e-10, labels: list[str] | None = None) -> Tracking:
     """Track every eigenvalue of ``solve(p) -> (λ (m,), Y (m, m))`` over the sorted ``values``.
 
     ``start`` (default 0 if inside the range, else the first value) is where branches are
-    labelled; critical points are refined to ``tol`` × (range of values)."""
+    labelled; critical points are refined to ``tol`` × (range of values).  ``budget`` caps the
+    extra solves spent bisecting one grid interval; ``cluster_rtol`` is the relative distance
+    under which eigenvalues count as one degenerate cluster."""
     values = np.asarray(values, float)
     if values.ndim != 1 or values.size < 2 or np.any(np.diff(values) <= 0):
         raise ValueError("values: must be at least 2 strictly increasing numbers")
     if start is None:
         start = 0.0 if values[0] <= 0.0 <= values[-1] else float(values[0])
-    walker = _Walker(solve, mac_min, max_depth, order_rtol)
+    walker = _Walker(solve, mac_min, max_depth, order_rtol, cluster_rtol, budget)
     lam0, Y0 = walker.eig(start)
     m = lam0.size
     parents_hz = lam0.imag / TWO_PI

@@ -1,0 +1,174 @@
+"""Parametric studies of a scene on its reduced model: the ``reduced``, ``sweep`` and ``map`` analyses.
+
+reduced   the basis grown to ``tol`` (:func:`fem_squeal.reduction.adaptive_reduce`), checked at the
+          nominal point and at the corners of the requested parameter ranges; optionally the full
+          CEA at those points, compared with the reduced one (``verify``).
+sweep     one parameter (sign(v)μ or a part's E) over a range, every branch tracked by MAC
+          continuation (:func:`fem_squeal.reduced.tracking.track`), critical values refined.
+map       the (sign(v)μ, E) full-factorial design of seed 001 §4 on the ranks of the run, with
+          the number of unstable modes per frequency band.
+
+Files: reduced_model.npz, sweep.json, root_locus.png, complex_plane.png, stability_map.npz,
+stability_map.png.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fem_squeal.reduced.eigensolve import TWO_PI, unstable
+from fem_squeal.reduced.model import MU, e_param
+from fem_squeal.reduced.stability_map import equal_bands, stability_map
+from fem_squeal.reduced.sweep import Grid, evaluate, path_solver, signed_mu_axis, solve_points
+from fem_squeal.reduced.tracking import track
+
+
+def map_E_range(scene: dict, spec) -> tuple[float, float]:
+    m = scene["analyses"]["map"]
+    E0 = spec.materials[m["part"]].E
+    return tuple(m["E_range"]) if m["E_range"] else (0.8 * E0, 1.2 * E0)
+
+
+def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict], list[str]]:
+    """(check points, E samples for the basis, parts whose E varies) implied by sweep and map."""
+    ana = scene["analyses"]
+    checks: list[dict] = [{MU: mu0}]
+    samples: list[dict] = []
+    parts: list[str] = []
+    if "sweep" in ana:
+        s = ana["sweep"]
+        lo, hi = s["range"]
+        if s["parameter"] == MU:
+            checks += [{MU: lo}, {MU: hi}]
+        else:
+            parts.append(s["parameter"][2:])
+            samples += [{s["parameter"]: lo}, {s["parameter"]: hi}]
+            checks += [{MU: mu0, s["parameter"]: lo}, {MU: mu0, s["parameter"]: hi}]
+    if "map" in ana:
+        m = ana["map"]
+        name = e_param(m["part"])
+        parts.append(m["part"])
+        e_lo, e_hi = map_E_range(scene, spec)
+        samples += [{name: e_lo}, {name: e_hi}]
+        checks += [{MU: s * m["mu_max"], name: e} for s in (-1, 1) for e in (e_lo, e_hi)]
+    uniq = lambda pts: [dict(t) for t in dict.fromkeys(tuple(sorted(p.items())) for p in pts)]  # noqa: E731
+    return uniq(checks), uniq(samples), sorted(set(parts))
+
+
+def _verify(par, model, point: dict, band, growth_tol: float, options) -> dict:
+    """Full CEA at ``point`` against the reduced eigenvalues: worst relative error of the unstable
+    full eigenvalues (of all in the band when none is unstable)."""
+    from fem_squeal.eigen import solve_complex_modes
+    from fem_squeal.reduction import relative_change
+
+    lam_r = solve_points(model, {k: np.array([v]) for k, v in point.items()})[0]
+    f = lam_r.imag / TWO_PI
+    lam_r = lam_r[(f >= band[0]) & (f <= band[1])]
+    K, C = par.matrices(point)
+    t = time.perf_counter()
+    target = np.sqrt(0.5 * (band[0] ** 2 + band[1] ** 2))
+    cm = solve_complex_modes(K, par.ops.M, C, len(lam_r) + 2, target, band_hz=tuple(band), options=options,
+                             prefix="verify_")
+    seconds = time.perf_counter() - t
+    K.destroy()
+    if C is not None:
+        C.destroy()
+    full = cm.eigenvalues
+    bad = unstable(full, growth_tol)
+    watched = full[bad] if bad.any() else full
+    for v in cm.vectors_re + cm.vectors_im:
+        v.destroy()
+    return {"point": point, "n_full": int(full.size), "n_unstable_full": int(bad.sum()),
+            "n_unstable_reduced": int(unstable(lam_r, growth_tol).sum()),
+            "max_rel_error": relative_change(watched, lam_r), "full_cea_s": seconds,
+            "unstable_full": [complex(x) for x in full[bad]]}
+
+
+def run_studies(comm, scene: dict, spec, ops, preload, outdir: Path, say, timings: dict) -> dict[str, Any]:
+    """The reduced, sweep and map analyses of ``scene`` (see the module docstring)."""
+    from fem_squeal import plots
+    from fem_squeal.output import write_json_atomic
+    from fem_squeal.reduction import ParametricOperators, adaptive_reduce, common_mu
+
+    ana = scene["analyses"]
+    a = ana["reduced"]
+    band = tuple(a["band_hz"])
+    opts = scene["solver"]["petsc_options"]
+    rank0 = comm.rank == 0
+    mu0 = common_mu(spec)
+    checks, samples, parts = design_points(scene, spec, mu0)
+    par = ParametricOperators(ops, spec, mu0, parts)
+    t = time.perf_counter()
+    model, basis, report = adaptive_reduce(
+        ops, par, band, checks, tol=a["tol"], cut_factors=tuple(a["cut_factors"]), samples=samples,
+        static=a["static_correction"], sigma_hz=a["sigma_hz"] or None, growth_tol=a["growth_tol"],
+        preload=preload, options=opts, log=say)
+    timings["reduced_basis"] = time.perf_counter() - t
+    if rank0:
+        model.save(outdir / "reduced_model.npz")
+    out: dict[str, Any] = {"reduced": {"size": model.size, "parameters": model.parameters, "mu0": mu0,
+                                       **report.as_dict()}}
+    say(f"[fem_squeal] reduced model: {model.size} vectors {basis.counts}, estimated error "
+        f"{report.estimate:.1e}, {timings['reduced_basis']:.1f} s")
+    if a["verify"]:
+        t = time.perf_counter()
+        rows = [_verify(par, model, p, band, a["growth_tol"], opts) for p in checks]
+        timings["reduced_verify"] = time.perf_counter() - t
+        out["reduced"]["verification"] = rows
+        say("[fem_squeal] reduced vs full CEA: " + ", ".join(
+            f"{r['point']}: {r['max_rel_error']:.1e}" for r in rows))
+    gt = a["growth_tol"]
+
+    if "sweep" in ana:
+        s = ana["sweep"]
+        t = time.perf_counter()
+        values = np.linspace(*s["range"], s["n"])
+        fixed = {} if s["parameter"] == MU else {MU: mu0}
+        tr = track(path_solver(model, s["parameter"], fixed), values, growth_tol=gt,
+                   start=0.0 if s["parameter"] == MU and values[0] <= 0 <= values[-1] else None)
+        timings["sweep"] = time.perf_counter() - t
+        f = tr.freqs_hz
+        inside = np.flatnonzero(np.any((f >= band[0]) & (f <= band[1]), axis=0))
+        events = [e for e in tr.events if band[0] <= e.freq_hz <= band[1]]
+        out["sweep"] = {"parameter": s["parameter"], "values": values, "branches": [
+            {"label": tr.labels[j], "parent_hz": tr.parents_hz[j], "freq_hz": f[:, j],
+             "real_part": tr.eigenvalues[:, j].real} for j in inside],
+            "critical": [e.as_dict() for e in events], "solves": tr.solves,
+            "ambiguous_steps": tr.ambiguous_steps, "seconds": timings["sweep"]}
+        say(f"[fem_squeal] sweep of {s['parameter']}: {s['n']} values, {tr.solves} reduced solves, "
+            f"{len(events)} stability changes in the band, {timings['sweep']:.2f} s")
+        if rank0:
+            write_json_atomic(outdir / "sweep.json", out["sweep"])
+            xlabel = "sign(v) μ" if s["parameter"] == MU else f"{s['parameter']} [Pa]"
+            plots.root_locus(outdir / "root_locus.png", values, tr.eigenvalues, unstable(tr.eigenvalues, gt),
+                             xlabel, band, tr.labels, scene["title"])
+            plots.complex_plane(outdir / "complex_plane.png", tr.eigenvalues, band, gt, scene["title"])
+        out["sweep"].pop("branches")  # kept in sweep.json; results.json holds the summary
+
+    if "map" in ana:
+        m = ana["map"]
+        name = e_param(m["part"])
+        E = np.linspace(*map_E_range(scene, spec), m["n_E"])
+        grid = Grid({name: E, MU: signed_mu_axis(m["mu_max"], m["n_mu"])})
+        res = evaluate(model, grid, comm)
+        timings["map"] = res.seconds
+        bands = equal_bands(band, m["n_bands"])
+        smap = stability_map(res, bands, gt)
+        out["map"] = {"parameter": name, "points": grid.size, "seconds": res.seconds,
+                      "seconds_per_point": res.seconds_per_point, **smap.as_dict()}
+        say(f"[fem_squeal] stability map: {grid.size} points in {res.seconds:.2f} s "
+            f"({1e3 * res.seconds_per_point:.2f} ms per point per rank), "
+            f"at most {int(smap.total.max())} unstable modes")
+        if rank0:
+            from fem_squeal.output import write_npz_atomic
+
+            write_npz_atomic(outdir / "stability_map.npz", {"mu": grid.axes[MU], "E": E, "counts": smap.counts,
+                                                            "total": smap.total, "eigenvalues": res.eigenvalues,
+                                                            "bands_hz": np.array(bands)})
+            plots.stability_maps(outdir / "stability_map.png", grid.axes[MU], E / 1e9, smap.counts, smap.total,
+                                 bands, f"E of {m['part']} [GPa]", scene["title"])
+    par.destroy()
+    return out

@@ -138,8 +138,10 @@ def modes_below(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, *, n_start: int = 2
             return rm.omega2[keep], Phi
         for v in rm.vectors:
             v.destroy()
-        # modal density of plates ∝ f: extrapolate the count to the cut, with a margin
-        nev = int(min(max_modes, max(nev * 1.5, nev * (f_cut_hz / max(f[-1], 1e-9)) ** 2 * 1.15) + 4))
+        # extrapolate the count to the cut (N ∝ f^1.5, between plates ∝ f² and beams ∝ f), with a
+        # margin, but at most ×2.5 per try: a large overshoot costs more than one more solve
+        grow = (f_cut_hz / max(f[-1], 1e-9)) ** 1.5 * 1.1
+        nev = int(min(max_modes, nev * min(max(grow, 1.3), 2.5) + 4))
 
 
 def _solver(A: PETSc.Mat, options, prefix: str) -> PETSc.KSP:
@@ -242,29 +244,35 @@ def restrict_contacts(ops: Operators, Phi: np.ndarray, preload=None) -> dict[str
 
 def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
                 samples: list[dict[str, float]] = (), static: bool = True, sigma_hz: float | None = None,
-                options=None, prefix: str = "basis_", rtol: float = 1e-8) -> Basis:
+                options=None, prefix: str = "basis_", rtol: float = 1e-8, enrich_rtol: float = 1e-2,
+                n_start: int = 20) -> Basis:
     """Frictionless modes ≤ ``f_cut_hz`` at the nominal point and at each of ``samples``, plus the
-    static corrections (K + σM)⁻¹ K_f Φ, M-orthonormalised (see the module docstring)."""
+    static corrections (K + σM)⁻¹ K_f Φ (of all the modes kept), M-orthonormalised (see the module
+    docstring); sampled modes and corrections add only their directions beyond ``enrich_rtol``.
+    ``n_start``: first guess of the number of modes below the cut."""
     if not f_cut_hz > 0:
         raise ValueError(f"f_cut_hz: must be > 0 (got {f_cut_hz})")
-    w2, V = modes_below(ops.K, ops.M, f_cut_hz, options=options, prefix=prefix)
-    blocks, n_sample = [V], 0
+    w2, V = modes_below(ops.K, ops.M, f_cut_hz, n_start=n_start, options=options, prefix=prefix)
+    Phi, dropped = m_orthonormalise(ops.M, V, rtol)
+    n_sample = 0
     for s in samples:
         K = par.frictionless(s)
-        _, Vs = modes_below(K, ops.M, f_cut_hz, n_start=max(V.shape[1], 4), options=options, prefix=prefix)
+        _, Vs = modes_below(K, ops.M, f_cut_hz, n_start=int(1.15 * V.shape[1]) + 4, options=options,
+                            prefix=prefix)
         K.destroy()
-        blocks.append(Vs)
-        n_sample += Vs.shape[1]
-    modal = np.hstack(blocks)
+        # only what the sampled modes add beyond ``enrich_rtol`` of their norm: eigenvalue errors
+        # are quadratic in the subspace error, so 1e-2 costs ~1e-4 relative at most
+        size = Phi.shape[1]
+        Phi, d = m_orthonormalise(ops.M, Vs, enrich_rtol, Phi)
+        n_sample += Phi.shape[1] - size
+        dropped += d
     n_static = 0
     if static and ops.Kf is not None:
         sigma = (TWO_PI * (sigma_hz if sigma_hz is not None else 0.1 * f_cut_hz)) ** 2
-        F = apply(ops.Kf, modal)
-        S = static_correction(ops.K, ops.M, F, sigma, options, prefix + "static_")
-        n_static = modal.shape[1]
-    Phi, dropped = m_orthonormalise(ops.M, modal, rtol)
-    if n_static:
-        Phi, d = m_orthonormalise(ops.M, S, rtol, Phi)
+        S = static_correction(ops.K, ops.M, apply(ops.Kf, Phi), sigma, options, prefix + "static_")
+        size = Phi.shape[1]
+        Phi, d = m_orthonormalise(ops.M, S, enrich_rtol, Phi)
+        n_static = Phi.shape[1] - size
         dropped += d
     return Basis(Phi, ops.K.getSize()[0], np.sqrt(np.abs(w2)) / TWO_PI,
                  {"modes": int(V.shape[1]), "sampled_modes": n_sample, "static": n_static,
@@ -354,8 +362,8 @@ def relative_change(new: np.ndarray, old: np.ndarray) -> float:
 def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[float, float],
                     check_points: list[dict[str, float]], *, tol: float = 1e-3,
                     cut_factors: tuple[float, ...] = (1.25, 1.6, 2.0, 2.5), samples=(), static: bool = True,
-                    sigma_hz: float | None = None, growth_tol: float = 1e-6, preload=None, options=None,
-                    log=None) -> tuple[ReducedModel, Basis, ReductionReport]:
+                    sigma_hz: float | None = None, growth_tol: float = 1e-6, enrich_rtol: float = 1e-2,
+                    preload=None, options=None, log=None) -> tuple[ReducedModel, Basis, ReductionReport]:
     """Grow the basis (modes up to factor × the band's top, for each factor in turn) until the
     unstable eigenvalues in the band (all of them where none is unstable) at ``check_points``
     move by less than ``tol`` (relative) between two rounds.  The model of the last round is
@@ -365,12 +373,13 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
 
     if len(cut_factors) < 2 or any(b <= a for a, b in zip(cut_factors, cut_factors[1:])):
         raise ValueError(f"cut_factors: need at least 2 increasing factors (got {list(cut_factors)})")
-    rounds, prev, change = [], None, np.inf
+    rounds, prev, change, n_start = [], None, np.inf, 20
     comm = ops.K.getComm().tompi4py()
     for factor in cut_factors:
         t = MPI.Wtime()
         basis = build_basis(ops, par, factor * band_hz[1], samples=list(samples), static=static,
-                            sigma_hz=sigma_hz, options=options)
+                            sigma_hz=sigma_hz, options=options, n_start=n_start, enrich_rtol=enrich_rtol)
+        n_start = basis.counts["modes"]
         model = reduce(ops, par, basis, preload)
         lams = [_in_band(solve_points(model, {k: np.array([v]) for k, v in p.items()})[0], band_hz)
                 for p in check_points]
@@ -382,6 +391,9 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
             log(f"[fem_squeal] reduced basis: modes <= {factor * band_hz[1]:.0f} Hz, size {basis.size}, "
                 f"change {change:.1e} ({rounds[-1]['seconds']:.1f} s)")
         prev = lams
+        if len(rounds) < len(cut_factors):  # guess the next round's count (N ∝ f^1.5)
+            nxt = cut_factors[len(rounds)]
+            n_start = int(n_start * (nxt / factor) ** 1.5 * 1.1) + 4
         if change <= tol:
             break
     converged = change <= tol

@@ -30,7 +30,8 @@ analyses.real_modes  n_modes, target_hz, tol, max_residual
 analyses.cea         n_modes, target_hz, band_hz = [lo, hi], method ("auto"|"linear"|"pep"),
                      tol, max_residual, describe_part (part whose nodal diameters are reported;
                      "" = "disc" if the model has one, else all)
-analyses.reduced     band_hz, tol, cut_factors, static_correction, sigma_hz, growth_tol, verify
+analyses.reduced     band_hz, tol, cut_factors, static_correction, sigma_hz, growth_tol, enrich_rtol,
+                     verify
                      (modal projection with error control; pulled in by sweep and map)
 analyses.sweep       parameter ("mu" = sign(v)μ, or "E.<part>" [Pa]), range = [first, last], n:
                      one-parameter sweep on the reduced model with mode tracking
@@ -205,6 +206,8 @@ ANALYSES = {
         "static_correction": Field(bool, True, None, "add (K + σM)⁻¹ K_f Φ"),
         "sigma_hz": Field(REAL, 0.0, non_negative, "shift σ = (2π f)² of the correction; 0 = 0.1 × cut"),
         "growth_tol": Field(REAL, 1e-6, positive, "unstable: Re λ > growth_tol |λ|"),
+        "enrich_rtol": Field(REAL, 1e-2, positive, "sampled modes and static corrections keep only "
+                             "directions whose new part exceeds this share of their norm"),
         "verify": Field(bool, False, None, "full CEA at the check points, compared with the reduced"),
     },
     "sweep": {

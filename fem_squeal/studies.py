@@ -105,6 +105,7 @@ def run_studies(comm, scene: dict, spec, ops, preload, outdir: Path, say, timing
     model, basis, report = adaptive_reduce(
         ops, par, band, checks, tol=a["tol"], cut_factors=tuple(a["cut_factors"]), samples=samples,
         static=a["static_correction"], sigma_hz=a["sigma_hz"] or None, growth_tol=a["growth_tol"],
+        enrich_rtol=a["enrich_rtol"],
         preload=preload, options=opts, log=say)
     timings["reduced_basis"] = time.perf_counter() - t
     if rank0:

@@ -23,7 +23,8 @@ After tracking, every change of stability of a branch between two grid values (R
 critical parameter (Re λ = 0: the Hopf point with damping, the exceptional point without, where
 LAPACK returns real θ and hence Re λ = 0 exactly before it) is refined by bisection on the reduced
 model to ``tol`` and its partner is the branch nearest in frequency.  An event whose partner
-frequency agrees to ``coalescence_rtol`` is a coalescence (mode coupling: for the undamped model, an exceptional point).
+frequency agrees to ``coalescence_rtol`` is a coalescence (mode coupling: for the undamped
+model, an exceptional point).
 """
 from __future__ import annotations
 

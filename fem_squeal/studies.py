@@ -58,29 +58,33 @@ def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict]
     return uniq(checks), uniq(samples), sorted(set(parts))
 
 
+def full_cea(par, point: dict, band, nev: int, options) -> tuple[np.ndarray, float]:
+    """Eigenvalues (Im λ > 0, in ``band``) of the full CEA at ``point`` and its wall time [s]."""
+    from fem_squeal.eigen import solve_complex_modes
+
+    K, C = par.matrices(point)
+    t = time.perf_counter()
+    target = np.sqrt(0.5 * (band[0] ** 2 + band[1] ** 2))
+    cm = solve_complex_modes(K, par.ops.M, C, nev, target, band_hz=tuple(band), options=options,
+                             prefix="verify_")
+    seconds = time.perf_counter() - t
+    for A in (K, C, *cm.vectors_re, *cm.vectors_im):
+        if A is not None:
+            A.destroy()
+    return cm.eigenvalues, seconds
+
+
 def _verify(par, model, point: dict, band, growth_tol: float, options) -> dict:
     """Full CEA at ``point`` against the reduced eigenvalues: worst relative error of the unstable
     full eigenvalues (of all in the band when none is unstable)."""
-    from fem_squeal.eigen import solve_complex_modes
     from fem_squeal.reduction import relative_change
 
     lam_r = solve_points(model, {k: np.array([v]) for k, v in point.items()})[0]
     f = lam_r.imag / TWO_PI
     lam_r = lam_r[(f >= band[0]) & (f <= band[1])]
-    K, C = par.matrices(point)
-    t = time.perf_counter()
-    target = np.sqrt(0.5 * (band[0] ** 2 + band[1] ** 2))
-    cm = solve_complex_modes(K, par.ops.M, C, len(lam_r) + 2, target, band_hz=tuple(band), options=options,
-                             prefix="verify_")
-    seconds = time.perf_counter() - t
-    K.destroy()
-    if C is not None:
-        C.destroy()
-    full = cm.eigenvalues
+    full, seconds = full_cea(par, point, band, len(lam_r) + 2, options)
     bad = unstable(full, growth_tol)
     watched = full[bad] if bad.any() else full
-    for v in cm.vectors_re + cm.vectors_im:
-        v.destroy()
     return {"point": point, "n_full": int(full.size), "n_unstable_full": int(bad.sum()),
             "n_unstable_reduced": int(unstable(lam_r, growth_tol).sum()),
             "max_rel_error": relative_change(watched, lam_r), "full_cea_s": seconds,

@@ -113,3 +113,10 @@ def test_ring_sweep_1_vs_2_ranks(tmp_path, mpirun):
     # critical μ of a mesh-split pair is ~1e-5..1e-3: compare absolutely at 1e-8 of the range
     assert np.max(np.abs(c1 - c2)) < 2e-8
     assert np.array_equal(np.array(out[1]["map"]["total"]), np.array(out[2]["map"]["total"]))
+
+
+def test_mu_sweep_demo_ring_checks_itself(tmp_path):
+    r = subprocess.run([sys.executable, str(ROOT / "demos" / "mu_sweep.py"), str(tmp_path), "--ring-only"],
+                       capture_output=True, text=True, env=clean_env(), timeout=600)
+    assert r.returncode == 0 and "check passed" in r.stdout, r.stdout[-2000:] + r.stderr[-2000:]
+    assert (tmp_path / "ring" / "root_locus.png").stat().st_size > 10_000

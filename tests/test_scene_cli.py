@@ -74,10 +74,22 @@ BRAKE = ROOT / "scenes" / "brake_corner.toml"
     ("preload.mode=linear", r"^preload\.mode: must be one of"),
     ("materials.lining_inner.E_axial=3e9", r"^materials\.lining_inner\.E_axial, nu_axial, G_axial: give all"),
     ("analyses.cea.describe_part=rotor", r"^analyses\.cea\.describe_part: unknown part 'rotor'"),
+    ("analyses.sweep.parameter=E.rotor", r"^analyses\.sweep\.parameter: must be 'mu' or 'E\.<part>'"),
+    ("analyses.sweep.range=[1.0, -1.0]", r"^analyses\.sweep\.range: must be increasing"),
+    ("analyses.map.part=rotor", r"^analyses\.map\.part: unknown part 'rotor'"),
+    ("analyses.map.E_range=[2e11, 1e11]", r"^analyses\.map\.E_range: must be increasing"),
+    ("analyses.map.n_E=1", r"^analyses\.map\.n_E: must be >= 2"),
+    ("analyses.reduced.cut_factors=[0.9, 2.0]", r"^analyses\.reduced\.cut_factors: must be > 1"),
+    ("interfaces.pad_outer.mu=0.5", None),
 ])
 def test_bad_brake_values_name_the_key_and_the_reason(override, message):
+    overrides = (["analyses.map.n_E=3"] if message is None or "analyses" in message else []) + [override]
+    if message is None:  # different μ per pad: a reduced model scales one common μ
+        with pytest.raises(SceneError, match=r"^interfaces: frictional interfaces have different mu"):
+            load_scene(BRAKE, overrides)
+        return
     with pytest.raises(SceneError, match=message):
-        load_scene(BRAKE, [override])
+        load_scene(BRAKE, overrides)
 
 
 def test_brake_scene_builds_its_model_spec():

@@ -22,6 +22,7 @@ from mpi4py import MPI
 
 from fem_squeal.run import run_scene
 from fem_squeal.scene import load_scene
+from fem_squeal.studies import verification_failures
 
 root = Path(__file__).resolve().parents[1]
 args = [a for a in sys.argv[1:] if not a.startswith("--")]
@@ -34,13 +35,7 @@ scene = load_scene(root / "scenes" / "brake_corner.toml",
 res = run_scene(scene, outdir, comm, write_fields=False)
 
 red, smap = res["reduced"], res["map"]
-failures = []
-for v in red["verification"]:
-    if v["max_rel_error"] > red["tol"]:
-        failures.append(f"reduced vs full at {v['point']}: {v['max_rel_error']:.1e} > tol {red['tol']}")
-    if v["n_unstable_full"] != v["n_unstable_reduced"]:
-        failures.append(f"{v['n_unstable_reduced']} unstable reduced vs {v['n_unstable_full']} full "
-                        f"at {v['point']}")
+failures = verification_failures(red)
 mu_axis, E_axis = np.asarray(smap["axes"]["mu"]), np.asarray(smap["axes"][smap["parameter"]])
 E0 = scene["materials"][scene["analyses"]["map"]["part"]]["E"]
 mu0 = red["mu0"]

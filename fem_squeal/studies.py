@@ -177,3 +177,16 @@ def run_studies(comm, scene: dict, spec, ops, preload, outdir: Path, say, timing
                                  bands, f"E of {m['part']} [GPa]", scene["title"])
     par.destroy()
     return out
+
+
+def verification_failures(reduced: dict, what: str = "") -> list[str]:
+    """The check points where the reduced model misses the full CEA: relative error above the
+    requested ``tol``, or a different number of unstable modes (``results["reduced"]``)."""
+    out = []
+    for v in reduced.get("verification", []):
+        if v["max_rel_error"] > reduced["tol"]:
+            out.append(f"{what}reduced vs full at {v['point']}: {v['max_rel_error']:.1e} > tol {reduced['tol']}")
+        if v["n_unstable_full"] != v["n_unstable_reduced"]:
+            out.append(f"{what}{v['n_unstable_reduced']} unstable reduced vs {v['n_unstable_full']} full "
+                       f"at {v['point']}")
+    return out

@@ -248,7 +248,8 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
                 n_start: int = 20) -> Basis:
     """Frictionless modes ≤ ``f_cut_hz`` at the nominal point and at each of ``samples``, plus the
     static corrections (K + σM)⁻¹ K_f Φ (of all the modes kept), M-orthonormalised (see the module
-    docstring); sampled modes and corrections add only their directions beyond ``enrich_rtol``.
+    docstring); sampled modes add only their directions beyond ``enrich_rtol`` (the corrections
+    are kept whole: truncating them at 1e-3 raised the ring's error at μ = 1 from 1.5e-6 to 5e-5).
     ``n_start``: first guess of the number of modes below the cut."""
     if not f_cut_hz > 0:
         raise ValueError(f"f_cut_hz: must be > 0 (got {f_cut_hz})")
@@ -272,7 +273,7 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
         sigma = (TWO_PI * (sigma_hz if sigma_hz is not None else 0.1 * f_cut_hz)) ** 2
         S = static_correction(ops.K, ops.M, apply(ops.Kf, Phi), sigma, options, prefix + "static_")
         size = Phi.shape[1]
-        Phi, d = m_orthonormalise(ops.M, S, enrich_rtol, Phi)
+        Phi, d = m_orthonormalise(ops.M, S, rtol, Phi)  # corrections: all of their new content
         n_static = Phi.shape[1] - size
         dropped += d
     return Basis(Phi, ops.K.getSize()[0], np.sqrt(np.abs(w2)) / TWO_PI,

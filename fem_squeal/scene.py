@@ -206,7 +206,7 @@ ANALYSES = {
         "static_correction": Field(bool, True, None, "add (K + σM)⁻¹ K_f Φ"),
         "sigma_hz": Field(REAL, 0.0, non_negative, "shift σ = (2π f)² of the correction; 0 = 0.1 × cut"),
         "growth_tol": Field(REAL, 1e-6, positive, "unstable: Re λ > growth_tol |λ|"),
-        "enrich_rtol": Field(REAL, 1e-3, positive, "sampled modes and static corrections keep only "
+        "enrich_rtol": Field(REAL, 1e-3, positive, "modes sampled at other parameter values keep only "
                              "directions whose new part exceeds this share of their norm"),
         "verify": Field(bool, False, None, "full CEA at the check points, compared with the reduced"),
     },

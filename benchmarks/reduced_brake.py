@@ -33,7 +33,7 @@ def main() -> None:
     from mpi4py import MPI
 
     from fem_squeal.assembly import assemble_operators, linearise
-    from fem_squeal.blas import limit_threads
+    from fem_squeal.blas import limit_threads_for
     from fem_squeal.preload import solve_preload
     from fem_squeal.reduced.eigensolve import unstable
     from fem_squeal.reduced.model import MU
@@ -45,7 +45,7 @@ def main() -> None:
     from fem_squeal.studies import full_cea
 
     comm = MPI.COMM_WORLD
-    limit_threads(comm.Split_type(MPI.COMM_TYPE_SHARED).size)
+    limit_threads_for(comm)
     scene = load_scene(ROOT / "scenes" / "brake_corner.toml", ["geometry.mesh_size=0.016"] if args.quick else [])
     spec = model_spec(scene)
     md = build_mesh(comm, scene)

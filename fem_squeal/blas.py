@@ -35,3 +35,14 @@ def limit_threads(ranks_per_node: int) -> int | None:
     n = max(1, (os.cpu_count() or 1) // max(ranks_per_node, 1))
     lib.openblas_set_num_threads(n)
     return n
+
+
+def limit_threads_for(comm) -> int | None:
+    """:func:`limit_threads` for the ranks of ``comm`` that share this node."""
+    from mpi4py import MPI
+
+    node = comm.Split_type(MPI.COMM_TYPE_SHARED)
+    try:
+        return limit_threads(node.size)
+    finally:
+        node.Free()

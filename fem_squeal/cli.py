@@ -24,6 +24,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from fem_squeal.eigen import EigenSolveError
     from fem_squeal.preload import PreloadError
+    from fem_squeal.reduction import ReductionError
     from fem_squeal.scene import SceneError, load_scene
 
     comm = MPI.COMM_WORLD
@@ -44,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
     outdir = args.outdir or Path("out") / args.scene.stem
     try:
         run_scene(scene, outdir, comm, write_fields=not args.no_fields)
-    except (EigenSolveError, PreloadError, ValueError, KeyError) as e:
+    except (EigenSolveError, PreloadError, ReductionError, ValueError, KeyError) as e:
         print(f"fem-squeal: error (rank {comm.rank}): {e}", file=sys.stderr)
         return 3
     if comm.rank == 0:

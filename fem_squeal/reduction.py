@@ -25,7 +25,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from fem_squeal.assembly import Operators, _add, _owned_global_rows
-from fem_squeal.eigen import DIRECT_SOLVER_OPTIONS, TWO_PI, EigenSolveError, set_options, solve_real_modes
+from fem_squeal.eigen import DIRECT_SOLVER_OPTIONS, TWO_PI, set_options, solve_real_modes
 from fem_squeal.model import ModelSpec
 from fem_squeal.reduced.model import MU, ContactRestriction, ReducedModel, e_param
 
@@ -96,20 +96,20 @@ def m_orthonormalise(M: PETSc.Mat, V: np.ndarray, rtol: float = 1e-8, Phi: np.nd
     (new content below ``rtol`` of the vector) are dropped, W Q s^(-1/2) is appended.  A final
     pass makes ΦᵀMΦ = I to round-off."""
     comm = M.getComm().tompi4py()
-    MV = apply(M, V)
-    norms = np.sqrt(np.maximum(np.einsum("ij,ij->j", V, MV) if V.size else np.zeros(0), 0.0))
-    norms = comm.allreduce(norms ** 2, op=MPI.SUM) ** 0.5 if V.size else norms
+    # collective calls depend on column counts only: a rank may own no rows of V
+    extend = Phi is not None and Phi.shape[1] > 0
+    norms = np.sqrt(np.maximum(comm.allreduce(np.einsum("ij,ij->j", V, apply(M, V)), op=MPI.SUM), 0.0))
     ok = norms > 0
     W = V[:, ok] / norms[ok]
     dropped = int(np.sum(~ok))
-    for _ in range(2 if Phi is not None and Phi.size else 0):
+    for _ in range(2 if extend else 0):
         W = W - Phi @ gram(comm, Phi, apply(M, W))
     G = gram(comm, W, apply(M, W))
     s, Q = np.linalg.eigh(0.5 * (G + G.T))
     keep = s > rtol ** 2
     dropped += int(np.sum(~keep))
     W = W @ (Q[:, keep] / np.sqrt(s[keep]))
-    if Phi is not None and Phi.size:
+    if extend:
         W = W - Phi @ gram(comm, Phi, apply(M, W))
         W = np.hstack([Phi, W])
     G = gram(comm, W, apply(M, W))
@@ -318,11 +318,6 @@ def lifted_residuals(par: ParametricOperators, Phi: np.ndarray, params: Mapping[
     x = np.sqrt(comm.allreduce(np.sum(np.abs(X) ** 2, axis=0), op=MPI.SUM))
     a = np.abs(lam)
     return r / ((a ** 2 * nM + a * nC + nK) * x)
-
-
-__all__ = ["Basis", "ParametricOperators", "ReductionError", "EigenSolveError", "build_basis", "reduce",
-           "project", "apply", "m_orthonormalise", "modes_below", "static_correction", "restrict_contacts",
-           "lifted_residuals", "common_mu"]
 
 
 @dataclass

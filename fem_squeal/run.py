@@ -117,14 +117,14 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
               write_fields: bool = True, log=print) -> dict[str, Any]:
     """Run every analysis of ``scene`` and write the outputs; returns the results dictionary."""
     from fem_squeal.assembly import assemble_operators, linearise
-    from fem_squeal.blas import limit_threads
+    from fem_squeal.blas import limit_threads_for
     from fem_squeal.descriptors import CircumferentialBasis, strain_energy_shares
     from fem_squeal.eigen import solve_complex_modes, solve_real_modes
     from fem_squeal.output import write_json_atomic, write_modes_xdmf
 
     outdir = Path(outdir)
     rank0 = comm.rank == 0
-    limit_threads(comm.Split_type(MPI.COMM_TYPE_SHARED).size)
+    limit_threads_for(comm)
     say = log if rank0 else (lambda *a, **k: None)
     spec = model_spec(scene)
     petsc_options = scene["solver"]["petsc_options"]

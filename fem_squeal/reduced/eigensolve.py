@@ -47,8 +47,7 @@ def quadratic_eigs(K: np.ndarray, C: np.ndarray | None = None, vectors: bool = F
         if vectors:
             Y = np.take_along_axis(Z[..., :m, :], keep[..., None, :], axis=-1)
             Y = Y / np.linalg.norm(Y, axis=-2, keepdims=True)
-    order = np.lexsort((lam.real, np.round(lam.imag, 9)), axis=-1) if lam.ndim == 1 else \
-        np.stack([np.lexsort((r.real, np.round(r.imag, 9))) for r in lam.reshape(-1, m)]).reshape(lam.shape)
+    order = np.lexsort((lam.real, np.round(lam.imag, 9)), axis=-1)
     lam = np.take_along_axis(lam, order, axis=-1)
     if not vectors:
         return lam

@@ -5,6 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
+TWO_PI = 2.0 * np.pi
+
 
 def _pyplot():
     import matplotlib
@@ -119,6 +121,55 @@ def stability_maps(path: Path, mu: np.ndarray, E: np.ndarray, counts: np.ndarray
         ax.axis("off")
     if title:
         fig.suptitle(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def masa(path: Path, res, title: str = "", amplitude_label: str = "modal amplitude p") -> None:
+    """Seed 000 Figs. 4–9 for one instability: every eigenvalue of the state matrix in the band
+    against the amplitude (unstable ones coloured by their real part, stable ones grey), and the
+    instability's own real part with its stationary amplitudes."""
+    from fem_squeal.output import save_figure_atomic
+
+    plt = _pyplot()
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.5, 7.0), sharex=True, gridspec_kw={"height_ratios": [2, 1]},
+                                 layout="constrained")
+    p = np.repeat(res.amplitudes[:, None], res.eigenvalues.shape[1], axis=1)
+    lam = res.eigenvalues
+    ok = ~np.isnan(lam)
+    unst = ok & (np.nan_to_num(lam.real) > 1e-6 * np.abs(np.nan_to_num(lam)))
+    a1.scatter(p[ok & ~unst], lam[ok & ~unst].imag / TWO_PI / 1e3, s=2, c="0.75", lw=0)
+    if unst.any():
+        sc = a1.scatter(p[unst], lam[unst].imag / TWO_PI / 1e3, s=10, c=lam[unst].real, cmap="jet", lw=0)
+        fig.colorbar(sc, ax=[a1, a2], label="Re λ [1/s]")
+    a1.set_ylabel("frequency [kHz]")
+    a1.set_title(title or f"MASA of the instability at {res.freq_hz:.0f} Hz")
+    a2.plot(res.amplitudes, res.tracked.real, "k.-", ms=3)
+    a2.axhline(0.0, color="0.5", lw=0.8)
+    for s in res.stationary:
+        a2.axvline(s, color="r", lw=0.8, ls="--")
+    a2.set_ylabel(f"Re λ of the {res.freq_hz:.0f} Hz mode [1/s]")
+    a2.set_xlabel(amplitude_label)
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def contact_status(path: Path, res, title: str = "", amplitude_label: str = "modal amplitude p") -> None:
+    """Seed 000 Fig. 10: the status of every contact element against the amplitude: nothing for
+    no contact, a dot for permanent contact, a red circle for impacts."""
+    from fem_squeal.output import save_figure_atomic
+
+    plt = _pyplot()
+    n_el = res.status.shape[1]
+    fig, ax = plt.subplots(figsize=(7.5, max(3.0, min(9.0, 0.02 * n_el + 2))))
+    P, E = np.meshgrid(res.amplitudes, np.arange(n_el), indexing="ij")
+    perm, imp = res.status == 1, res.status == 2
+    ax.scatter(P[perm], E[perm], s=1, c="k", lw=0)
+    ax.scatter(P[imp], E[imp], s=6, facecolors="r", edgecolors="r", lw=0.3)
+    ax.set_xlabel(amplitude_label)
+    ax.set_ylabel("contact element")
+    ax.set_title(title or f"contact status, instability at {res.freq_hz:.0f} Hz (dot: contact, red: impacts)")
     fig.tight_layout()
     save_figure_atomic(fig, path)
     plt.close(fig)

@@ -228,29 +228,44 @@ def _gather_rows(comm, a: np.ndarray) -> np.ndarray:
     return np.concatenate(comm.allgather(a), axis=0)
 
 
+def canonical_order(x: np.ndarray) -> np.ndarray:
+    """Permutation sorting points by their coordinates (rounded to 1e-9 of the extent), so that
+    gathered point data does not depend on how the mesh was partitioned."""
+    if len(x) == 0:
+        return np.zeros(0, int)
+    scale = max(float(np.max(np.abs(x))), 1e-300)
+    r = np.round(x / (1e-9 * scale))
+    return np.lexsort((r[:, 2], r[:, 1], r[:, 0]))
+
+
 def restrict_contacts(ops: Operators, Phi: np.ndarray, preload=None) -> dict[str, ContactRestriction]:
-    """G_n Φ and G_t Φ of every contact interface (all points on every rank, rank order)."""
+    """G_n Φ and G_t Φ of every contact interface (all points on every rank, canonical order)."""
     out = {}
     for it, op in ops.contacts:
         comm = op.Gn.getComm().tompi4py()
-        g = _gather_rows(comm, preload.gap[it.name]) if preload is not None else _gather_rows(comm, op.gap0)
-        act = _gather_rows(comm, preload.active[it.name]) if preload is not None else np.ones(op.n_global, bool)
+        x = _gather_rows(comm, op.x)
+        o = canonical_order(x)
+        g0 = _gather_rows(comm, op.gap0)[o]
+        g = _gather_rows(comm, preload.gap[it.name])[o] if preload is not None else g0
+        act = _gather_rows(comm, preload.active[it.name])[o] if preload is not None else np.ones(op.n_global, bool)
+        pres = _gather_rows(comm, preload.pressure[it.name])[o] if preload is not None else None
         out[it.name] = ContactRestriction(
-            Gn=_gather_rows(comm, apply(op.Gn, Phi)), Gt=_gather_rows(comm, apply(op.Gt1, Phi)),
-            weight=_gather_rows(comm, op.weight), kn=it.kn, mu=it.mu, sliding=float(it.sliding),
-            gap=g, active=act.astype(bool))
+            Gn=_gather_rows(comm, apply(op.Gn, Phi))[o], Gt=_gather_rows(comm, apply(op.Gt1, Phi))[o],
+            weight=_gather_rows(comm, op.weight)[o], kn=it.kn, mu=it.mu, sliding=float(it.sliding),
+            gap=g, active=act.astype(bool), gap0=g0, x=x[o], pressure=pres)
     return out
 
 
 def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
                 samples: list[dict[str, float]] = (), static: bool = True, sigma_hz: float | None = None,
                 options=None, prefix: str = "basis_", rtol: float = 1e-8, enrich_rtol: float = 1e-3,
-                n_start: int = 20) -> Basis:
+                n_start: int = 20, extra: np.ndarray | None = None) -> Basis:
     """Frictionless modes ≤ ``f_cut_hz`` at the nominal point and at each of ``samples``, plus the
     static corrections (K + σM)⁻¹ K_f Φ (of all the modes kept), M-orthonormalised (see the module
     docstring); sampled modes add only their directions beyond ``enrich_rtol`` (the corrections
     are kept whole: truncating them at 1e-3 raised the ring's error at μ = 1 from 1.5e-6 to 5e-5).
-    ``n_start``: first guess of the number of modes below the cut."""
+    ``n_start``: first guess of the number of modes below the cut; ``extra``: more vectors (local
+    rows), kept whole, e.g. the preload displacement and contact attachments for MASA."""
     if not f_cut_hz > 0:
         raise ValueError(f"f_cut_hz: must be > 0 (got {f_cut_hz})")
     w2, V = modes_below(ops.K, ops.M, f_cut_hz, n_start=n_start, options=options, prefix=prefix)
@@ -276,9 +291,53 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
         Phi, d = m_orthonormalise(ops.M, S, rtol, Phi)  # corrections: all of their new content
         n_static = Phi.shape[1] - size
         dropped += d
+    n_extra = 0
+    if extra is not None and extra.shape[1]:
+        size = Phi.shape[1]
+        Phi, d = m_orthonormalise(ops.M, extra, rtol, Phi)
+        n_extra = Phi.shape[1] - size
+        dropped += d
     return Basis(Phi, ops.K.getSize()[0], np.sqrt(np.abs(w2)) / TWO_PI,
-                 {"modes": int(V.shape[1]), "sampled_modes": n_sample, "static": n_static,
+                 {"modes": int(V.shape[1]), "sampled_modes": n_sample, "static": n_static, "extra": n_extra,
                   "dropped": dropped, "size": int(Phi.shape[1])})
+
+
+def contact_attachments(ops: Operators, patches: tuple[int, int], sigma_hz: float, options=None,
+                        prefix: str = "basis_attach_", axis=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """(K + σM)⁻¹ (G_n + μG_t)ᵀ W 1_j: the static response to a unit pressure (with its friction
+    drag) on patch j of every contact interface, the patches being an n_radial × n_angular polar
+    grid over each slave surface (:func:`fem_squeal.reduced.masa.polar_patches`).  These carry
+    the local contact deformation that the nonlinear contact forces of MASA excite."""
+    from fem_squeal.reduced.masa import polar_patches
+
+    loads = []
+    bc_local = np.asarray(ops.bc_dofs, dtype=int)
+    for it, op in ops.contacts:
+        comm = op.Gn.getComm().tompi4py()
+        sizes = comm.allgather(len(op.weight))
+        labels = polar_patches(_gather_rows(comm, op.x), patches[0], patches[1], axis)
+        start = sum(sizes[:comm.rank])
+        mine = labels[start:start + sizes[comm.rank]]
+        row = op.Gn.createVecLeft()
+        for j in range(patches[0] * patches[1]):
+            if not np.any(labels == j):
+                continue
+            row.array[:] = op.weight * (mine == j)
+            b = op.Gn.createVecRight()
+            op.Gn.multTranspose(row, b)
+            if it.has_friction:
+                t = b.duplicate()
+                op.Gt1.multTranspose(row, t)
+                b.axpy(it.mu, t)
+                t.destroy()
+            col = b.array_r.copy()
+            col[bc_local[bc_local < len(col)]] = 0.0
+            loads.append(col)
+            b.destroy()
+        row.destroy()
+    if not loads:
+        return np.zeros((ops.K.getLocalSize()[0], 0))
+    return static_correction(ops.K, ops.M, np.column_stack(loads), (TWO_PI * sigma_hz) ** 2, options, prefix)
 
 
 def reduce(ops: Operators, par: ParametricOperators, basis: Basis, preload=None) -> ReducedModel:
@@ -291,9 +350,17 @@ def reduce(ops: Operators, par: ParametricOperators, basis: Basis, preload=None)
     err = np.max(np.abs(M - np.eye(basis.size)))
     if err > 1e-8:
         raise ReductionError(f"basis: not M-orthonormal (max |ΦᵀMΦ − I| = {err:.1e})")
+    comm = ops.K.getComm().tompi4py()
+    f = comm.allreduce(Phi.T @ ops.f.array_r, op=MPI.SUM) if ops.f is not None else None
+    q_s = None
+    if preload is not None:
+        Mu = ops.M.createVecLeft()
+        ops.M.mult(preload.u, Mu)
+        q_s = comm.allreduce(Phi.T @ Mu.array_r, op=MPI.SUM)
+        Mu.destroy()
     return ReducedModel(K0=K0, Kf1=Kf1, C0=C0, K_parts={p: project(A, Phi) for p, A in par.K_parts.items()},
                         E0=dict(par.E0), beta=dict(par.beta), mu0=par.mu0,
-                        contacts=restrict_contacts(ops, Phi, preload), info=dict(basis.counts))
+                        contacts=restrict_contacts(ops, Phi, preload), info=dict(basis.counts), f=f, q_static=q_s)
 
 
 def lifted_residuals(par: ParametricOperators, Phi: np.ndarray, params: Mapping[str, float],
@@ -360,7 +427,8 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
                     check_points: list[dict[str, float]], *, tol: float = 1e-3,
                     cut_factors: tuple[float, ...] = (1.25, 1.6, 2.0, 2.5), samples=(), static: bool = True,
                     sigma_hz: float | None = None, growth_tol: float = 1e-6, enrich_rtol: float = 1e-3,
-                    preload=None, options=None, log=None) -> tuple[ReducedModel, Basis, ReductionReport]:
+                    preload=None, options=None, log=None, extra: np.ndarray | None = None
+                    ) -> tuple[ReducedModel, Basis, ReductionReport]:
     """Grow the basis (modes up to factor × the band's top, for each factor in turn) until the
     unstable eigenvalues in the band (all of them where none is unstable) at ``check_points``
     move by less than ``tol`` (relative) between two rounds.  The model of the last round is
@@ -375,7 +443,8 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
     for factor in cut_factors:
         t = MPI.Wtime()
         basis = build_basis(ops, par, factor * band_hz[1], samples=list(samples), static=static,
-                            sigma_hz=sigma_hz, options=options, n_start=n_start, enrich_rtol=enrich_rtol)
+                            sigma_hz=sigma_hz, options=options, n_start=n_start, enrich_rtol=enrich_rtol,
+                            extra=extra)
         n_start = basis.counts["modes"]
         model = reduce(ops, par, basis, preload)
         lams = [_in_band(solve_points(model, {k: np.array([v]) for k, v in p.items()})[0], band_hz)

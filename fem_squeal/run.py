@@ -137,7 +137,7 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
     ana = scene["analyses"]
     part = describe_part(scene, md.volumes)
     sub: dict[str, float] = {}
-    studies = {"reduced", "sweep", "map"} & set(ana)
+    studies = {"reduced", "sweep", "map", "masa"} & set(ana)
     ops = assemble_operators(md, spec, parts=bool(studies) or ("cea" in ana and len(spec.materials) > 1),
                              describe_part=part, timings=sub)
     timings["assembly"] = time.perf_counter() - t

@@ -37,6 +37,13 @@ analyses.sweep       parameter ("mu" = sign(v)μ, or "E.<part>" [Pa]), range = [
                      one-parameter sweep on the reduced model with mode tracking
 analyses.map         mu_max, n_mu, part, E_range = [E_min, E_max] [Pa], n_E, n_bands: unstable
                      modes per frequency band over the (sign(v)μ, E) design (seed 001 Figs. 17-19)
+analyses.masa        mu (list of sign(v)μ values; [] = the scene's), amplitude_max, n_amplitudes,
+                     amplitude_unit ("loss": multiples of the amplitude of first contact loss of each
+                     instability, "modal": p of seed 000 eq. 25), cubic_share (k_l/k_nl tuning),
+                     contact_damping = [c_max per area, depth], patches = [n_radial, n_angular]
+                     (AFT elements per interface; [] = every contact point), attachments =
+                     [n_radial, n_angular] (basis enrichment), n_samples, sweep_break, update_shape,
+                     refine: modal amplitude stability analysis (seed 000; pulls in analyses.reduced)
 solver           petsc_options = { key = value } (given with their prefix, e.g. "cea_st_type")
 """
 from __future__ import annotations
@@ -215,6 +222,22 @@ ANALYSES = {
         "range": Field(list, [-1.0, 1.0], increasing(2), "[first, last] value"),
         "n": Field(int, 101, at_least(2), "number of values"),
     },
+    "masa": {
+        "mu": Field(list, [], None, "sign(v)μ values, one equilibrium + CEA + MASA each; [] = the scene's"),
+        "amplitude_max": Field(REAL, 5.0, positive, "last amplitude of the sweep"),
+        "n_amplitudes": Field(int, 100, at_least(2), "amplitude steps (from 0)"),
+        "amplitude_unit": Field(str, "loss", one_of("loss", "modal"),
+                                "'loss': multiples of the first contact loss; 'modal': p of eq. 25"),
+        "cubic_share": Field(REAL, 0.3, non_negative, "share of the preload tangent from k_nl (0 = linear)"),
+        "contact_damping": Field(list, [], None, "[c_max per area N s/m³, depth m] (seed 004 eq. 3)"),
+        "patches": Field(list, [8, 16], None, "[n_radial, n_angular] AFT elements per interface; [] = points"),
+        "attachments": Field(list, [4, 8], None, "[n_radial, n_angular] patch attachment vectors in the "
+                             "basis; [] = none"),
+        "n_samples": Field(int, 64, at_least(8), "AFT samples per period"),
+        "sweep_break": Field(bool, True, None, "stop once the instability's real part is <= 0"),
+        "update_shape": Field(bool, False, None, "update ψ, ω from the state matrix along the sweep"),
+        "refine": Field(int, 10, non_negative, "bisections of each stationary amplitude"),
+    },
     "map": {
         "mu_max": Field(REAL, 1.0, positive, "sign(v)μ from -mu_max to mu_max"),
         "n_mu": Field(int, 101, at_least(2)),
@@ -366,7 +389,7 @@ def validate(raw: dict) -> dict:
 def _check_reduced(scene: dict, volumes) -> None:
     """Cross-checks of analyses.reduced/sweep/map (which pull in analyses.reduced)."""
     ana = scene["analyses"]
-    if not ({"sweep", "map"} & set(ana) or "reduced" in ana):
+    if not ({"sweep", "map", "masa"} & set(ana) or "reduced" in ana):
         return
     ana.setdefault("reduced", _check_fields({}, ANALYSES["reduced"], "analyses.reduced"))
     frictional = [n for n, t in scene["interfaces"].items()
@@ -387,6 +410,26 @@ def _check_reduced(scene: dict, volumes) -> None:
             if ana["sweep"]["range"][0] <= 0:
                 raise SceneError(f"analyses.sweep.range: Young's modulus must be > 0 "
                                  f"(got {ana['sweep']['range']})")
+    if "masa" in ana:
+        m = ana["masa"]
+        if not any(t["type"] == "contact" for t in scene["interfaces"].values()):
+            raise SceneError("analyses.masa: needs an interface of type 'contact' (its points carry the "
+                             "nonlinear contact law)")
+        if scene["preload"]["mode"] != "nonlinear":
+            raise SceneError("analyses.masa: needs preload.mode = 'nonlinear' (MASA starts from the static "
+                             "equilibrium)")
+        if m["cubic_share"] > 1:
+            raise SceneError(f"analyses.masa.cubic_share: must be in [0, 1] (got {m['cubic_share']})")
+        for key in ("patches", "attachments"):
+            v = m[key]
+            if v and (len(v) != 2 or not all(isinstance(n, int) and n >= 1 for n in v)):
+                raise SceneError(f"analyses.masa.{key}: must be [] or [n_radial, n_angular], integers >= 1 "
+                                 f"(got {v})")
+        cd = m["contact_damping"]
+        if cd and (len(cd) != 2 or not all(isinstance(v, (int, float)) and v > 0 for v in cd)):
+            raise SceneError(f"analyses.masa.contact_damping: must be [] or [c_max > 0, depth > 0] (got {cd})")
+        if not all(isinstance(v, (int, float)) for v in m["mu"]):
+            raise SceneError(f"analyses.masa.mu: must be a list of numbers (got {m['mu']})")
     if "map" in ana:
         m = ana["map"]
         if m["part"] not in volumes:

@@ -7,9 +7,12 @@ sweep     one parameter (sign(v)μ or a part's E) over a range, every branch tra
           continuation (:func:`fem_squeal.reduced.tracking.track`), critical values refined.
 map       the (sign(v)μ, E) full-factorial design of seed 001 §4 on the ranks of the run, with
           the number of unstable modes per frequency band.
+masa      seed 000 on the reduced model: for each μ, the static equilibrium with the cubic contact
+          law (eq. 4), the CEA about it (eq. 6) and the amplitude sweep of every instability in
+          the band (:mod:`fem_squeal.reduced.masa`), dealt over the ranks.
 
 Files: reduced_model.npz, sweep.json, root_locus.png, complex_plane.png, stability_map.npz,
-stability_map.png.
+stability_map.png, masa.json, masa/mu<μ>_<f>Hz.png and masa/mu<μ>_<f>Hz_contact.png.
 """
 from __future__ import annotations
 
@@ -54,6 +57,8 @@ def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict]
         e_lo, e_hi = map_E_range(scene, spec)
         samples += [{name: e_lo}, {name: e_hi}]
         checks += [{MU: s * m["mu_max"], name: e} for s in (-1, 1) for e in (e_lo, e_hi)]
+    if "masa" in ana:
+        checks += [{MU: float(v)} for v in ana["masa"]["mu"]]
     uniq = lambda pts: [dict(t) for t in dict.fromkeys(tuple(sorted(p.items())) for p in pts)]  # noqa: E731
     return uniq(checks), uniq(samples), sorted(set(parts))
 
@@ -106,11 +111,12 @@ def run_studies(comm, scene: dict, spec, ops, preload, outdir: Path, say, timing
     checks, samples, parts = design_points(scene, spec, mu0)
     par = ParametricOperators(ops, spec, mu0, parts)
     t = time.perf_counter()
+    extra = masa_vectors(ops, preload, ana["masa"], band, opts) if "masa" in ana else None
     model, basis, report = adaptive_reduce(
         ops, par, band, checks, tol=a["tol"], cut_factors=tuple(a["cut_factors"]), samples=samples,
         static=a["static_correction"], sigma_hz=a["sigma_hz"] or None, growth_tol=a["growth_tol"],
         enrich_rtol=a["enrich_rtol"],
-        preload=preload, options=opts, log=say)
+        preload=preload, options=opts, log=say, extra=extra)
     timings["reduced_basis"] = time.perf_counter() - t
     if rank0:
         model.save(outdir / "reduced_model.npz")
@@ -175,8 +181,98 @@ def run_studies(comm, scene: dict, spec, ops, preload, outdir: Path, say, timing
                                                             "bands_hz": np.array(bands)})
             plots.stability_maps(outdir / "stability_map.png", grid.axes[MU], E / 1e9, smap.counts, smap.total,
                                  bands, f"E of {m['part']} [GPa]", scene["title"])
+    if "masa" in ana:
+        out["masa"] = run_masa_analysis(comm, scene, model, outdir, say, timings)
     par.destroy()
     return out
+
+
+def masa_vectors(ops, preload, m: dict, band, options) -> np.ndarray:
+    """Basis vectors MASA needs beyond the modes: the preload displacement (so that the reduced
+    static equilibrium reproduces the full one) and the contact-patch attachments."""
+    from fem_squeal.reduction import contact_attachments
+
+    cols = [preload.u.array_r.copy()[:, None]]
+    if m["attachments"]:
+        cols.append(contact_attachments(ops, tuple(m["attachments"]), 0.1 * band[1], options))
+    return np.hstack(cols)
+
+
+def masa_amplitudes(prob, targets, m: dict) -> np.ndarray:
+    """(n_targets, n) amplitude grids: 0 … amplitude_max in the chosen unit."""
+    steps = np.linspace(0.0, m["amplitude_max"], m["n_amplitudes"])
+    if m["amplitude_unit"] == "modal":
+        return np.tile(steps, (len(targets), 1))
+    scale = [prob.loss_amplitude(t) for t in targets]
+    return np.array([steps * (s if np.isfinite(s) else 1.0) for s in scale])
+
+
+def run_masa_analysis(comm, scene: dict, model, outdir: Path, say, timings: dict) -> dict[str, Any]:
+    """analyses.masa on the reduced model (module docstring)."""
+    from fem_squeal import plots
+    from fem_squeal.output import write_json_atomic
+    from fem_squeal.reduced.masa import MasaProblem, from_reduced, run_masa, static_equilibrium
+
+    m = scene["analyses"]["masa"]
+    band = tuple(scene["analyses"]["reduced"]["band_hz"])
+    gt = scene["analyses"]["reduced"]["growth_tol"]
+    mus = [float(v) for v in m["mu"]] or [model.mu0]
+    cd = m["contact_damping"] or [0.0, np.inf]
+    out: dict[str, Any] = {"settings": m, "cases": []}
+    if comm.rank == 0:  # figures of an earlier run would mix with this one's
+        for old in (outdir / "masa").glob("mu*Hz*.png"):
+            old.unlink()
+    t0 = time.perf_counter()
+    for mu in mus:
+        t = time.perf_counter()
+        mm = from_reduced(model, {MU: mu}, cubic_share=m["cubic_share"], c_max=cd[0], depth=cd[1],
+                          patches=tuple(m["patches"]) if m["patches"] else None)
+        eq = static_equilibrium(mm, model.q_static)
+        prob = MasaProblem(mm, eq, band, n_samples=m["n_samples"], growth_tol=gt)
+        targets = prob.instabilities()
+        amps = masa_amplitudes(prob, targets, m)
+        results = run_masa(prob, targets, amps, sweep_break=m["sweep_break"], update_shape=m["update_shape"],
+                           refine=m["refine"], comm=comm)
+        seconds = time.perf_counter() - t
+        unit = "× first contact loss" if m["amplitude_unit"] == "loss" else "modal amplitude p"
+        case = {"mu": mu, "equilibrium": eq.as_dict(), "elements": prob.n_elements, "basis": mm.size,
+                "instabilities": [], "seconds": seconds}
+        for inst, res, a in zip(targets, results, amps):
+            scale = a[-1] / m["amplitude_max"]  # p of one unit
+            rec = res.as_dict()
+            rec["amplitude_unit_value"] = float(scale)
+            rec["stationary_in_unit"] = [s / scale for s in res.stationary]
+            case["instabilities"].append(rec)
+            if comm.rank == 0:
+                stem = f"mu{mu:+.3f}_{res.freq_hz:.0f}Hz"
+                shown = replace_amplitudes(res, 1.0 / scale)
+                label = f"amplitude [{unit}]"
+                plots.masa(outdir / "masa" / f"{stem}.png", shown,
+                           f"MASA, μ = {mu:+.3f}: instability at {res.freq_hz:.0f} Hz", label)
+                plots.contact_status(outdir / "masa" / f"{stem}_contact.png", shown,
+                                     f"contact status, μ = {mu:+.3f}, {res.freq_hz:.0f} Hz", label)
+        out["cases"].append(case)
+        say(f"[fem_squeal] MASA μ = {mu:+.3f}: equilibrium in {eq.iterations} Newton steps "
+            f"(‖R‖/‖f‖ {eq.residual:.1e}), {len(targets)} instabilities × {m['n_amplitudes']} amplitudes on "
+            f"{prob.n_elements} elements, {sum(r.steps for r in results)} state matrices, {seconds:.2f} s; "
+            "stationary amplitudes: " + "; ".join(
+                f"{r.freq_hz:.0f} Hz: {', '.join(f'{s:.3g}' for s in c['stationary_in_unit']) or '-'}"
+                for r, c in zip(results, case["instabilities"])))
+    timings["masa"] = time.perf_counter() - t0
+    if comm.rank == 0:
+        write_json_atomic(outdir / "masa.json", out)
+    return {"cases": [{k: v for k, v in c.items() if k != "instabilities"} |
+                      {"instabilities": [{k: r[k] for k in ("freq_hz", "real_part", "stationary_amplitudes",
+                                                            "stationary_in_unit", "broke_at", "steps")}
+                                         for r in c["instabilities"]]} for c in out["cases"]],
+            "seconds": timings["masa"]}
+
+
+def replace_amplitudes(res, factor: float):
+    """A copy of a MASA result with its amplitudes (and stationary values) scaled by ``factor``."""
+    from dataclasses import replace
+
+    return replace(res, amplitudes=res.amplitudes * factor, stationary=[s * factor for s in res.stationary])
 
 
 def verification_failures(reduced: dict, what: str = "") -> list[str]:

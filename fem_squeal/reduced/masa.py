@@ -30,8 +30,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fem_squeal.reduced.aft import NO_CONTACT, contact_status, first_harmonic
-from fem_squeal.reduced.contact_law import UnilateralLaw
+from fem_squeal.reduced.contact_law import UnilateralLaw, tune_cubic
 from fem_squeal.reduced.eigensolve import TWO_PI, quadratic_eigs
+from fem_squeal.reduced.model import MU, ReducedModel
 
 
 class MasaError(RuntimeError):
@@ -46,7 +47,7 @@ class ContactSet:
     T: np.ndarray                 # (n, m) slip along the sliding direction (= G_tΦ)
     d0: np.ndarray                # (n,) closure at q = 0 (−initial gap) [m]
     law: UnilateralLaw
-    mu: float = 0.0
+    mu: float = 0.0               # signed friction coefficient sign(v)μ along T
     weight: np.ndarray | None = None   # (n,) area [m²] (aggregation weights)
     x: np.ndarray | None = None        # (n, 3) coordinates (contact-status maps)
     name: str = "contact"
@@ -57,8 +58,8 @@ class ContactSet:
             raise MasaError(f"{self.name}.T: shape {self.T.shape}, expected {(n, m)} like D")
         if self.d0.shape != (n,):
             raise MasaError(f"{self.name}.d0: shape {self.d0.shape}, expected ({n},)")
-        if not np.isfinite(self.mu) or self.mu < 0:
-            raise MasaError(f"{self.name}.mu: must be finite and >= 0 (got {self.mu})")
+        if not np.isfinite(self.mu):  # signed: sign(v)μ, < 0 for backward sliding
+            raise MasaError(f"{self.name}.mu: must be finite (got {self.mu})")
         for a in ("k_l", "k_nl", "c_max"):
             v = np.asarray(getattr(self.law, a))
             if v.ndim and v.shape != (n,):
@@ -454,11 +455,12 @@ def run_masa(prob: MasaProblem, targets: Sequence[Instability], amplitudes, *, s
     two ranks help even for one instability.  Every rank returns all results, identical to a
     serial run (the same arithmetic runs for each pair whatever the rank count)."""
     amplitudes = np.asarray(amplitudes, float)
-    if amplitudes.ndim != 1 or amplitudes.size < 2 or np.any(np.diff(amplitudes) <= 0) or amplitudes[0] < 0:
-        raise MasaError("amplitudes: need >= 2 increasing values >= 0")
+    grids = np.broadcast_to(amplitudes, (len(targets), amplitudes.shape[-1])) if amplitudes.ndim in (1, 2) else None
+    if grids is None or grids.shape[1] < 2 or np.any(np.diff(grids, axis=1) <= 0) or np.any(grids[:, 0] < 0):
+        raise MasaError("amplitudes: need >= 2 increasing values >= 0 (one row, or one row per instability)")
     rank, size = (comm.rank, comm.size) if comm is not None else (0, 1)
     if sweep_break or update_shape:
-        mine = [_sweep(prob, t, amplitudes, sweep_break, update_shape, refine)
+        mine = [_sweep(prob, t, grids[n], sweep_break, update_shape, refine)
                 for n, t in enumerate(targets) if n % size == rank]
         parts = comm.allgather(mine) if comm is not None else [mine]
         out = [None] * len(targets)
@@ -466,26 +468,25 @@ def run_masa(prob: MasaProblem, targets: Sequence[Instability], amplitudes, *, s
             for k, res in enumerate(chunk):
                 out[r + k * size] = res
         return out
-    pairs = [(n, i) for n in range(len(targets)) for i in range(len(amplitudes))]
+    n_p = grids.shape[1]
+    pairs = [(n, i) for n in range(len(targets)) for i in range(n_p)]
     mine = {}
     for k, (n, i) in enumerate(pairs):
         if k % size == rank:
             t = targets[n]
-            lam, _, st, a = prob.state(t.y, t.lam.imag, amplitudes[i])
+            lam, _, st, a = prob.state(t.y, t.lam.imag, grids[n, i])
             mine[(n, i)] = (lam, st, a)
     if comm is not None:
         for d in comm.allgather(mine):
             mine.update(d)
     results = []
     for n, t in enumerate(targets):
-        lams = [mine[(n, i)][0] for i in range(len(amplitudes))]
-        tracked = _track(lams, t.lam)
-        results.append(MasaResult(t.index, t.freq_hz, float(t.lam.real), amplitudes, _pad(lams), tracked,
-                                  np.array([mine[(n, i)][1] for i in range(len(amplitudes))]),
-                                  np.array([mine[(n, i)][2] for i in range(len(amplitudes))]),
-                                  steps=len(amplitudes)))
+        lams = [mine[(n, i)][0] for i in range(n_p)]
+        results.append(MasaResult(t.index, t.freq_hz, float(t.lam.real), grids[n].copy(), _pad(lams),
+                                  _track(lams, t.lam), np.array([mine[(n, i)][1] for i in range(n_p)]),
+                                  np.array([mine[(n, i)][2] for i in range(n_p)]), steps=n_p))
     # refine the stationary amplitudes: instabilities dealt round-robin, then shared
-    mine_st = {n: (_stationary(prob, results[n], [(t.y, t.lam.imag)] * len(amplitudes), refine),
+    mine_st = {n: (_stationary(prob, results[n], [(t.y, t.lam.imag)] * n_p, refine),
                    results[n].stationary, results[n].steps)[1:]
                for n, t in enumerate(targets) if n % size == rank}
     if comm is not None:
@@ -499,3 +500,45 @@ def run_masa(prob: MasaProblem, targets: Sequence[Instability], amplitudes, *, s
 def with_elements(model: MasaModel, elements: list[ContactSet] | None) -> MasaModel:
     """The same model with other AFT elements (None: the points)."""
     return replace(model, elements=elements)
+
+
+def from_reduced(model: ReducedModel, params: dict | None = None, *, cubic_share: float = 0.0,
+                 c_max: float = 0.0, depth: float = np.inf, patches: tuple[int, int] | None = None,
+                 axis=(0.0, 0.0, 1.0)) -> MasaModel:
+    """The MASA model of a reduced brake model at the parameter point ``params``.
+
+    The reduction linearised every contact interface about the full-order preload (penalty k_n
+    on the closed points); that contribution is taken out of K(p) again (exactly: the same
+    restricted rows), and each quadrature point becomes a contact point with the law
+    :func:`~fem_squeal.reduced.contact_law.tune_cubic` makes per unit area from the penalty k_n
+    and the interface's mean preload pressure (one law per interface, scaled by each point's
+    area w: the tangent is k_n at the mean pressure, stiffer above it, softer below).
+    ``cubic_share`` = 0 is the linear unilateral penalty, which reproduces the full-order
+    preload and CEA exactly when the preload displacement is in the basis.
+    ``c_max`` [N s/m³ per area] and ``depth`` add seed 004's contact damping; ``patches`` =
+    (n_radial, n_angular) groups the points of each interface into AFT elements."""
+    params = dict(params or {})
+    if model.f is None or model.q_static is None:
+        raise MasaError("reduced model: no static load or preload displacement (reduce with a preload)")
+    if not model.contacts:
+        raise MasaError("reduced model: no contact interface (MASA needs interfaces of type 'contact')")
+    K, C = model.matrices({k: np.array([v]) for k, v in params.items()})
+    K, C = K[0].copy(), (C[0].copy() if C is not None else None)
+    mu = float(params.get(MU, model.mu0))
+    points, elements = [], []
+    for name, cr in model.contacts.items():
+        if cr.gap0 is None or cr.pressure is None:
+            raise MasaError(f"contacts.{name}: no initial gap or preload pressure stored")
+        kt = cr.kn * cr.weight
+        m_i = mu if cr.mu != 0 and cr.sliding != 0 else 0.0
+        K -= (cr.Gn + m_i * cr.Gt).T @ ((kt * cr.active)[:, None] * cr.Gn)
+        closed = cr.active & (cr.pressure > 0)
+        p_mean = float(cr.pressure[closed] @ cr.weight[closed] / cr.weight[closed].sum()) if closed.any() else 0.0
+        k_l, k_nl, _ = tune_cubic(cr.kn, p_mean, cubic_share)   # per area, one law per interface
+        law = UnilateralLaw(k_l=float(k_l) * cr.weight, k_nl=float(k_nl) * cr.weight, c_max=c_max * cr.weight,
+                            depth=np.full(len(kt), depth))
+        cs = ContactSet(D=-cr.Gn, T=cr.Gt, d0=-cr.gap0, law=law, mu=m_i, weight=cr.weight, x=cr.x, name=name)
+        points.append(cs)
+        if patches is not None:
+            elements.append(aggregate(cs, polar_patches(cr.x, patches[0], patches[1], axis)))
+    return MasaModel(K=K, contacts=points, C=C, f=model.f.copy(), elements=elements if patches else None)

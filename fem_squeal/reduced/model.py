@@ -26,7 +26,8 @@ def e_param(part: str) -> str:
 
 @dataclass
 class ContactRestriction:
-    """A contact interface's operator G restricted to the basis: rows are slave quadrature points."""
+    """A contact interface's operator G restricted to the basis: rows are slave quadrature points,
+    in a rank-independent order (sorted by coordinates)."""
 
     Gn: np.ndarray        # (n_points, m) normal gap rate per basis vector
     Gt: np.ndarray        # (n_points, m) along the sliding direction
@@ -36,6 +37,9 @@ class ContactRestriction:
     sliding: float
     gap: np.ndarray       # (n_points,) static gap at the preload (< 0: closed)
     active: np.ndarray    # (n_points,) closed at the preload
+    gap0: np.ndarray | None = None   # (n_points,) gap of the undeformed geometry
+    x: np.ndarray | None = None      # (n_points, 3) slave point coordinates
+    pressure: np.ndarray | None = None  # (n_points,) contact pressure at the preload [Pa]
 
 
 @dataclass
@@ -51,6 +55,8 @@ class ReducedModel:
     mu0: float = 0.0                                          # the scene's (signed) μ
     contacts: dict[str, ContactRestriction] = field(default_factory=dict)
     info: dict = field(default_factory=dict)                  # basis description (sizes, timings)
+    f: np.ndarray | None = None                               # Φᵀ f: the static load (preload)
+    q_static: np.ndarray | None = None                        # ΦᵀM u_s: the preload displacement
 
     def __post_init__(self):
         m = self.K0.shape[0]
@@ -128,6 +134,9 @@ class ReducedModel:
         from fem_squeal.output import write_npz_atomic
 
         arrays = {"K0": self.K0, "mu0": np.array(self.mu0)}
+        for name in ("f", "q_static"):
+            if getattr(self, name) is not None:
+                arrays[name] = getattr(self, name)
         if self.Kf1 is not None:
             arrays["Kf1"] = self.Kf1
         if self.C0 is not None:
@@ -137,8 +146,9 @@ class ReducedModel:
             arrays[f"E0/{p}"] = np.array(self.E0[p])
             arrays[f"beta/{p}"] = np.array(self.beta.get(p, 0.0))
         for name, c in self.contacts.items():
-            for f in ("Gn", "Gt", "weight", "gap", "active"):
-                arrays[f"contact/{name}/{f}"] = getattr(c, f)
+            for f in ("Gn", "Gt", "weight", "gap", "active", "gap0", "x", "pressure"):
+                if getattr(c, f) is not None:
+                    arrays[f"contact/{name}/{f}"] = getattr(c, f)
             for f in ("kn", "mu", "sliding"):
                 arrays[f"contact/{name}/{f}"] = np.array(getattr(c, f))
         write_npz_atomic(path, arrays)
@@ -150,9 +160,11 @@ class ReducedModel:
         parts = sorted(k.split("/", 1)[1] for k in d if k.startswith("K_part/"))
         contacts = {}
         for name in sorted({k.split("/")[1] for k in d if k.startswith("contact/")}):
-            g = {f: d[f"contact/{name}/{f}"] for f in ("Gn", "Gt", "weight", "gap", "active")}
+            g = {f: d.get(f"contact/{name}/{f}") for f in ("Gn", "Gt", "weight", "gap", "active", "gap0", "x",
+                                                          "pressure")}
             s = {f: float(d[f"contact/{name}/{f}"]) for f in ("kn", "mu", "sliding")}
             contacts[name] = ContactRestriction(**g, **s)
         return cls(K0=d["K0"], Kf1=d.get("Kf1"), C0=d.get("C0"),
                    K_parts={p: d[f"K_part/{p}"] for p in parts}, E0={p: float(d[f"E0/{p}"]) for p in parts},
-                   beta={p: float(d[f"beta/{p}"]) for p in parts}, mu0=float(d["mu0"]), contacts=contacts)
+                   beta={p: float(d[f"beta/{p}"]) for p in parts}, mu0=float(d["mu0"]), contacts=contacts,
+                   f=d.get("f"), q_static=d.get("q_static"))

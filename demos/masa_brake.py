@@ -78,12 +78,13 @@ for case in masa["cases"]:
         tr = np.asarray(r["tracked_real"])
         say(f"  {r['freq_hz']:7.1f} Hz  Re λ {r['real_part']:7.1f} 1/s -> max {tr.max():7.1f}; "
             f"stationary at {', '.join(f'{s:.2f}' for s in st) or 'none'} × first contact loss; "
-            f"{r['steps']} steps" + (f", break at {r['broke_at'] / r['amplitude_unit_value']:.2f}"
-                                    if r["broke_at"] else ""))
+            f"{r['steps']} steps"
+            + (f", break at {r['broke_at'] / r['amplitude_unit_value']:.2f}" if r["broke_at"] else ""))
         if r["broke_at"] is not None and not st:
             failures.append(f"{r['freq_hz']:.0f} Hz: sweep broke without a stationary amplitude")
 
 if comm.rank == 0:
     print("CHECK FAILED:\n  " + "\n  ".join(failures) if failures else
-          "check passed: linear law = full preload and CEA; sweeps start from the CEA; stationary amplitudes found")
+          "check passed: linear law = full preload and CEA; sweeps start from the CEA; "
+          "stationary amplitudes found")
 sys.exit(1 if failures else 0)

@@ -52,13 +52,15 @@ say(f"CEA: unstable pair at {inst.freq_hz:.1f} Hz, Re λ = {inst.lam.real:.2f} 1
 p = np.linspace(0.0, 6.0 * p_loss, 121)
 full = run_masa(prob, [inst], p, sweep_break=False, comm=comm)[0]
 brk = run_masa(prob, [inst], p, sweep_break=True, comm=comm)[0]
-say(f"MASA: stationary amplitude(s) p = {', '.join(f'{s:.4g} ({s / p_loss:.2f} p_loss)' for s in full.stationary)}; "
+stat = ", ".join(f"{s:.4g} ({s / p_loss:.2f} p_loss)" for s in full.stationary)
+say(f"MASA: stationary amplitude(s) p = {stat}; "
     f"with the sweep break: {brk.steps} state matrices instead of {full.steps}")
 
 # --- 3. shape updated along the sweep -------------------------------------------------------------
 upd = run_masa(prob, [inst], p, sweep_break=False, update_shape=True, comm=comm)[0]
-say(f"shape-updated MASA: stationary p = {', '.join(f'{s / p_loss:.2f} p_loss' for s in upd.stationary) or 'none'}"
-    f" in the range; max |Δ Re λ| against fixed shape {np.max(np.abs(upd.tracked.real - full.tracked.real)):.1f} 1/s")
+stat = ", ".join(f"{s / p_loss:.2f} p_loss" for s in upd.stationary) or "none"
+dev = np.max(np.abs(upd.tracked.real - full.tracked.real))
+say(f"shape-updated MASA: stationary p = {stat} in the range; max |Δ Re λ| against fixed shape {dev:.1f} 1/s")
 
 # --- checks -------------------------------------------------------------------------------------
 lam0 = quadratic_eigs(prob.K)

@@ -237,7 +237,7 @@ def run_masa_analysis(comm, scene: dict, model, outdir: Path, say, timings: dict
         unit = "× first contact loss" if m["amplitude_unit"] == "loss" else "modal amplitude p"
         case = {"mu": mu, "equilibrium": eq.as_dict(), "elements": prob.n_elements, "basis": mm.size,
                 "instabilities": [], "seconds": seconds}
-        for inst, res, a in zip(targets, results, amps):
+        for res, a in zip(results, amps):
             scale = a[-1] / m["amplitude_max"]  # p of one unit
             rec = res.as_dict()
             rec["amplitude_unit_value"] = float(scale)

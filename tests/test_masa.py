@@ -8,8 +8,16 @@ import pytest
 from fem_squeal.reduced.aft import IMPACTS, PERMANENT, cubic_remainder_stiffness, first_harmonic
 from fem_squeal.reduced.contact_law import UnilateralLaw, tune_cubic
 from fem_squeal.reduced.eigensolve import quadratic_eigs
-from fem_squeal.reduced.masa import (ContactSet, MasaError, MasaModel, MasaProblem, aggregate, polar_patches,
-                                     run_masa, static_equilibrium)
+from fem_squeal.reduced.masa import (
+    ContactSet,
+    MasaError,
+    MasaModel,
+    MasaProblem,
+    aggregate,
+    polar_patches,
+    run_masa,
+    static_equilibrium,
+)
 from fem_squeal.reduced.two_dof import two_dof_model
 
 K_L, K_NL, D0 = 2e6, 3e15, 1e-5
@@ -53,10 +61,10 @@ def test_aft_with_contact_loss_converges_to_the_closed_form(A):
 def test_aft_damped_law_gives_c_from_the_curvature_of_the_damping():
     # c(δ) = c_max(3δ²/l² − 2δ³/l³) is a cubic inside 0 < δ < l: the remainder [c(δ_s+Δ) − c(δ_s)]Δ̇
     # has the first harmonic c_eq Δ̇ with c_eq = c''(δ_s) A²/8 exactly, and no stiffness part
-    l, cm, ds, A = 1e-4, 500.0, 4e-5, 1.5e-5
-    law = UnilateralLaw(k_l=np.array([K_L]), k_nl=np.array([0.0]), c_max=np.array([cm]), depth=np.array([l]))
+    depth, cm, ds, A = 1e-4, 500.0, 4e-5, 1.5e-5
+    law = UnilateralLaw(k_l=np.array([K_L]), k_nl=np.array([0.0]), c_max=np.array([cm]), depth=np.array([depth]))
     k, c = _k(law, ds, A, phase=0.4, n=32)
-    c2 = cm * (6 / l ** 2 - 12 * ds / l ** 3)
+    c2 = cm * (6 / depth ** 2 - 12 * ds / depth ** 3)
     assert c == pytest.approx(c2 * A * A / 8, rel=1e-10)
     assert abs(k) < 1e-10 * K_L
     assert law.force(np.array([-1e-6, 0.0]), 3.0).tolist() == [0.0, 0.0]

@@ -46,7 +46,7 @@ def test_set_overrides_nested_values():
     ("interfaces.top_plate.sliding=2", r"^interfaces\.top_plate\.sliding: must be one of \[-1, 0, 1\]"),
     ("analyses.cea.band_hz=[5000, 100]", r"^analyses\.cea\.band_hz: must be increasing"),
     ("analyses.cea.method=qz", r"^analyses\.cea\.method: must be one of"),
-    ("analyses.masa.n=3", r"^analyses\.masa: unknown analysis; available:"),
+    ("analyses.hbm.n=3", r"^analyses\.hbm: unknown analysis; available:"),
     ("boundary.clamped=['rim']", r"^boundary\.clamped\[0\]: unknown face 'rim'"),
     ("geometry.builder=brake", r"^geometry\.builder: must be one of"),
 ])
@@ -81,9 +81,17 @@ BRAKE = ROOT / "scenes" / "brake_corner.toml"
     ("analyses.map.n_E=1", r"^analyses\.map\.n_E: must be >= 2"),
     ("analyses.reduced.cut_factors=[0.9, 2.0]", r"^analyses\.reduced\.cut_factors: must be > 1"),
     ("interfaces.pad_outer.mu=0.5", None),
+    ("analyses.masa.patches=[8]", r"^analyses\.masa\.patches: must be \[\] or \[n_radial, n_angular\]"),
+    ("analyses.masa.attachments=[4, 0]", r"^analyses\.masa\.attachments: must be \[\] or"),
+    ("analyses.masa.cubic_share=1.5", r"^analyses\.masa\.cubic_share: must be in \[0, 1\]"),
+    ("analyses.masa.amplitude_unit=mm", r"^analyses\.masa\.amplitude_unit: must be one of"),
+    ("analyses.masa.contact_damping=[100.0]", r"^analyses\.masa\.contact_damping: must be \[\] or"),
+    ("analyses.masa.n_samples=4", r"^analyses\.masa\.n_samples: must be >= 8"),
 ])
 def test_bad_brake_values_name_the_key_and_the_reason(override, message):
     overrides = (["analyses.map.n_E=3"] if message is None or "analyses" in message else []) + [override]
+    if "masa" in override:
+        overrides = overrides[:-1] + ["analyses.masa.n_amplitudes=10", override]
     if message is None:  # different μ per pad: a reduced model scales one common μ
         with pytest.raises(SceneError, match=r"^interfaces: frictional interfaces have different mu"):
             load_scene(BRAKE, overrides)
@@ -168,3 +176,8 @@ def test_override_syntax_errors():
         apply_overrides(raw(), ["geometry.width"])
     with pytest.raises(SceneError, match="is not a table"):
         apply_overrides(raw(), ["title.x=1"])
+
+
+def test_masa_needs_a_nonlinear_preload():
+    with pytest.raises(SceneError, match=r"^analyses\.masa: needs preload\.mode = 'nonlinear'"):
+        load_scene(BRAKE, ["analyses.masa.n_amplitudes=10", "preload.mode=all_closed"])

@@ -91,7 +91,7 @@ def cubic_remainder_stiffness(k_l, k_nl, d0, amplitude) -> np.ndarray:
     Asafe = np.where(A > 0, A, 1.0)
     theta = np.arccos(np.clip(-d0 / Asafe, -1.0, 1.0))
     _, I1, I2, I3, I4 = _cos_power_integrals(theta, 4)
-    full = (2.0 / (np.pi * Asafe)) * (k_l * (d0 * I1 + A * I2)
-                                      + k_nl * (d0 ** 3 * I1 + 3 * d0 ** 2 * A * I2 + 3 * d0 * A ** 2 * I3 + A ** 3 * I4))
+    cubic = d0 ** 3 * I1 + 3 * d0 ** 2 * A * I2 + 3 * d0 * A ** 2 * I3 + A ** 3 * I4
+    full = (2.0 / (np.pi * Asafe)) * (k_l * (d0 * I1 + A * I2) + k_nl * cubic)
     tangent = np.where(d0 > 0, k_l + 3 * k_nl * d0 ** 2, 0.0)
     return np.where(A > 0, full - tangent, 0.0)

@@ -179,7 +179,7 @@ def static_equilibrium(model: MasaModel, q0: np.ndarray | None = None, *, tol: f
     else:
         if history[-1] > tol:
             raise MasaError(f"static equilibrium: ‖R‖/‖f‖ = {history[-1]:.2e} > tol {tol:.0e} after "
-                            f"{max_iterations} Newton iterations; history {['%.2e' % h for h in history]}")
+                            f"{max_iterations} Newton iterations; history {[f'{h:.2e}' for h in history]}")
     return Equilibrium(q, [cs.closure(q) for cs in model.contacts], len(history) - 1, history[-1], history)
 
 
@@ -220,7 +220,7 @@ def aggregate(cs: ContactSet, labels: np.ndarray, name: str | None = None) -> Co
         return (P > 0) @ np.broadcast_to(np.asarray(v, float), (cs.size,))
 
     depth = np.broadcast_to(np.asarray(cs.law.depth, float), (cs.size,))
-    depth = S @ np.where(np.isfinite(depth), depth, 0.0) if np.all(np.isfinite(depth)) else np.full(len(groups), np.inf)
+    depth = S @ depth if np.all(np.isfinite(depth)) else np.full(len(groups), np.inf)
     law = UnilateralLaw(k_l=total(cs.law.k_l), k_nl=total(cs.law.k_nl), c_max=total(cs.law.c_max), depth=depth)
     return ContactSet(D=S @ cs.D, T=S @ cs.T, d0=S @ cs.d0, law=law, mu=cs.mu, weight=area,
                       x=S @ cs.x if cs.x is not None else None, name=name or cs.name)
@@ -455,7 +455,8 @@ def run_masa(prob: MasaProblem, targets: Sequence[Instability], amplitudes, *, s
     two ranks help even for one instability.  Every rank returns all results, identical to a
     serial run (the same arithmetic runs for each pair whatever the rank count)."""
     amplitudes = np.asarray(amplitudes, float)
-    grids = np.broadcast_to(amplitudes, (len(targets), amplitudes.shape[-1])) if amplitudes.ndim in (1, 2) else None
+    grids = np.broadcast_to(amplitudes, (len(targets), amplitudes.shape[-1])) \
+        if amplitudes.ndim in (1, 2) else None
     if grids is None or grids.shape[1] < 2 or np.any(np.diff(grids, axis=1) <= 0) or np.any(grids[:, 0] < 0):
         raise MasaError("amplitudes: need >= 2 increasing values >= 0 (one row, or one row per instability)")
     rank, size = (comm.rank, comm.size) if comm is not None else (0, 1)

@@ -86,5 +86,5 @@ for case in masa["cases"]:
 if comm.rank == 0:
     print("CHECK FAILED:\n  " + "\n  ".join(failures) if failures else
           "check passed: linear law = full preload and CEA; sweeps start from the CEA; "
-          "stationary amplitudes found")
+          "every sweep break has its stationary amplitude")
 sys.exit(1 if failures else 0)

@@ -11,8 +11,9 @@ The chain of seed 000 Fig. 3 on the reduced brake model, under ``mpirun -n 2``:
    cubic); the static equilibrium is solved again with it (eq. 4, Newton with line search) and
    the CEA is taken about it (eq. 6);
 3. every instability in 0–10 kHz is swept in modal amplitude up to 5× the amplitude of its
-   first contact loss, with the AFT first-harmonic linearisation on 2 × 8 × 16 contact patches
-   (eq. 18) and the sweep break; instabilities are dealt over the ranks.
+   first contact loss, with the AFT first-harmonic linearisation at every lining quadrature
+   point (2808 contact elements, eq. 18) and the sweep break; instabilities are dealt over the
+   ranks.
 
 Checks: with the linear law the reduced equilibrium is the full-order preload (to round-off) and
 MASA's CEA is the full CEA (within the reduction's tol); at p = 0 every sweep starts from the CEA;

@@ -230,7 +230,9 @@ ANALYSES = {
                                 "'loss': multiples of the first contact loss; 'modal': p of eq. 25"),
         "cubic_share": Field(REAL, 0.3, non_negative, "share of the preload tangent from k_nl (0 = linear)"),
         "contact_damping": Field(list, [], None, "[c_max per area N s/m³, depth m] (seed 004 eq. 3)"),
-        "patches": Field(list, [8, 16], None, "[n_radial, n_angular] AFT elements per interface; [] = points"),
+        "patches": Field(list, [], None, "[n_radial, n_angular] AFT elements per interface; [] = every "
+                         "contact point (default: patches change the stationary amplitudes, see "
+                         "benchmarks/README.md)"),
         "attachments": Field(list, [4, 8], None, "[n_radial, n_angular] patch attachment vectors in the "
                              "basis; [] = none"),
         "n_samples": Field(int, 64, at_least(8), "AFT samples per period"),

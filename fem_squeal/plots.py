@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-TWO_PI = 2.0 * np.pi
+from fem_squeal.reduced.eigensolve import TWO_PI, unstable
 
 
 def _pyplot():
@@ -49,7 +49,7 @@ def root_locus(path: Path, values: np.ndarray, lam: np.ndarray, unstable: np.nda
     from fem_squeal.output import save_figure_atomic
 
     plt = _pyplot()
-    f = lam.imag / (2 * np.pi)
+    f = lam.imag / TWO_PI
     keep = np.flatnonzero(np.any((f >= band_hz[0]) & (f <= band_hz[1]), axis=0))
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 8), sharex=True)
     for j in keep:
@@ -81,9 +81,9 @@ def complex_plane(path: Path, lam: np.ndarray, band_hz: tuple[float, float], gro
 
     plt = _pyplot()
     lam = np.ravel(lam)
-    f = lam.imag / (2 * np.pi)
+    f = lam.imag / TWO_PI
     sel = (f >= band_hz[0]) & (f <= band_hz[1])
-    bad = lam.real > growth_tol * np.abs(lam)
+    bad = unstable(lam, growth_tol)
     fig, ax = plt.subplots(figsize=(8, 5))
     ax.plot(lam.real[sel & ~bad], f[sel & ~bad], ".", color="0.6", ms=2, label="stable")
     ax.plot(lam.real[sel & bad], f[sel & bad], ".", color="tab:red", ms=2, label="unstable")
@@ -138,7 +138,7 @@ def masa(path: Path, res, title: str = "", amplitude_label: str = "modal amplitu
     p = np.repeat(res.amplitudes[:, None], res.eigenvalues.shape[1], axis=1)
     lam = res.eigenvalues
     ok = ~np.isnan(lam)
-    unst = ok & (np.nan_to_num(lam.real) > 1e-6 * np.abs(np.nan_to_num(lam)))
+    unst = ok & unstable(np.nan_to_num(lam))  # the default growth_tol, as the result's own counts
     a1.scatter(p[ok & ~unst], lam[ok & ~unst].imag / TWO_PI / 1e3, s=2, c="0.75", lw=0)
     if unst.any():
         sc = a1.scatter(p[unst], lam[unst].imag / TWO_PI / 1e3, s=10, c=lam[unst].real, cmap="jet", lw=0)

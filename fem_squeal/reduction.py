@@ -318,23 +318,20 @@ def contact_attachments(ops: Operators, patches: tuple[int, int], sigma_hz: floa
         labels = polar_patches(_gather_rows(comm, op.x), patches[0], patches[1], axis)
         start = sum(sizes[:comm.rank])
         mine = labels[start:start + sizes[comm.rank]]
-        row = op.Gn.createVecLeft()
+        row, b, t = op.Gn.createVecLeft(), op.Gn.createVecRight(), op.Gn.createVecRight()
         for j in range(patches[0] * patches[1]):
             if not np.any(labels == j):
                 continue
             row.array[:] = op.weight * (mine == j)
-            b = op.Gn.createVecRight()
             op.Gn.multTranspose(row, b)
             if it.has_friction:
-                t = b.duplicate()
                 op.Gt1.multTranspose(row, t)
                 b.axpy(it.mu, t)
-                t.destroy()
             col = b.array_r.copy()
             col[bc_local[bc_local < len(col)]] = 0.0
             loads.append(col)
-            b.destroy()
-        row.destroy()
+        for v in (row, b, t):
+            v.destroy()
     if not loads:
         return np.zeros((ops.K.getLocalSize()[0], 0))
     return static_correction(ops.K, ops.M, np.column_stack(loads), (TWO_PI * sigma_hz) ** 2, options, prefix)

@@ -25,13 +25,14 @@ contact *points*; the AFT remainder may use coarser *elements* (area-weighted pa
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from fem_squeal.reduced.aft import NO_CONTACT, contact_status, first_harmonic
 from fem_squeal.reduced.contact_law import UnilateralLaw, tune_cubic
-from fem_squeal.reduced.eigensolve import TWO_PI, quadratic_eigs
+from fem_squeal.reduced.eigensolve import TWO_PI, quadratic_eigs, unstable
 from fem_squeal.reduced.model import MU, ReducedModel
 
 
@@ -69,8 +70,9 @@ class ContactSet:
     def size(self) -> int:
         return self.D.shape[0]
 
-    @property
+    @cached_property
     def B(self) -> np.ndarray:
+        """D − μT, formed once (the Newton residuals and every state matrix use it)."""
         return self.D - self.mu * self.T
 
     def closure(self, q: np.ndarray) -> np.ndarray:
@@ -277,7 +279,7 @@ class MasaResult:
 
     def unstable_counts(self, growth_tol: float = 1e-6) -> np.ndarray:
         lam = np.nan_to_num(self.eigenvalues, nan=0.0)
-        return np.sum(lam.real > growth_tol * np.abs(lam), axis=1)
+        return np.sum(unstable(lam, growth_tol), axis=1)
 
     def as_dict(self) -> dict:
         lam = self.eigenvalues
@@ -305,7 +307,7 @@ def instabilities(K: np.ndarray, C: np.ndarray | None, band_hz, growth_tol: floa
     lam, Y = quadratic_eigs(K, C, vectors=True)
     sel = np.flatnonzero(_in_band(lam, band_hz))
     return [Instability(int(n), complex(lam[j]), Y[:, j]) for n, j in enumerate(sel)
-            if lam[j].real > growth_tol * abs(lam[j])]
+            if unstable(lam[j], growth_tol)]
 
 
 def modal_displacement(y: np.ndarray, omega: float, p: float) -> np.ndarray:
@@ -383,12 +385,17 @@ def _pad(rows: list[np.ndarray]) -> np.ndarray:
     return out
 
 
+def _follow(lam: np.ndarray, prev: complex, prev2: complex | None) -> int | None:
+    """Index in ``lam`` of the continued eigenvalue: nearest to the linear prediction from the two
+    previous steps (to the previous one at the first step); None when ``lam`` is empty."""
+    return _nearest(lam, prev if prev2 is None else 2 * prev - prev2) if len(lam) else None
+
+
 def _track(steps: list[np.ndarray], start: complex) -> np.ndarray:
     """Nearest-eigenvalue continuation from ``start`` with a linear prediction."""
     out, prev, prev2 = [], start, None
     for lam in steps:
-        pred = prev if prev2 is None else 2 * prev - prev2
-        j = _nearest(lam, pred) if len(lam) else None
+        j = _follow(lam, prev, prev2)
         cur = lam[j] if j is not None else np.nan + 0j
         out.append(cur)
         prev2, prev = prev, cur
@@ -403,8 +410,7 @@ def _sweep(prob: MasaProblem, inst: Instability, amplitudes: np.ndarray, sweep_b
     prev, prev2, broke = inst.lam, None, None
     for p in amplitudes:
         lam, Y, st, a = prob.state(y, w, p, vectors=update_shape)
-        pred = prev if prev2 is None else 2 * prev - prev2
-        j = _nearest(lam, pred)
+        j = _follow(lam, prev, prev2)
         shapes.append((y, w))
         if update_shape:
             y, w = Y[:, j], lam[j].imag
@@ -413,7 +419,7 @@ def _sweep(prob: MasaProblem, inst: Instability, amplitudes: np.ndarray, sweep_b
         amps.append(a)
         tracked.append(lam[j])
         prev2, prev = prev, lam[j]
-        if sweep_break and p > 0 and not lam[j].real > prob.growth_tol * abs(lam[j]):
+        if sweep_break and p > 0 and not unstable(lam[j], prob.growth_tol):
             broke = float(p)
             break
     n = len(lams)
@@ -427,7 +433,7 @@ def _sweep(prob: MasaProblem, inst: Instability, amplitudes: np.ndarray, sweep_b
 def _stationary(prob: MasaProblem, res: MasaResult, shapes, refine: int) -> None:
     """Amplitudes where the tracked real part changes sign, refined by ``refine`` bisections."""
     tol = prob.growth_tol
-    unst = res.tracked.real > tol * np.abs(res.tracked)
+    unst = unstable(res.tracked, tol)
     for i in np.flatnonzero(unst[1:] != unst[:-1]):
         lo, hi = float(res.amplitudes[i]), float(res.amplitudes[i + 1])
         lam_lo, lam_hi = res.tracked[i], res.tracked[i + 1]
@@ -437,7 +443,7 @@ def _stationary(prob: MasaProblem, res: MasaResult, shapes, refine: int) -> None
             lam, _, _, _ = prob.state(y, w, mid)
             lm = lam[_nearest(lam, 0.5 * (lam_lo + lam_hi))]
             res.steps += 1
-            if (lm.real > tol * abs(lm)) == unst[i]:
+            if unstable(lm, tol) == unst[i]:
                 lo, lam_lo = mid, lm
             else:
                 hi, lam_hi = mid, lm
@@ -487,20 +493,17 @@ def run_masa(prob: MasaProblem, targets: Sequence[Instability], amplitudes, *, s
                                   _track(lams, t.lam), np.array([mine[(n, i)][1] for i in range(n_p)]),
                                   np.array([mine[(n, i)][2] for i in range(n_p)]), steps=n_p))
     # refine the stationary amplitudes: instabilities dealt round-robin, then shared
-    mine_st = {n: (_stationary(prob, results[n], [(t.y, t.lam.imag)] * n_p, refine),
-                   results[n].stationary, results[n].steps)[1:]
-               for n, t in enumerate(targets) if n % size == rank}
+    mine_st = {}
+    for n, t in enumerate(targets):
+        if n % size == rank:
+            _stationary(prob, results[n], [(t.y, t.lam.imag)] * n_p, refine)
+            mine_st[n] = (results[n].stationary, results[n].steps)
     if comm is not None:
         for d in comm.allgather(mine_st):
             mine_st.update(d)
     for n, (st, steps) in mine_st.items():
         results[n].stationary, results[n].steps = st, steps
     return results
-
-
-def with_elements(model: MasaModel, elements: list[ContactSet] | None) -> MasaModel:
-    """The same model with other AFT elements (None: the points)."""
-    return replace(model, elements=elements)
 
 
 def from_reduced(model: ReducedModel, params: dict | None = None, *, cubic_share: float = 0.0,

@@ -90,6 +90,26 @@ class UnilateralLaw:
         """∂F/∂δ̇ = c(δ)."""
         return self.damping(d) if self.damped else np.zeros_like(np.asarray(d, float))
 
+    def evaluate(self, d: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """F, ∂F/∂δ, ∂F/∂δ̇ in motion, for the transient.  The damped force is clipped at zero,
+        F = max(k_l δ + k_nl δ³ + c(δ)δ̇, 0) (seed 004 eq. 2): a separating element does not pull."""
+        d = np.asarray(d, float)
+        k_l, k_nl = self._p("k_l", d.ndim), self._p("k_nl", d.ndim)
+        closed = d > 0.0
+        F = k_l * d + k_nl * d ** 3
+        dF = k_l + 3.0 * k_nl * d ** 2
+        dV = np.zeros_like(d)
+        if self.damped:
+            c_max, depth = self._p("c_max", d.ndim), self._p("depth", d.ndim)
+            s = np.clip(d / depth, 0.0, 1.0)
+            c = c_max * s * s * (3.0 - 2.0 * s)
+            dc = np.where((s > 0) & (s < 1), c_max * 6.0 * s * (1.0 - s) / depth, 0.0)
+            F = F + c * v
+            dF = dF + dc * v
+            dV = c
+            closed &= F > 0.0
+        return (np.where(closed, F, 0.0), np.where(closed, dF, 0.0), np.where(closed, dV, 0.0))
+
 
 def tune_cubic(k_target: np.ndarray | float, preload_force: np.ndarray | float,
                cubic_share: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -117,3 +137,52 @@ def tune_cubic(k_target: np.ndarray | float, preload_force: np.ndarray | float,
     k_nl = np.where(loaded, s * kt / (3.0 * np.where(loaded, d0, 1.0) ** 2), 0.0)
     k_l = np.where(loaded, (1.0 - s) * kt, kt)
     return k_l, k_nl, d0
+
+
+@dataclass(frozen=True)
+class ExponentialLaw:
+    """p(g) = p₀ e^(−λg) (seed 002 eq. 2) as an element force F = w p₀ e^(λδ) with δ = −g.
+
+    Never exactly zero: an open element (g > 0) keeps a force that decays over the length 1/λ,
+    which makes opening smooth; the tangent is λF.  ``p0`` [Pa] (or [N] with w = 1), ``lam``
+    [1/m] and the area ``weight`` are per element.  Elements open by more than 700/λ are clipped
+    to F = 0 so that the exponential never overflows."""
+
+    p0: np.ndarray | float
+    lam: np.ndarray | float
+    weight: np.ndarray | float = 1.0
+
+    def __post_init__(self):
+        for name in ("p0", "lam", "weight"):
+            v = np.asarray(getattr(self, name), float)
+            if np.any(~np.isfinite(v)) or np.any(v <= 0):
+                raise ValueError(f"exponential contact law {name}: must be finite and > 0 (got min {np.min(v):g})")
+
+    damped = False
+
+    def evaluate(self, d: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """F, ∂F/∂δ = λF, ∂F/∂δ̇ = 0."""
+        d = np.asarray(d, float)
+        x = np.minimum(np.asarray(self.lam) * d, 700.0)
+        F = np.where(x > -700.0, np.asarray(self.weight) * np.asarray(self.p0) * np.exp(x), 0.0)
+        return F, np.asarray(self.lam) * F, np.zeros_like(d)
+
+    def force(self, d: np.ndarray, v: np.ndarray | float = 0.0) -> np.ndarray:
+        return self.evaluate(d, np.zeros_like(np.asarray(d, float)))[0]
+
+    def stiffness(self, d: np.ndarray) -> np.ndarray:
+        return self.evaluate(d, np.zeros_like(np.asarray(d, float)))[1]
+
+    def viscosity(self, d: np.ndarray) -> np.ndarray:
+        return np.zeros_like(np.asarray(d, float))
+
+
+def exponential_like(k_target: np.ndarray | float, preload_force: np.ndarray | float,
+                     weight: np.ndarray | float = 1.0) -> ExponentialLaw:
+    """The exponential law whose tangent is ``k_target`` where the element carries
+    ``preload_force`` at zero gap: F₀ = w p₀, λ = k_t/F₀ (so the static state of a linear
+    penalty model with the same tangent and load is matched to first order)."""
+    kt, F0, w = np.broadcast_arrays(*(np.asarray(a, float) for a in (k_target, preload_force, weight)))
+    if np.any(~(F0 > 0)):
+        raise ValueError("preload_force: the exponential law needs a preload > 0 on every element")
+    return ExponentialLaw(p0=F0 / w, lam=kt / F0, weight=w)

@@ -268,6 +268,28 @@ class NewmarkHHT:
                             G -= cs.T[i].T @ (J[:, i, j][:, None] * cs.T[j])
         return c2 * self.M + (1 + self.alpha) * G
 
+    def tangent_matrices(self, q: np.ndarray, v: np.ndarray, states: list | None = None
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """K_t = K + ∂g/∂q and C_t = C + ∂g/∂q̇ at the state (q, q̇): the linearised (tangent)
+        CEA matrices of seed 002 §3.2.2's dynamic stability diagram."""
+        if states is None:
+            states = [cs.friction.initial_state(cs.size, cs.n_dir) if cs.friction is not None else None
+                      for cs in self.model.contacts]
+        _, tg = self.forces(q, v, q, 0.0, states, derivatives=True)
+        m = self.model.size
+        Kt = self.K.copy()
+        Ct = np.zeros((m, m)) if self.C is None else self.C.copy()
+        for cs, (kF, cF, dfdF, Jd, Jv) in zip(self.model.contacts, tg):
+            B = cs.D - sum(dfdF[:, i, None] * cs.T[i] for i in range(cs.n_dir))
+            Kt += B.T @ (kF[:, None] * cs.D)
+            Ct += B.T @ (cF[:, None] * cs.D)
+            for J, A in ((Jd, Kt), (Jv, Ct)):
+                if J is not None:
+                    for i in range(cs.n_dir):
+                        for j in range(cs.n_dir):
+                            A -= cs.T[i].T @ (J[:, i, j][:, None] * cs.T[j])
+        return Kt, Ct
+
     # ---------------------------------------------------------------- start
     def initial_state(self, q0: np.ndarray, v0: np.ndarray | None = None, t0: float = 0.0) -> State:
         """State at t0 with the acceleration from the equation of motion; friction histories in

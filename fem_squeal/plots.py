@@ -173,3 +173,57 @@ def contact_status(path: Path, res, title: str = "", amplitude_label: str = "mod
     fig.tight_layout()
     save_figure_atomic(fig, path)
     plt.close(fig)
+
+
+def transient(path: Path, t: np.ndarray, x: np.ndarray, v: np.ndarray, extra: dict[str, np.ndarray] | None = None,
+              title: str = "", label: str = "displacement [µm]", scale: float = 1e6) -> None:
+    """Time history, spectrogram, phase portrait (last fifth) and extra histories of a transient."""
+    from scipy.signal import spectrogram
+
+    from fem_squeal.output import save_figure_atomic
+
+    plt = _pyplot()
+    extra = extra or {}
+    fig, ax = plt.subplots(2, 2, figsize=(11, 7.5))
+    ax[0, 0].plot(t * 1e3, x * scale, lw=0.4)
+    ax[0, 0].set(xlabel="t [ms]", ylabel=label, title="time history")
+    dt = float(np.mean(np.diff(t)))
+    nper = min(1024, max(len(t) // 16, 16))
+    fs, ts, S = spectrogram(x - np.mean(x), fs=1 / dt, nperseg=nper, noverlap=nper // 2)
+    ax[0, 1].pcolormesh(ts * 1e3 + t[0] * 1e3, fs / 1e3, 10 * np.log10(S + S.max() * 1e-12), shading="auto")
+    ax[0, 1].set(xlabel="t [ms]", ylabel="f [kHz]", title="spectrogram [dB]")
+    tail = t >= t[0] + 0.8 * (t[-1] - t[0])
+    ax[1, 0].plot(x[tail] * scale, v[tail] * scale, lw=0.4)
+    ax[1, 0].set(xlabel=label, ylabel=label.replace("[", "rate [").replace("]", "/s]"),
+                 title="phase portrait (last 20 %)")
+    for name, y in extra.items():
+        ax[1, 1].plot(t * 1e3, y, lw=0.5, label=name)
+    if extra:
+        ax[1, 1].legend(fontsize=7)
+    ax[1, 1].set(xlabel="t [ms]", title="contact")
+    fig.suptitle(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def dynamic_stability(path: Path, t: np.ndarray, lam: np.ndarray, band_hz, title: str = "") -> None:
+    """Seed 002 Fig. 10: tangent-CEA frequencies and real parts against time along a cycle."""
+    from fem_squeal.output import save_figure_atomic
+
+    plt = _pyplot()
+    f = lam.imag / TWO_PI
+    sel = (f >= band_hz[0]) & (f <= band_hz[1])
+    tt = np.broadcast_to(t[:, None], lam.shape)
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    sc = ax[0].scatter(tt[sel] * 1e3, f[sel] / 1e3, c=lam.real[sel], s=4, cmap="coolwarm",
+                       vmin=-np.abs(lam.real[sel]).max(), vmax=np.abs(lam.real[sel]).max())
+    fig.colorbar(sc, ax=ax[0], label="Re λ [1/s]")
+    ax[0].set(xlabel="t [ms]", ylabel="f [kHz]", title="frequency")
+    ax[1].scatter(f[sel] / 1e3, lam.real[sel], c=tt[sel] * 1e3, s=4)
+    ax[1].axhline(0, color="k", lw=0.5)
+    ax[1].set(xlabel="f [kHz]", ylabel="Re λ [1/s]", title="frequency–damping (colour: t)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)

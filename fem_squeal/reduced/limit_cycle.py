@@ -51,7 +51,7 @@ def detect_limit_cycle(t: np.ndarray, x: np.ndarray, *, window: float | None = N
                        ) -> LimitCycle:
     """Envelope saturation of the signal x(t).
 
-    The envelope is |analytic signal| of x − mean (Hilbert), smoothed over ``window`` (default:
+    The envelope is |analytic signal| of x minus its moving mean (Hilbert), smoothed over ``window`` (default:
     10 periods of the dominant frequency of the last quarter).  The response has saturated when
     the envelope over the last three windows varies by less than ``tol`` (relative); the cycle's
     amplitude is half its peak-to-peak over the last window."""
@@ -63,9 +63,10 @@ def detect_limit_cycle(t: np.ndarray, x: np.ndarray, *, window: float | None = N
     window = window or 10.0 / f
     dt = float(np.mean(np.diff(t)))
     n_w = max(int(round(window / dt)), 4)
-    env = np.abs(hilbert(x - np.mean(x[tail])))
-    if len(env) >= n_w:
-        env = np.convolve(env, np.ones(n_w) / n_w, mode="same")
+    box = np.ones(min(n_w, len(x))) / min(n_w, len(x))
+    trend = np.convolve(np.pad(x, (len(box) // 2, len(box) - 1 - len(box) // 2), mode="edge"), box, mode="valid")
+    env = np.abs(hilbert(x - trend))          # about the moving mean (the static offset can drift)
+    env = np.convolve(np.pad(env, (len(box) // 2, len(box) - 1 - len(box) // 2), mode="edge"), box, mode="valid")
     last = x[-n_w:] if len(x) >= n_w else x
     amplitude = 0.5 * float(np.ptp(last))
     ends = [env[max(len(env) - k * n_w - n_w // 2, 0)] for k in (1, 2, 3)]

@@ -128,7 +128,8 @@ class PadRun:
     stats: dict
 
 
-def classify(w: np.ndarray, speed: float, v_s: float, v_d: float, share: float = 0.02) -> tuple[list[str], np.ndarray]:
+def classify(w: np.ndarray, speed: float, v_s: float, v_d: float, share: float = 0.02
+             ) -> tuple[list[str], np.ndarray]:
     """Regime of each element from its relative sliding speed s = |w| over the analysed window:
 
     - "stick-slip": s < v_s (stick, up to the creep of the smooth law) for more than ``share``;

@@ -334,14 +334,14 @@ class NewmarkHHT:
             for cs, law in zip(self.model.contacts, consts):
                 delta = cs.d0 + cs.D @ q
                 F, kF, _ = cs.normal.evaluate(delta, np.zeros(cs.size))
-                # semi-smooth start: an element at or just below contact gets the tangent of a
-                # slightly closed one, so that Newton can close it (q = 0 with zero gaps)
-                kF = np.where(kF > 0, kF, cs.normal.evaluate(np.maximum(delta, 1e-12), np.zeros(cs.size))[1])
+                # for a singular tangent (all contacts open, e.g. q = 0 with zero gaps): the
+                # tangent of slightly closed elements, so that Newton can close them
+                probe = cs.normal.evaluate(np.maximum(delta, 1e-12), np.zeros(cs.size))[1]
                 f, dfdF = (np.zeros((cs.size, cs.n_dir)),) * 2
                 if law is not None:
                     f, dfdF = law.evaluate(F, cs.V, cs.V, None, None)[:2]
                 r += cs.D.T @ F - sum(cs.T[i].T @ f[:, i] for i in range(cs.n_dir))
-                mats.append((kF, dfdF))
+                mats.append((kF, np.where(kF > 0, kF, probe), dfdF))
             return r, mats
 
         scale = max(np.linalg.norm(self.f), 1e-300)
@@ -350,11 +350,17 @@ class NewmarkHHT:
         for _ in range(max_iterations):
             if history[-1] <= tol:
                 return q
-            G = self.K.copy()
-            for cs, (kF, dfdF) in zip(self.model.contacts, mats):
-                B = cs.D - sum(dfdF[:, i, None] * cs.T[i] for i in range(cs.n_dir))
-                G += B.T @ (kF[:, None] * cs.D)
-            dq = np.linalg.solve(G, -r)
+            def tangent(which, mats=mats):
+                G = self.K.copy()
+                for cs, mat in zip(self.model.contacts, mats):
+                    B = cs.D - sum(mat[2][:, i, None] * cs.T[i] for i in range(cs.n_dir))
+                    G += B.T @ (mat[which][:, None] * cs.D)
+                return G
+
+            try:
+                dq = np.linalg.solve(tangent(0), -r)
+            except np.linalg.LinAlgError:
+                dq = np.linalg.solve(tangent(1), -r)
             step = 1.0
             while True:
                 rn, mn = residual(q + step * dq)
@@ -382,9 +388,12 @@ class NewmarkHHT:
         base = self.K @ s.q + f0.g_normal - f0.g_friction
         if self.C is not None:
             base += self.C @ s.v
-        # force scale of the step: load, internal forces, inertia (a, and v/Δt for a start from rest)
-        ref = max(np.linalg.norm(self.f), np.linalg.norm(base), np.linalg.norm(self.M @ s.a),
-                  np.linalg.norm(self.M @ s.v) / dt, 1e-300)
+        # force scale of the step: the dynamic forces (inertia M a, M v/Δt), not the static load
+        # they vibrate about (a vibration 1e-3 of the static deflection must still be resolved
+        # to rtol), with a floor of 1e-4 of the static forces (their balance has round-off
+        # ~1e-12 of them on a brake)
+        ref = max(np.linalg.norm(self.M @ s.a), np.linalg.norm(self.M @ s.v) / dt,
+                  1e-4 * max(np.linalg.norm(self.f), np.linalg.norm(base)), 1e-300)
         rhs_const = self.f + al * base
         q = s.q + dt * s.v + 0.5 * dt * dt * s.a
         a_star = s.q + dt * s.v + dt * dt * (0.5 - be) * s.a      # q = a_star + βΔt² a
@@ -408,7 +417,8 @@ class NewmarkHHT:
         for _ in range(self.max_iterations):
             if rn <= self.rtol:
                 break
-            if self.tangent == "full" or (len(history) > 1 and history[-1] > self.refresh_ratio * history[-2]):
+            if self.tangent == "full" or (len(history) > 1 and history[-1] > self.refresh_ratio * history[-2]
+                                          and rn > 1e2 * self.rtol):
                 self._factor(tg, dt)
             if (rn <= 1e2 * self.rtol and len(history) >= 3 and history[-1] > 0.5 * history[-2]
                     and history[-2] > 0.5 * history[-3]):
@@ -634,3 +644,51 @@ def from_masa(model, speed: float | np.ndarray = 1.0, friction=None, radius=None
         contacts.append(FrictionContact(D=cs.D, T=cs.T, d0=cs.d0, normal=cs.law, friction=law, V=V,
                                         radius=r, x=cs.x, name=cs.name))
     return DynamicModel(K=model.K, contacts=contacts, C=model.C, f=model.f)
+
+
+def out_of_band_damping(K: np.ndarray, f_cut: float, zeta: float = 0.2) -> np.ndarray:
+    """Modal damping 2ζω_j on the eigenvectors of sym(K) (M = I) above ``f_cut`` [Hz]:
+    C_h = Σ_{f_j > f_cut} 2ζω_j φ_jφ_jᵀ.
+
+    A reduced basis is accurate in its band only; its out-of-band vectors (static corrections,
+    attachments) carry spurious high-frequency flutter that a transient would resolve and amplify
+    (seed 002 keeps exact real modes for that reason).  Damping them leaves the in-band
+    eigenvalues almost unchanged (check with :func:`~fem_squeal.reduced.eigensolve.quadratic_eigs`)."""
+    if not f_cut > 0 or not zeta >= 0:
+        raise TransientError(f"out-of-band damping: f_cut must be > 0 and zeta >= 0 (got {f_cut}, {zeta})")
+    w2, Phi = np.linalg.eigh(0.5 * (K + K.T))
+    w = np.sqrt(np.maximum(w2, 0.0))
+    hi = w > 2 * np.pi * f_cut
+    return (Phi[:, hi] * (2 * zeta * w[hi])) @ Phi[:, hi].T
+
+
+def from_reduced(rm, omega: float, *, params: dict | None = None, cubic_share: float = 0.3, c_max: float = 0.0,
+                 depth: float = np.inf, patches: tuple[int, int] | None = (8, 16), friction=None,
+                 f_cut: float | None = None, zeta_cut: float = 0.2, axis=(0.0, 0.0, 1.0)) -> DynamicModel:
+    """The dynamic model of a reduced brake (:class:`~fem_squeal.reduced.model.ReducedModel`).
+
+    Contact laws as :func:`fem_squeal.reduced.masa.from_reduced` (tuned per interface at the
+    mean preload pressure); the points of each pad are grouped into n_r × n_θ polar ``patches``
+    (None: every quadrature point is an element).  The disc turns at ``omega`` [rad/s] about
+    ``axis``: each element's counter-face speed is Ω r in the interface's sliding direction and
+    its lever arm is r.  ``f_cut`` adds :func:`out_of_band_damping` above that frequency."""
+    from fem_squeal.reduced.masa import MasaModel, aggregate, polar_patches
+    from fem_squeal.reduced.masa import from_reduced as masa_model
+
+    mm = masa_model(rm, params, cubic_share=cubic_share, c_max=c_max, depth=depth)
+    sets = [aggregate(cs, polar_patches(cs.x, *patches, axis)) if patches else cs for cs in mm.contacts]
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+
+    def radius(cs):
+        return np.linalg.norm(cs.x - np.outer(cs.x @ a, a), axis=1)
+
+    dm = from_masa(MasaModel(K=mm.K, contacts=sets, C=mm.C, f=mm.f), speed=1.0, friction=friction, radius=radius)
+    for cs in dm.contacts:
+        cs.V = cs.V * (omega * cs.radius[:, None])
+    if f_cut:
+        integ = NewmarkHHT(dm, 1.0)
+        q = integ.steady_sliding(rm.q_static)
+        Kt, _ = integ.tangent_matrices(q, np.zeros_like(q))
+        Ch = out_of_band_damping(Kt, f_cut, zeta_cut)
+        dm.C = Ch if dm.C is None else dm.C + Ch
+    return dm

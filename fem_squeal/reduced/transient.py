@@ -420,7 +420,7 @@ class NewmarkHHT:
             if self.tangent == "full" or (len(history) > 1 and history[-1] > self.refresh_ratio * history[-2]
                                           and rn > 1e2 * self.rtol):
                 self._factor(tg, dt)
-            if (rn <= 1e2 * self.rtol and len(history) >= 3 and history[-1] > 0.5 * history[-2]
+            if (rn <= max(1e2 * self.rtol, 1e-6) and len(history) >= 3 and history[-1] > 0.5 * history[-2]
                     and history[-2] > 0.5 * history[-3]):
                 stalled = True      # round-off floor: the residual no longer decreases
                 break

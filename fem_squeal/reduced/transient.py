@@ -248,24 +248,29 @@ class NewmarkHHT:
             tangents.append((kF, cF, dfdF, Jd, Jv))
         return (out, tangents) if derivatives else out
 
+    def _contact_jacobian(self, tangents, wq: float, wv: float) -> np.ndarray:
+        """wq ∂g/∂q + wv ∂g/∂q̇ from the per-interface law derivatives (kF, cF, ∂f/∂F, ∂f/∂Δs,
+        ∂f/∂w):  Σ Bᵀ diag(wq kF + wv cF) D − Σ Tᵢᵀ diag(wq Jd + wv Jv)ᵢⱼ Tⱼ,  B = D − Σ (∂f/∂F)ᵢ Tᵢ."""
+        G = np.zeros((self.model.size,) * 2)
+        for cs, (kF, cF, dfdF, Jd, Jv) in zip(self.model.contacts, tangents):
+            kk = wq * kF + (wv * cF if wv else 0.0)
+            if np.any(kk):
+                B = cs.D - sum(dfdF[:, i, None] * cs.T[i] for i in range(cs.n_dir))
+                G += B.T @ (kk[:, None] * cs.D)
+            J = (0.0 if Jd is None or not wq else wq * Jd) + (0.0 if Jv is None or not wv else wv * Jv)
+            if np.any(J):
+                for i in range(cs.n_dir):
+                    for j in range(cs.n_dir):
+                        if np.any(J[:, i, j]):
+                            G -= cs.T[i].T @ (J[:, i, j][:, None] * cs.T[j])
+        return G
+
     def _tangent(self, tangents, dt: float) -> np.ndarray:
         """S = M/(βΔt²) + (1+α)(γ/(βΔt)(C + ∂g/∂q̇) + K + ∂g/∂q)."""
         c1, c2 = self.gamma / (self.beta * dt), 1.0 / (self.beta * dt * dt)
-        G = self.K.copy()
+        G = self.K + self._contact_jacobian(tangents, 1.0, c1)
         if self.C is not None:
             G += c1 * self.C
-        for cs, (kF, cF, dfdF, Jd, Jv) in zip(self.model.contacts, tangents):
-            d = cs.n_dir
-            kk = kF + c1 * cF                       # dF/dq = kk D
-            if np.any(kk):
-                B = cs.D - sum(dfdF[:, i, None] * cs.T[i] for i in range(d))
-                G += B.T @ (kk[:, None] * cs.D)
-            J = (0.0 if Jd is None else Jd) + (0.0 if Jv is None else c1 * Jv)
-            if np.any(J):
-                for i in range(d):
-                    for j in range(d):
-                        if np.any(J[:, i, j]):
-                            G -= cs.T[i].T @ (J[:, i, j][:, None] * cs.T[j])
         return c2 * self.M + (1 + self.alpha) * G
 
     def tangent_matrices(self, q: np.ndarray, v: np.ndarray, states: list | None = None
@@ -276,18 +281,10 @@ class NewmarkHHT:
             states = [cs.friction.initial_state(cs.size, cs.n_dir) if cs.friction is not None else None
                       for cs in self.model.contacts]
         _, tg = self.forces(q, v, q, 0.0, states, derivatives=True)
-        m = self.model.size
-        Kt = self.K.copy()
-        Ct = np.zeros((m, m)) if self.C is None else self.C.copy()
-        for cs, (kF, cF, dfdF, Jd, Jv) in zip(self.model.contacts, tg):
-            B = cs.D - sum(dfdF[:, i, None] * cs.T[i] for i in range(cs.n_dir))
-            Kt += B.T @ (kF[:, None] * cs.D)
-            Ct += B.T @ (cF[:, None] * cs.D)
-            for J, A in ((Jd, Kt), (Jv, Ct)):
-                if J is not None:
-                    for i in range(cs.n_dir):
-                        for j in range(cs.n_dir):
-                            A -= cs.T[i].T @ (J[:, i, j][:, None] * cs.T[j])
+        Kt = self.K + self._contact_jacobian(tg, 1.0, 0.0)
+        Ct = self._contact_jacobian(tg, 0.0, 1.0)
+        if self.C is not None:
+            Ct += self.C
         return Kt, Ct
 
     # ---------------------------------------------------------------- start
@@ -351,11 +348,7 @@ class NewmarkHHT:
             if history[-1] <= tol:
                 return q
             def tangent(which, mats=mats):
-                G = self.K.copy()
-                for cs, mat in zip(self.model.contacts, mats):
-                    B = cs.D - sum(mat[2][:, i, None] * cs.T[i] for i in range(cs.n_dir))
-                    G += B.T @ (mat[which][:, None] * cs.D)
-                return G
+                return self.K + self._contact_jacobian([(m[which], 0.0, m[2], None, None) for m in mats], 1.0, 0.0)
 
             try:
                 dq = np.linalg.solve(tangent(0), -r)

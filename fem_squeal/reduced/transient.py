@@ -132,16 +132,6 @@ class DynamicModel:
 
 
 @dataclass
-class State:
-    t: float
-    q: np.ndarray
-    v: np.ndarray
-    a: np.ndarray
-    friction: list            # per interface: the friction law's history (or None)
-    step: int = 0
-
-
-@dataclass
 class Forces:
     """Contact quantities at one state (per interface lists) and their generalised forces."""
 
@@ -152,6 +142,17 @@ class Forces:
     g_normal: np.ndarray      # Σ Dᵀ F
     g_friction: np.ndarray    # Σ Tᵀ f  (the friction force on the structure)
     state: list
+
+
+@dataclass
+class State:
+    t: float
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    friction: list            # per interface: the friction law's history (or None)
+    step: int = 0
+    forces: Forces | None = None   # contact forces the step that reached this state balanced
 
 
 @dataclass
@@ -312,7 +313,7 @@ class NewmarkHHT:
         if self.C is not None:
             rhs -= self.C @ v0
         a0 = np.linalg.solve(self.M, rhs)
-        return State(t0, q0.copy(), v0.copy(), a0, states)
+        return State(t0, q0.copy(), v0.copy(), a0, states, forces=fr)
 
     def steady_sliding(self, q0: np.ndarray | None = None, tol: float = 1e-10, max_iterations: int = 50
                        ) -> np.ndarray:
@@ -377,7 +378,7 @@ class NewmarkHHT:
         """One step of size dt from ``s`` (raises TransientError with the residual history)."""
         al, be, ga = self.alpha, self.beta, self.gamma
         c2 = 1.0 / (be * dt * dt)
-        f0 = self.forces(s.q, s.v, None, 0.0, s.friction)
+        f0 = s.forces if s.forces is not None else self.forces(s.q, s.v, None, 0.0, s.friction)
         base = self.K @ s.q + f0.g_normal - f0.g_friction
         if self.C is not None:
             base += self.C @ s.v
@@ -433,7 +434,7 @@ class NewmarkHHT:
         if history[-1] > self.rtol and not stalled:
             raise TransientError(f"Newton did not converge in step t = {s.t:.6e} → {s.t + dt:.6e} s "
                                  f"(Δt {dt:.2e}): ‖R‖/ref history {[f'{h:.1e}' for h in history]}")
-        new = State(s.t + dt, q, v, a, fr.state, s.step + 1)
+        new = State(s.t + dt, q, v, a, fr.state, s.step + 1, fr)
         return new, f0, fr, {"iterations": len(history), "history": history}
 
     def _events(self, old: list, f0: Forces, f1: Forces) -> int:
@@ -450,10 +451,8 @@ class NewmarkHHT:
         events; accumulates the works in ``energy``."""
         try:
             new, f0, f1, _ = self.try_step(s, dt)
-            ok = True
-            if self.adaptive and level < self.max_halvings:
-                ev = self._events(s.friction, f0, f1)
-                ok = ev <= self.event_limit
+            events = self._events(s.friction, f0, f1)
+            ok = not self.adaptive or level >= self.max_halvings or events <= self.event_limit
         except TransientError:
             if not self.adaptive or level >= self.max_halvings:
                 raise
@@ -462,9 +461,9 @@ class NewmarkHHT:
             self.stats["halvings"] += 1
             mid = self.advance(s, dt / 2, energy, level + 1)
             end = self.advance(mid, dt / 2, energy, level + 1)
-            end.step = s.step + (level == 0)      # steps count base steps
+            end.step = s.step + (level == 0)
             return end
-        self.stats["events"] += self._events(s.friction, f0, f1)
+        self.stats["events"] += events
         self.stats["steps"] += 1
         dq = new.q - s.q
         energy["W_ext"] += dq @ self.f
@@ -474,13 +473,12 @@ class NewmarkHHT:
             energy["D_damping"] += 0.5 * dq @ (self.C @ (s.v + new.v))
         if self.has_skew:
             energy["W_skew"] -= 0.5 * dq @ (self.K_skew @ (s.q + new.q))
-        new.step = s.step + 1 if level == 0 else s.step
-        self._last_forces = f1
+        new.step = s.step + (level == 0)          # steps count base steps
         return new
 
     # ---------------------------------------------------------------- records
-    def record(self, s: State, energy: dict, fr: Forces | None = None) -> dict:
-        fr = fr or self.forces(s.q, s.v, None, 0.0, s.friction)
+    def record(self, s: State, energy: dict) -> dict:
+        fr = s.forces if s.forces is not None else self.forces(s.q, s.v, None, 0.0, s.friction)
         rec = {"t": s.t, "q": s.q.copy(), "v": s.v.copy(),
                "kinetic": 0.5 * s.v @ (self.M @ s.v), "strain": 0.5 * s.q @ (self.K_sym @ s.q)}
         rec.update({k: energy[k] for k in ENERGY_KEYS[2:]})
@@ -555,7 +553,6 @@ def run_transient(model: DynamicModel, q0: np.ndarray, v0: np.ndarray | None, t_
         write_json_atomic(folder / "checkpoint.json",
                           {**meta, "chunks": n_chunks, "step": state.step, "t": state.t})
 
-    all_records = []
     with ProgressBar(n_steps, "transient", enabled=progress, unit=" steps") as bar:
         while s.step < n_steps:
             try:
@@ -565,23 +562,19 @@ def run_transient(model: DynamicModel, q0: np.ndarray, v0: np.ndarray | None, t_
                 where = f"; last good state (t = {s.t:.6e} s, step {s.step}) saved to {folder}" if folder else ""
                 raise TransientError(f"{e}{where}") from e
             if s.step % record_every == 0:
-                records.append(integ.record(s, energy, integ._last_forces))
-            if folder is None and len(records) > 4096:
-                all_records.extend(records)
-                records = []
+                records.append(integ.record(s, energy))
             if checkpoint_every and s.step % checkpoint_every == 0:
                 flush(s)
             if progress and s.step % 200 == 0:
                 bar.update(s.step)
     if s.step % record_every:          # the final state is always recorded
-        records.append(integ.record(s, energy, integ._last_forces))
+        records.append(integ.record(s, energy))
     wall = time.perf_counter() - t0
     if folder is not None:
         flush(s)
         data = load_history(folder)
     else:
-        all_records.extend(records)
-        data = _stack(all_records)
+        data = _stack(records)
     stats = dict(integ.stats, wall_s=wall, n_steps=n_steps, model_size=model.size,
                  contact_elements=sum(cs.size for cs in model.contacts))
     return _result(data, stats)

@@ -301,9 +301,7 @@ class NewmarkHHT:
         for cs in self.model.contacts:
             if isinstance(cs.friction, ElasticCoulomb):
                 F = cs.normal.evaluate(cs.d0 + cs.D @ q0, cs.D @ v0)[0]
-                speed = np.linalg.norm(cs.V, axis=1, keepdims=True)
-                vhat = np.divide(cs.V, speed, out=np.zeros_like(cs.V), where=speed > 0)
-                f = np.asarray(cs.friction.mu_d, float).reshape(-1, 1) * F[:, None] * vhat
+                f = ConstantFriction(cs.friction.mu_d).evaluate(F, cs.V, cs.V, None, None)[0]
                 states.append(CoulombState(-f / np.asarray(cs.friction.k_t, float).reshape(-1, 1),
                                            np.zeros(cs.size, bool)))
             else:

@@ -1,55 +1,113 @@
-"""Command line: ``fem-squeal run SCENE.toml [--set key=value ...] [-o OUTDIR] [--petsc-option k=v]``."""
+"""Command line of fem_squeal.
+
+    fem-squeal plan SCENE.toml [--set key=value ...]      stages that would run, and the cached ones
+    fem-squeal run SCENE.toml [--set ...] [-o OUTDIR] [--force STAGE] [--petsc-option k=v] [--no-fields]
+    fem-squeal clean                                       remove the cache
+
+The cache is ``--cache-dir`` (default ``$FEM_SQUEAL_CACHE`` or ``.fem_squeal_cache``).  Exit
+codes: 0 done, 2 invalid scene or command line, 3 a stage failed (the message names it).
+"""
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 from pathlib import Path
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="fem-squeal", description=__doc__)
+def _scene_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", type=Path)
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene value, e.g. --set geometry.width=0.005")
+    p.add_argument("--petsc-option", action="append", default=[], metavar="KEY=VALUE",
+                   help="PETSc option with its prefix, e.g. cea_st_pc_factor_mat_solver_type=superlu_dist")
+    p.add_argument("--no-fields", action="store_true",
+                   help="skip the XDMF field files (results.json and PNG only)")
+
+
+def _parser() -> argparse.ArgumentParser:
+    from fem_squeal.pipeline import default_cache_dir
+
+    p = argparse.ArgumentParser(prog="fem-squeal", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--cache-dir", type=Path, default=default_cache_dir(), help="stage cache (default %(default)s)")
+    p.add_argument("--log-level", default="info", choices=["debug", "info", "warning", "error"],
+                   help="messages on rank 0 (warning: only problems; progress bars go to stderr at info)")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("run", help="run the analyses of a scene")
-    r.add_argument("scene", type=Path)
-    r.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scene value, e.g. --set geometry.width=0.005")
-    r.add_argument("--petsc-option", action="append", default=[], metavar="KEY=VALUE",
-                   help="PETSc option with its prefix, e.g. cea_st_pc_factor_mat_solver_type=superlu_dist")
+    _scene_args(r)
     r.add_argument("-o", "--outdir", type=Path, default=None, help="output folder (default out/<scene>)")
-    r.add_argument("--no-fields", action="store_true",
-                   help="skip the XDMF field files (results.json and PNG only)")
-    args = p.parse_args(argv)
+    r.add_argument("--force", action="append", default=[], metavar="STAGE",
+                   help="recompute STAGE and the stages after it even if cached ('all': everything)")
+    r.add_argument("--no-report", action="store_true", help="skip report.html")
+    pl = sub.add_parser("plan", help="print the stages a run would compute and the cached ones")
+    _scene_args(pl)
+    pl.add_argument("--force", action="append", default=[], metavar="STAGE")
+    sub.add_parser("clean", help="remove the cache")
+    return p
 
+
+def _load(args):
+    from fem_squeal.scene import SceneError, load_scene
+
+    overrides = list(args.overrides)
+    for item in args.petsc_option:
+        if "=" not in item:
+            raise SceneError(f"--petsc-option {item}: expected key=value")
+        k, v = item.split("=", 1)
+        overrides.append(f"solver.petsc_options.{k.lstrip('-')}={v}")
+    return load_scene(args.scene, overrides)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
     from mpi4py import MPI
+
+    from fem_squeal.pipeline import Cache, PipelineError, format_plan, make_plan
+    from fem_squeal.scene import SceneError
+
+    comm = MPI.COMM_WORLD
+    rank0 = comm.rank == 0
+    logging.basicConfig(level=getattr(logging, args.log_level.upper()), format="%(message)s", stream=sys.stdout)
+    log = logging.getLogger("fem_squeal")
+    say = (lambda *a, **k: log.info(" ".join(str(x) for x in a))) if rank0 else (lambda *a, **k: None)
+
+    def fail(code: int, msg: str) -> int:
+        print(f"fem-squeal: error{'' if comm.size == 1 else f' (rank {comm.rank})'}: {msg}", file=sys.stderr)
+        return code
+
+    cache = Cache(args.cache_dir)
+    if args.command == "clean":
+        n = cache.clean() if rank0 else 0
+        say(f"[fem_squeal] removed {n} cache entries from {args.cache_dir}")
+        return 0
+    try:
+        scene = _load(args)
+        if args.command == "plan":
+            plan = make_plan(scene, cache, force=args.force, write_fields=not args.no_fields)
+            if rank0:
+                print(f"plan for {args.scene} (cache {args.cache_dir}):\n{format_plan(plan)}")
+            return 0
+    except (SceneError, PipelineError) as e:
+        return fail(2, str(e)) if rank0 else 2
 
     from fem_squeal.eigen import EigenSolveError
     from fem_squeal.preload import PreloadError
+    from fem_squeal.reduced.masa import MasaError
+    from fem_squeal.reduced.transient import TransientError
     from fem_squeal.reduction import ReductionError
-    from fem_squeal.scene import SceneError, load_scene
-
-    comm = MPI.COMM_WORLD
-    try:
-        overrides = list(args.overrides)
-        for item in args.petsc_option:
-            if "=" not in item:
-                raise SceneError(f"--petsc-option {item}: expected key=value")
-            k, v = item.split("=", 1)
-            overrides.append(f"solver.petsc_options.{k.lstrip('-')}={v}")
-        scene = load_scene(args.scene, overrides)
-    except SceneError as e:
-        if comm.rank == 0:
-            print(f"fem-squeal: error: {e}", file=sys.stderr)
-        return 2
     from fem_squeal.run import run_scene
 
     outdir = args.outdir or Path("out") / args.scene.stem
     try:
-        run_scene(scene, outdir, comm, write_fields=not args.no_fields)
-    except (EigenSolveError, PreloadError, ReductionError, ValueError, KeyError) as e:
-        print(f"fem-squeal: error (rank {comm.rank}): {e}", file=sys.stderr)
-        return 3
-    if comm.rank == 0:
-        print(f"[fem_squeal] results in {outdir}/results.json")
+        run_scene(scene, outdir, comm, write_fields=not args.no_fields, log=say, cache=args.cache_dir,
+                  force=args.force, report=not args.no_report)
+    except PipelineError as e:
+        return fail(2, str(e))
+    except (EigenSolveError, PreloadError, ReductionError, MasaError, TransientError, ValueError, KeyError) as e:
+        return fail(3, str(e))
+    if rank0:
+        say(f"[fem_squeal] results in {outdir}/results.json" + ("" if args.no_report else f", {outdir}/report.html"))
     return 0
 
 

@@ -12,6 +12,8 @@ them to cover the band.
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -171,15 +173,17 @@ def _shift_invert_eps(A: PETSc.Mat, B: PETSc.Mat, problem_type, nev: int, target
 
 def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, tol: float = 1e-10,
                      max_residual: float = 1e-8, options: dict | None = None,
-                     prefix: str = "real_") -> RealModes:
-    """Real modes nearest ``target_hz``: K φ = ω² M φ by Krylov–Schur, shift-and-invert at ω_t²."""
+                     prefix: str = "real_", progress: bool = False) -> RealModes:
+    """Real modes nearest ``target_hz``: K φ = ω² M φ by Krylov–Schur, shift-and-invert at ω_t².
+    ``progress``: draw converged/requested pairs on rank 0's stderr."""
     if nev < 1:
         raise ValueError(f"n_modes: must be >= 1 (got {nev})")
     set_options(prefix, options, DIRECT_SOLVER_OPTIONS)
     eps = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GHEP, nev, (TWO_PI * target_hz) ** 2, tol, prefix)
     try:
         eps.setFromOptions()
-        eps.solve()
+        with _progress(eps, nev, "real modes", progress):
+            eps.solve()
         nconv = eps.getConverged()
         vals, vecs, res = [], [], []
         normK = _norm_inf(K)
@@ -205,6 +209,23 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     return RealModes(np.array(vals)[order], [vecs[i] for i in order], res[order])
 
 
+@contextmanager
+def _progress(solver, total: int, label: str, enabled: bool):
+    """A progress bar of converged eigenpairs on rank 0, fed by the SLEPc monitor of ``solver``
+    (set on every rank: monitors are logically collective)."""
+    if not enabled:
+        yield
+        return
+    from fem_squeal.progress import ProgressBar
+
+    with ProgressBar(total, label, unit=" pairs", enabled=solver.getComm().getRank() == 0) as bar:
+        solver.setMonitor(lambda _s, its, nconv, *_: bar.update(min(nconv, total), extra=f"it {its}"))
+        try:
+            yield
+        finally:
+            solver.cancelMonitor()
+
+
 def _check(nconv: int, nev: int, res: np.ndarray, max_residual: float, what: str, freqs) -> None:
     if nconv < nev:
         raise EigenSolveError(
@@ -220,7 +241,7 @@ def _check(nconv: int, nev: int, res: np.ndarray, max_residual: float, what: str
 def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: int, target_hz: float,
                         *, method: str = "auto", tol: float = 1e-10, max_residual: float = 1e-8,
                         band_hz: tuple[float, float] | None = None, options: dict | None = None,
-                        prefix: str = "cea_") -> ComplexModes:
+                        prefix: str = "cea_", progress: bool = False) -> ComplexModes:
     """Complex modes of (λ²M + λC + K)x = 0 with Im λ > 0, ``nev`` of them near ``target_hz``.
 
     At least ``nev`` pairs must converge; those with Im λ/2π inside ``band_hz`` (all when None)
@@ -261,7 +282,8 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
         solver.setConvergenceTest(SLEPc.PEP.Conv.REL)
     try:
         solver.setFromOptions()
-        solver.solve()
+        with _progress(solver, nev if method == "linear" else 2 * nev, "CEA", progress):
+            solver.solve()
         nconv = solver.getConverged()
         for i in range(nconv):
             xr, xi = K.createVecRight(), K.createVecRight()

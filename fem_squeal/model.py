@@ -176,3 +176,13 @@ class ModelSpec:
     @property
     def contacts(self) -> tuple[Interface, ...]:
         return tuple(i for i in self.interfaces if i.kind == "contact")
+
+
+def common_mu(spec: ModelSpec) -> float:
+    """The friction coefficient shared by every frictional interface (a μ sweep scales it)."""
+    mus = {p.mu for p in spec.plates if p.kn > 0 and p.mu > 0 and p.sliding != 0}
+    mus |= {it.mu for it in spec.interfaces if it.kind == "contact" and it.mu > 0 and it.sliding != 0}
+    if len(mus) > 1:
+        raise ValueError(f"interfaces: frictional interfaces have different mu {sorted(mus)}; a reduced "
+                         "model scales one common friction coefficient")
+    return mus.pop() if mus else 0.0

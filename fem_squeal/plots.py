@@ -227,3 +227,66 @@ def dynamic_stability(path: Path, t: np.ndarray, lam: np.ndarray, band_hz, title
     fig.tight_layout()
     save_figure_atomic(fig, path)
     plt.close(fig)
+
+
+def limit_cycle(path: Path, t: np.ndarray, x: np.ndarray, lc, svd_energy, best_mac: list[dict], t_shares,
+                shares: np.ndarray | None, parts: list[str], cycles: list[dict], title: str = "") -> None:
+    """Limit-cycle summary: envelope and saturation, SVD energy and MAC (seed 002 Figs. 8–9),
+    component strain-energy shares along the cycle (Fig. 11), friction work per complex-mode
+    cycle against α (§4.3)."""
+    from fem_squeal.output import save_figure_atomic
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(2, 2, figsize=(11, 7.5))
+    ax[0, 0].plot(t * 1e3, (x - np.mean(x)) * 1e6, lw=0.3, color="0.5")
+    ax[0, 0].plot(t * 1e3, lc.envelope * 1e6, color="C3", lw=1, label="envelope")
+    if lc.saturated:
+        ax[0, 0].axvline(lc.t_saturation * 1e3, color="k", ls="--", lw=0.8, label="saturation")
+    ax[0, 0].legend(fontsize=7)
+    ax[0, 0].set(xlabel="t [ms]", ylabel="closure − mean [µm]",
+                 title=f"{lc.frequency_hz:.0f} Hz, amplitude {lc.amplitude * 1e6:.3g} µm")
+    k = np.arange(1, len(svd_energy) + 1)
+    ax[0, 1].bar(k, svd_energy, color="C0")
+    for b in best_mac:
+        ax[0, 1].annotate(f"{b['freq_hz']:.0f} Hz\nMAC {b['mac']:.2f}", (b["shape"], svd_energy[b["shape"] - 1]),
+                          ha="center", va="bottom", fontsize=7)
+    ax[0, 1].set(xlabel="SVD shape", ylabel="energy share", title="space–time SVD (strain-energy norm)")
+    if shares is not None:
+        ax[1, 0].stackplot(t_shares * 1e3, shares.T, labels=parts)
+        ax[1, 0].legend(fontsize=6, loc="upper right")
+    ax[1, 0].set(xlabel="t [ms]", ylabel="strain-energy share", title="components along the last cycle")
+    if cycles:
+        al = [c["alpha"] for c in cycles]
+        ax[1, 1].loglog(al, np.abs([c["friction_work"] for c in cycles]), "o-")
+    ax[1, 1].set(xlabel="α [× static closure]", ylabel="|friction work| per cycle [J]",
+                 title="complex-mode cycles (seed 002 eq. 6)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def pad_portraits(path: Path, runs: list[dict], pad, title: str = "") -> None:
+    """Seed 004: phase portrait (tangential displacement, velocity) of the centre element and its
+    sliding-speed history, one column per run, with the regime of each."""
+    from fem_squeal.output import save_figure_atomic
+
+    plt = _pyplot()
+    n = len(runs)
+    fig, ax = plt.subplots(2, n, figsize=(max(3.0 * n, 6), 6), squeeze=False)
+    for c, r in enumerate(runs):
+        p = r["portrait"]
+        ax[0, c].plot(p["x"] * 1e6, p["v"] * 1e3, lw=0.4)
+        ax[0, c].set(xlabel="y [µm]", ylabel="ẏ [mm/s]" if c == 0 else "",
+                     title=f"V = {r['speed'] * 1e3:g} mm/s\nv_s {r['v_s'] * 1e3:g}, v_d {r['v_d'] * 1e3:g} mm/s",
+                     )
+        ax[0, c].title.set_fontsize(8)
+        ax[1, c].plot((p["t"] - p["t"][0]) * 1e3, p["w"] * 1e3, lw=0.4)
+        ax[1, c].axhline(r["v_s"] * 1e3, color="C3", lw=0.6, ls="--")
+        ax[1, c].axhline(r["v_d"] * 1e3, color="C2", lw=0.6, ls="--")
+        ax[1, c].set(xlabel="t [ms]", ylabel="|w| [mm/s]" if c == 0 else "")
+        ax[1, c].set_title(", ".join(sorted(set(r["regimes"]))), fontsize=8)
+    fig.suptitle(f"segmented pad (μ_s {pad.mu_s}, μ_d {pad.mu_d}, F {pad.force:g} N) {title}")
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)

@@ -26,7 +26,7 @@ from petsc4py import PETSc
 
 from fem_squeal.assembly import Operators, _add, _owned_global_rows
 from fem_squeal.eigen import DIRECT_SOLVER_OPTIONS, TWO_PI, set_options, solve_real_modes
-from fem_squeal.model import ModelSpec
+from fem_squeal.model import ModelSpec, common_mu  # noqa: F401  (common_mu: re-exported)
 from fem_squeal.reduced.model import MU, ContactRestriction, ReducedModel, e_param
 
 
@@ -46,16 +46,6 @@ class Basis:
     @property
     def size(self) -> int:
         return self.Phi.shape[1]
-
-
-def common_mu(spec: ModelSpec) -> float:
-    """The friction coefficient shared by every frictional interface (a μ sweep scales it)."""
-    mus = {p.mu for p in spec.plates if p.kn > 0 and p.mu > 0 and p.sliding != 0}
-    mus |= {it.mu for it in spec.interfaces if it.kind == "contact" and it.mu > 0 and it.sliding != 0}
-    if len(mus) > 1:
-        raise ValueError(f"interfaces: frictional interfaces have different mu {sorted(mus)}; a reduced "
-                         "model scales one common friction coefficient")
-    return mus.pop() if mus else 0.0
 
 
 def _dense(comm, local: np.ndarray, n_global: int) -> PETSc.Mat:

@@ -113,31 +113,53 @@ def _preload_outputs(comm, outdir: Path, ops, pre, write_fields: bool, title: st
     return summary
 
 
-def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
-              write_fields: bool = True, log=print) -> dict[str, Any]:
-    """Run every analysis of ``scene`` and write the outputs; returns the results dictionary."""
-    from fem_squeal.assembly import assemble_operators, linearise
-    from fem_squeal.blas import limit_threads_for
-    from fem_squeal.descriptors import CircumferentialBasis, strain_energy_shares
-    from fem_squeal.eigen import solve_complex_modes, solve_real_modes
-    from fem_squeal.output import write_json_atomic, write_modes_xdmf
+class Context:
+    """What the stages of one run share: the scene, the communicator, the in-memory products of
+    the stages run so far (``products``) and the cache entries of the stages before."""
 
-    outdir = Path(outdir)
-    rank0 = comm.rank == 0
-    limit_threads_for(comm)
-    say = log if rank0 else (lambda *a, **k: None)
-    spec = model_spec(scene)
-    petsc_options = scene["solver"]["petsc_options"]
-    timings: dict[str, float] = {}
+    def __init__(self, scene: dict, comm: MPI.Comm, say, write_fields: bool, cache, keys: dict[str, str]):
+        self.scene, self.comm, self.say, self.write_fields = scene, comm, say, write_fields
+        self.cache, self.keys = cache, keys
+        self.products: dict[str, Any] = {}
+        self._spec = None
 
+    @property
+    def spec(self):
+        if self._spec is None:
+            self._spec = model_spec(self.scene)
+        return self._spec
+
+    def entry(self, stage: str) -> Path:
+        """The committed cache folder of an upstream stage (its files)."""
+        return self.cache.entry(stage, self.keys[stage])
+
+    def reduced_model(self):
+        """The reduced model: this run's, or the cached ``reduced_model.npz``."""
+        from fem_squeal.reduced.model import ReducedModel
+
+        if "reduced" not in self.products:
+            self.products["reduced"] = ReducedModel.load(self.entry("reduced") / "reduced_model.npz")
+        return self.products["reduced"]
+
+
+def stage_mesh(ctx: Context, work: Path, timings: dict) -> dict:
     t = time.perf_counter()
-    md = build_mesh(comm, scene)
+    md = build_mesh(ctx.comm, ctx.scene)
     timings["mesh"] = time.perf_counter() - t
-    t = time.perf_counter()
+    ctx.products["mesh"] = md
+    return {"mesh": {"cells": md.mesh.topology.index_map(3).size_global, "volumes": sorted(md.volumes)}}
+
+
+def stage_operators(ctx: Context, work: Path, timings: dict) -> dict:
+    from fem_squeal.assembly import assemble_operators
+    from fem_squeal.descriptors import CircumferentialBasis
+
+    scene, spec, md = ctx.scene, ctx.spec, ctx.products["mesh"]
     ana = scene["analyses"]
+    t = time.perf_counter()
     part = describe_part(scene, md.volumes)
     sub: dict[str, float] = {}
-    studies = {"reduced", "sweep", "map", "masa"} & set(ana)
+    studies = {"reduced", "sweep", "map", "masa", "transient"} & set(ana)
     ops = assemble_operators(md, spec, parts=bool(studies) or ("cea" in ana and len(spec.materials) > 1),
                              describe_part=part, timings=sub)
     timings["assembly"] = time.perf_counter() - t
@@ -145,89 +167,194 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD,
         timings["interface_operators"] = sub["interfaces"]
     ndofs = ops.V.dofmap.index_map.size_global * ops.V.dofmap.index_map_bs
     ncells = md.mesh.topology.index_map(3).size_global
-    say(f"[fem_squeal] {ncells} cells, {ndofs} DOFs (P{spec.degree}) on {comm.size} rank(s); "
-        f"mesh {timings['mesh']:.2f} s, assembly {timings['assembly']:.2f} s")
+    ctx.say(f"[fem_squeal] {ncells} cells, {ndofs} DOFs (P{spec.degree}) on {ctx.comm.size} rank(s); "
+            f"assembly {timings['assembly']:.2f} s")
     Md, Mzd = ops.M_parts[part] if part else (ops.M, ops.M_axial)
-    basis = CircumferentialBasis(ops.V, Md, Mzd)
-    results: dict[str, Any] = {
-        "schema_version": SCHEMA_VERSION, "scene": scene,
-        "model": {"dofs": ndofs, "cells": ncells, "ranks": comm.size, "degree": spec.degree},
-        "timings_s": timings,
-    }
+    ctx.products["operators"] = ops
+    ctx.products["basis"] = CircumferentialBasis(ops.V, Md, Mzd)
+    return {"model": {"dofs": ndofs, "cells": ncells, "ranks": ctx.comm.size, "degree": spec.degree}}
 
+
+def stage_preload(ctx: Context, work: Path, timings: dict) -> dict:
+    from fem_squeal.assembly import linearise
+
+    ops = ctx.products["operators"]
+    out: dict[str, Any] = {}
     pre = None
     if ops.contacts:
-        pl = scene["preload"]
+        pl = ctx.scene["preload"]
         t = time.perf_counter()
         if pl["mode"] == "nonlinear":
             from fem_squeal.preload import solve_preload
 
             pre = solve_preload(ops, friction=pl["friction"], tol=pl["tol"], max_iterations=pl["max_iterations"],
-                                options=petsc_options)
+                                options=ctx.scene["solver"]["petsc_options"])
             lin = linearise(ops, pre.active)
             timings["preload"] = time.perf_counter() - t
-            results["preload"] = {"mode": "nonlinear", "iterations": pre.iterations, "history": pre.history,
-                                  "interfaces": _preload_outputs(comm, outdir, ops, pre, write_fields,
-                                                                 scene["title"])}
-            say(f"[fem_squeal] preload: {pre.iterations} Newton iterations, "
-                + ", ".join(f"{k} N = {v['normal_force']:.4g} N, closed {100 * v['closed_share']:.1f} %"
-                            for k, v in results["preload"]["interfaces"].items())
-                + f"; {timings['preload']:.2f} s")
+            out["preload"] = {"mode": "nonlinear", "iterations": pre.iterations, "history": pre.history,
+                              "interfaces": _preload_outputs(ctx.comm, work, ops, pre, ctx.write_fields,
+                                                             ctx.scene["title"])}
+            ctx.say(f"[fem_squeal] preload: {pre.iterations} Newton iterations, "
+                    + ", ".join(f"{k} N = {v['normal_force']:.4g} N, closed {100 * v['closed_share']:.1f} %"
+                                for k, v in out["preload"]["interfaces"].items())
+                    + f"; {timings['preload']:.2f} s")
         else:
             lin = linearise(ops, None)
             timings["preload"] = time.perf_counter() - t
-            results["preload"] = {"mode": "all_closed"}
+            out["preload"] = {"mode": "all_closed"}
         ops.K.destroy()
         ops = lin
+    ctx.products["preload"] = pre
+    ctx.products["linear"] = ops
+    return out
 
-    if "real_modes" in ana:
-        a = ana["real_modes"]
-        t = time.perf_counter()
-        rm = solve_real_modes(ops.K, ops.M, a["n_modes"], a["target_hz"], tol=a["tol"],
-                              max_residual=a["max_residual"], options=petsc_options, prefix="real_")
-        timings["real_modes"] = time.perf_counter() - t
-        rows = []
-        for f, r, x in zip(rm.freqs_hz, rm.residuals, rm.vectors):
-            d = basis.describe(x)
-            rows.append({"freq_hz": f, "residual": r, "in_plane_share": d.in_plane_share,
-                         "nodal_diameter": d.nodal_diameter, "nodal_share": d.nodal_share})
-        results["real_modes"] = rows
-        say(f"[fem_squeal] real modes: {len(rows)} in {timings['real_modes']:.2f} s")
-        if write_fields:
-            write_modes_xdmf(comm, outdir / "real_modes.xdmf", ops.V, [(x, None) for x in rm.vectors])
 
-    if "cea" in ana:
-        a = ana["cea"]
-        t = time.perf_counter()
-        cm = solve_complex_modes(ops.K_total(), ops.M, ops.C, a["n_modes"], cea_target_hz(a),
-                                 method=a["method"], tol=a["tol"], max_residual=a["max_residual"],
-                                 band_hz=tuple(a["band_hz"]), options=petsc_options, prefix="cea_")
-        timings["cea"] = time.perf_counter() - t
-        lo, hi = a["band_hz"]
-        rows, fields = [], []
-        for f, re, zeta, r, xr, xi in zip(cm.freqs_hz, cm.real_parts, cm.damping_ratios, cm.residuals,
-                                          cm.vectors_re, cm.vectors_im):
-            d = basis.describe(xr, xi)
-            rows.append({"index": len(rows), "freq_hz": f, "real_part": re, "damping_ratio": zeta,
-                         "residual": r, "unstable": bool(re > 0), **d._asdict()})
-            if ops.K_parts:
-                groups = COMPONENT_GROUPS.get(scene["geometry"]["builder"])
-                rows[-1]["energy_shares"] = strain_energy_shares(ops.K_parts, xr, xi, groups)
-            fields.append((xr, xi))
-        results["complex_modes"] = rows
-        results["n_unstable"] = sum(r["unstable"] for r in rows)
-        results["cea_method"] = cm.method
-        say(f"[fem_squeal] CEA ({cm.method}): {len(rows)} modes in {lo:g}-{hi:g} Hz, "
-            f"{results['n_unstable']} unstable, {timings['cea']:.2f} s")
-        if write_fields:
-            write_modes_xdmf(comm, outdir / "complex_modes.xdmf", ops.V, fields)
+def stage_real_modes(ctx: Context, work: Path, timings: dict) -> dict:
+    from fem_squeal.eigen import solve_real_modes
+    from fem_squeal.output import write_modes_xdmf
 
-    if studies:
-        from fem_squeal.studies import run_studies
+    ops, basis = ctx.products["linear"], ctx.products["basis"]
+    a = ctx.scene["analyses"]["real_modes"]
+    t = time.perf_counter()
+    rm = solve_real_modes(ops.K, ops.M, a["n_modes"], a["target_hz"], tol=a["tol"], max_residual=a["max_residual"],
+                          options=ctx.scene["solver"]["petsc_options"], prefix="real_", progress=True)
+    timings["real_modes"] = time.perf_counter() - t
+    rows = []
+    for f, r, x in zip(rm.freqs_hz, rm.residuals, rm.vectors):
+        d = basis.describe(x)
+        rows.append({"freq_hz": f, "residual": r, "in_plane_share": d.in_plane_share,
+                     "nodal_diameter": d.nodal_diameter, "nodal_share": d.nodal_share})
+    ctx.say(f"[fem_squeal] real modes: {len(rows)} in {timings['real_modes']:.2f} s")
+    if ctx.write_fields:
+        write_modes_xdmf(ctx.comm, work / "real_modes.xdmf", ops.V, [(x, None) for x in rm.vectors])
+    return {"real_modes": rows}
 
-        results.update(run_studies(comm, scene, spec, ops, pre, outdir, say, timings))
 
-    if rank0:
-        write_json_atomic(outdir / "results.json", results)
-    comm.barrier()
-    return results
+def stage_cea(ctx: Context, work: Path, timings: dict) -> dict:
+    from fem_squeal.descriptors import strain_energy_shares
+    from fem_squeal.eigen import solve_complex_modes
+    from fem_squeal.output import write_modes_xdmf
+
+    ops, basis, scene = ctx.products["linear"], ctx.products["basis"], ctx.scene
+    a = scene["analyses"]["cea"]
+    t = time.perf_counter()
+    cm = solve_complex_modes(ops.K_total(), ops.M, ops.C, a["n_modes"], cea_target_hz(a), method=a["method"],
+                             tol=a["tol"], max_residual=a["max_residual"], band_hz=tuple(a["band_hz"]),
+                             options=scene["solver"]["petsc_options"], prefix="cea_", progress=True)
+    timings["cea"] = time.perf_counter() - t
+    lo, hi = a["band_hz"]
+    rows, fields = [], []
+    for f, re, zeta, r, xr, xi in zip(cm.freqs_hz, cm.real_parts, cm.damping_ratios, cm.residuals,
+                                      cm.vectors_re, cm.vectors_im):
+        d = basis.describe(xr, xi)
+        rows.append({"index": len(rows), "freq_hz": f, "real_part": re, "damping_ratio": zeta,
+                     "residual": r, "unstable": bool(re > 0), **d._asdict()})
+        if ops.K_parts:
+            groups = COMPONENT_GROUPS.get(scene["geometry"]["builder"])
+            rows[-1]["energy_shares"] = strain_energy_shares(ops.K_parts, xr, xi, groups)
+        fields.append((xr, xi))
+    n_unstable = sum(r["unstable"] for r in rows)
+    ctx.say(f"[fem_squeal] CEA ({cm.method}): {len(rows)} modes in {lo:g}-{hi:g} Hz, "
+            f"{n_unstable} unstable, {timings['cea']:.2f} s")
+    if ctx.write_fields:
+        write_modes_xdmf(ctx.comm, work / "complex_modes.xdmf", ops.V, fields)
+    return {"complex_modes": rows, "n_unstable": n_unstable, "cea_method": cm.method}
+
+
+def _stage_functions() -> dict:
+    from fem_squeal import dynamics, studies
+
+    return {"mesh": stage_mesh, "operators": stage_operators, "preload": stage_preload,
+            "real_modes": stage_real_modes, "cea": stage_cea, "reduced": studies.stage_reduced,
+            "sweep": studies.stage_sweep, "map": studies.stage_map, "masa": studies.stage_masa,
+            "transient": dynamics.stage_transient, "limit_cycle": dynamics.stage_limit_cycle,
+            "segmented_pad": dynamics.stage_segmented_pad}
+
+
+def remove_stale_outputs(outdir: Path, files: list[str]) -> None:
+    """Delete the files that an earlier run listed in ``outdir/results.json`` and this run did not
+    write (a MASA plot of a μ no longer asked for), so the folder shows one run."""
+    import json
+
+    try:
+        old = json.loads((outdir / "results.json").read_text()).get("files", [])
+    except (OSError, ValueError):
+        return
+    for name in set(old) - set(files):
+        p = (outdir / name).resolve()
+        if outdir.resolve() in p.parents and p.is_file():
+            p.unlink()
+
+
+def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, write_fields: bool = True,
+              log=print, cache: str | Path | None = None, force=(), report: bool = True) -> dict[str, Any]:
+    """Run the stages that ``scene``'s analyses need (:mod:`fem_squeal.pipeline`), reusing the
+    entries of ``cache`` (a folder; None = a temporary cache, removed afterwards), and write the
+    outputs to ``outdir``.  Returns the results dictionary (the content of results.json)."""
+    import shutil
+    import tempfile
+
+    from fem_squeal.blas import limit_threads_for
+    from fem_squeal.output import write_json_atomic
+    from fem_squeal.pipeline import Cache, make_plan, publish, scratch
+
+    outdir = Path(outdir)
+    rank0 = comm.rank == 0
+    limit_threads_for(comm)
+    say = log if rank0 else (lambda *a, **k: None)
+    temporary = cache is None
+    if temporary:
+        cache = comm.bcast(tempfile.mkdtemp(prefix="fem_squeal_cache.") if rank0 else None, root=0)
+    store = Cache(cache)
+    try:
+        plan = make_plan(scene, store, force=force, write_fields=write_fields)
+        ctx = Context(scene, comm, say, write_fields, store, {p.stage: p.key for p in plan})
+        functions = _stage_functions()
+        results: dict[str, Any] = {"schema_version": SCHEMA_VERSION, "scene": scene, "stages": []}
+        timings: dict[str, float] = {}
+        for i, item in enumerate(plan):
+            t0 = time.perf_counter()
+            if item.status == "cached":
+                entry = store.load(item.stage, item.key)
+            else:
+                say(f"[fem_squeal] stage {i + 1}/{len(plan)}: {item.stage}"
+                    + (" (in memory; outputs cached)" if item.status == "memory" else ""))
+                stage_t: dict[str, float] = {}
+                writer = scratch(comm) if item.status == "memory" else store.writing(comm, item.stage, item.key)
+                with writer as work:
+                    sections = functions[item.stage](ctx, work, stage_t)
+                    entry = {"stage": item.stage, "key": item.key, "results": sections, "timings": stage_t,
+                             "seconds": time.perf_counter() - t0}
+                    if rank0 and item.status != "memory":
+                        write_json_atomic(work / "entry.json", entry)
+                if item.status == "memory":
+                    entry = store.load(item.stage, item.key)
+                else:
+                    timings.update(stage_t)
+            results.update(entry["results"])
+            results["stages"].append({"stage": item.stage, "key": item.key, "status": item.status,
+                                      "seconds": entry["seconds"]})
+        files = None
+        if rank0:
+            outdir.mkdir(parents=True, exist_ok=True)
+            files = []
+            for item in plan:
+                files += publish(store.entry(item.stage, item.key), outdir)
+            remove_stale_outputs(outdir, files)
+        results["files"] = comm.bcast(files, root=0)
+        results["timings_s"] = timings
+        if "model" in results:
+            results["model"]["ranks"] = comm.size
+        if rank0:
+            write_json_atomic(outdir / "results.json", results)
+            if report:
+                from fem_squeal.report import write_report
+
+                write_report(outdir, results)
+        comm.barrier()
+        return results
+    finally:
+        if temporary:
+            comm.barrier()
+            if rank0:
+                shutil.rmtree(cache, ignore_errors=True)

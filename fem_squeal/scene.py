@@ -44,6 +44,17 @@ analyses.masa        mu (list of sign(v)μ values; [] = the scene's), amplitude_
                      (AFT elements per interface; [] = every contact point), attachments =
                      [n_radial, n_angular] (basis enrichment), n_samples, sweep_break, update_shape,
                      refine: modal amplitude stability analysis (seed 000; pulls in analyses.reduced)
+analyses.transient   omega [rad/s], t_end, dt [s], alpha (HHT), rtol, tangent, adaptive, friction
+                     ("constant" | "stribeck" | "coulomb") with mu_s, mu_d, v_s, v_d, k_t, c_t;
+                     cubic_share, contact_damping, patches, attachments (as masa), f_cut_hz,
+                     zeta_cut, amplitude (initial push [× static closure]), record_every,
+                     checkpoint_every: nonlinear transient of the reduced brake (seed 002; pulls in
+                     analyses.reduced)
+analyses.limit_cycle cycles, svd_shapes, stability_samples, mode_cycle_amplitudes,
+                     mode_cycle_samples: post-processing of the transient (seed 002 §3-4)
+analyses.segmented_pad  speeds [m/s], velocity_pairs [[v_s, v_d]], pair_speeds, t_end, dt, alpha
+                     and every field of fem_squeal.reduced.segmented_pad.SegmentedPad: the lumped
+                     pad of seed 004.  A scene with only this analysis has no geometry section.
 solver           petsc_options = { key = value } (given with their prefix, e.g. "cea_st_type")
 """
 from __future__ import annotations
@@ -240,6 +251,52 @@ ANALYSES = {
         "update_shape": Field(bool, False, None, "update ψ, ω from the state matrix along the sweep"),
         "refine": Field(int, 10, non_negative, "bisections of each stationary amplitude"),
     },
+    "transient": {
+        "omega": Field(REAL, 5.0, positive, "disc speed Ω [rad/s]; the counter-face of each element moves at Ωr"),
+        "t_end": Field(REAL, 0.1, positive, "simulated time [s]"),
+        "dt": Field(REAL, 1e-6, positive, "time step [s]"),
+        "alpha": Field(REAL, 0.0, lambda v: None if -1 / 3 <= v <= 0 else f"must be in [-1/3, 0] (got {v})",
+                       "HHT α (0: trapezoidal rule, energy conserving)"),
+        "rtol": Field(REAL, 1e-9, positive, "Newton tolerance on the dynamic force scale"),
+        "tangent": Field(str, "modified", one_of("modified", "full"), "Newton tangent reuse"),
+        "adaptive": Field(bool, False, None, "halve the step around contact and stick/slip events"),
+        "friction": Field(str, "constant", one_of("constant", "stribeck", "coulomb"),
+                          "constant μ (the CEA's), Stribeck μ(v) (seed 004 eq. 4), elastic Coulomb (seed 002 eq. 3)"),
+        "mu_s": Field(REAL, 0.0, non_negative, "static μ (stribeck, coulomb); 0 = the scene's μ"),
+        "mu_d": Field(REAL, 0.0, non_negative, "dynamic μ (stribeck, coulomb); 0 = the scene's μ"),
+        "v_s": Field(REAL, 1e-3, positive, "Stribeck static transition velocity [m/s]"),
+        "v_d": Field(REAL, 1e-2, positive, "Stribeck dynamic transition velocity [m/s]"),
+        "k_t": Field(REAL, 1e8, positive, "elastic Coulomb tangential stiffness per element [N/m]"),
+        "c_t": Field(REAL, 0.0, non_negative, "elastic Coulomb stick damping per element [N s/m]"),
+        "cubic_share": Field(REAL, 0.3, non_negative, "share of the preload tangent from the cubic term"),
+        "contact_damping": Field(list, [2e5, 1e-6], None, "[c_max per area N s/m³, depth m] (seed 004 eq. 3); "
+                                 "[] = none"),
+        "patches": Field(list, [8, 16], None, "[n_radial, n_angular] contact elements per pad; [] = every point"),
+        "attachments": Field(list, [4, 8], None, "[n_radial, n_angular] patch attachment vectors in the basis"),
+        "f_cut_hz": Field(REAL, 18000.0, non_negative, "modal damping of the basis above this frequency; 0 = none"),
+        "zeta_cut": Field(REAL, 0.2, non_negative, "damping ratio above f_cut_hz"),
+        "amplitude": Field(REAL, 1e-3, positive, "initial push along the most unstable mode [× static closure]"),
+        "record_every": Field(int, 10, positive, "record every k steps"),
+        "checkpoint_every": Field(int, 20000, non_negative, "checkpoint every k steps (0 = at the end only)"),
+    },
+    "limit_cycle": {
+        "cycles": Field(REAL, 2.0, positive, "periods analysed at the end of the run (SVD window)"),
+        "svd_shapes": Field(int, 4, positive, "SVD shapes reported and compared with the CEA modes"),
+        "stability_samples": Field(int, 48, at_least(4), "tangent CEAs along the last cycle"),
+        "mode_cycle_amplitudes": Field(list, [0.01, 0.1, 0.5, 1.0, 2.0], None,
+                                       "α of the complex-mode cycles [× static closure]"),
+        "mode_cycle_samples": Field(int, 64, at_least(8), "pseudo-time samples per mode cycle"),
+    },
+    "segmented_pad": {
+        "speeds": Field(list, [0.005, 0.03, 0.1, 0.3], increasing(1, 0.0), "disc speeds at the mean radius [m/s]"),
+        "velocity_pairs": Field(list, [], None, "[[v_s, v_d], ...] [m/s], each run at every pair_speeds"),
+        "pair_speeds": Field(list, [0.05], increasing(1, 0.0), "disc speeds of the (v_s, v_d) study [m/s]"),
+        "t_end": Field(REAL, 0.3, positive, "simulated time per run [s]"),
+        "dt": Field(REAL, 4e-5, positive, "time step [s]"),
+        "alpha": Field(REAL, -0.3, lambda v: None if -1 / 3 <= v <= 0 else f"must be in [-1/3, 0] (got {v})",
+                       "HHT α (damps the stiff sub-v_s branch of the law)"),
+        # + every field of fem_squeal.reduced.segmented_pad.SegmentedPad (added below)
+    },
     "map": {
         "mu_max": Field(REAL, 1.0, positive, "sign(v)μ from -mu_max to mu_max"),
         "n_mu": Field(int, 101, at_least(2)),
@@ -249,6 +306,16 @@ ANALYSES = {
         "n_bands": Field(int, 6, positive, "equal frequency ranges of analyses.reduced.band_hz"),
     },
 }
+
+
+def _segmented_pad_fields() -> dict[str, Field]:
+    from fem_squeal.reduced.segmented_pad import SegmentedPad
+
+    return _dataclass_fields(SegmentedPad)
+
+
+ANALYSES["segmented_pad"].update(_segmented_pad_fields())
+LUMPED = {"segmented_pad"}     # analyses without a finite-element model (no geometry, no materials)
 
 
 def _check_fields(table: Any, fields: dict[str, Field], path: str) -> dict:
@@ -291,6 +358,11 @@ def validate(raw: dict) -> dict:
     scene: dict[str, Any] = {"title": raw.get("title", "")}
     if not isinstance(scene["title"], str):
         raise SceneError("title: must be a string")
+    ana = raw.get("analyses")
+    if not isinstance(ana, dict) or not ana:
+        raise SceneError(f"analyses: required, at least one of {sorted(ANALYSES)}")
+    if set(ana) <= LUMPED and "geometry" not in raw:
+        return _validate_lumped(raw, scene)
     geo = raw.get("geometry")
     if not isinstance(geo, dict):
         raise SceneError("geometry: required table")
@@ -373,14 +445,7 @@ def validate(raw: dict) -> dict:
         raise SceneError("loads.pressure: required for preload.mode = 'nonlinear' with contact interfaces "
                          "(or set preload.mode = 'all_closed')")
 
-    ana = raw.get("analyses")
-    if not isinstance(ana, dict) or not ana:
-        raise SceneError(f"analyses: required, at least one of {sorted(ANALYSES)}")
-    scene["analyses"] = {}
-    for name, table in ana.items():
-        if name not in ANALYSES:
-            raise SceneError(f"analyses.{name}: unknown analysis; available: {sorted(ANALYSES)}")
-        scene["analyses"][name] = _check_fields(table, ANALYSES[name], f"analyses.{name}")
+    scene["analyses"] = _check_analyses(ana)
     part = scene["analyses"].get("cea", {}).get("describe_part", "")
     if part and part not in volumes:
         raise SceneError(f"analyses.cea.describe_part: unknown part {part!r}; parts: {sorted(volumes)}")
@@ -388,10 +453,69 @@ def validate(raw: dict) -> dict:
     return scene
 
 
+def _check_analyses(ana: dict) -> dict:
+    out = {}
+    for name, table in ana.items():
+        if name not in ANALYSES:
+            raise SceneError(f"analyses.{name}: unknown analysis; available: {sorted(ANALYSES)}")
+        out[name] = _check_fields(table, ANALYSES[name], f"analyses.{name}")
+    if "limit_cycle" in out and "transient" not in out:
+        raise SceneError("analyses.limit_cycle: needs analyses.transient (it analyses that run)")
+    if "segmented_pad" in out:
+        _check_segmented_pad(out["segmented_pad"])
+    if "limit_cycle" in out:
+        amps = out["limit_cycle"]["mode_cycle_amplitudes"]
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in amps):
+            raise SceneError(f"analyses.limit_cycle.mode_cycle_amplitudes: must be numbers > 0 (got {amps})")
+    return out
+
+
+def _check_segmented_pad(a: dict) -> None:
+    from fem_squeal.dynamics import pad_parameters
+
+    for i, pair in enumerate(a["velocity_pairs"]):
+        key = f"analyses.segmented_pad.velocity_pairs[{i}]"
+        if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(v, (int, float))
+                                                                  and not isinstance(v, bool) for v in pair)):
+            raise SceneError(f"{key}: must be [v_s, v_d] in m/s (got {pair!r})")
+        if not 0 < pair[0] < pair[1]:
+            raise SceneError(f"{key}: must satisfy 0 < v_s < v_d (got {pair})")
+    if a["velocity_pairs"] and not a["pair_speeds"]:
+        raise SceneError("analyses.segmented_pad.pair_speeds: required with velocity_pairs")
+    if a["dt"] >= a["t_end"]:
+        raise SceneError(f"analyses.segmented_pad.dt: must be < t_end = {a['t_end']} (got {a['dt']})")
+    try:
+        pad_parameters(a)
+    except ValueError as e:
+        raise SceneError(f"analyses.{e}") from None
+
+
+def _validate_lumped(raw: dict, scene: dict) -> dict:
+    """A scene of lumped analyses only: no geometry, materials, interfaces or loads."""
+    extra = sorted(set(raw) - {"title", "analyses", "solver"})
+    if extra:
+        raise SceneError(f"{extra[0]}: not used by the analyses {sorted(raw['analyses'])} (they need no "
+                         "finite-element model); remove it")
+    scene["solver"] = _check_fields(raw.get("solver", {}), SECTIONS["solver"], "solver")
+    scene["analyses"] = _check_analyses(raw["analyses"])
+    return scene
+
+
+def _check_patch_list(key: str, v) -> None:
+    if v and (len(v) != 2 or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1 for n in v)):
+        raise SceneError(f"{key}: must be [] or [n_radial, n_angular], integers >= 1 (got {v})")
+
+
+def _check_damping_pair(key: str, cd) -> None:
+    if cd and (len(cd) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0
+                                       for v in cd)):
+        raise SceneError(f"{key}: must be [] or [c_max > 0, depth > 0] (got {cd})")
+
+
 def _check_reduced(scene: dict, volumes) -> None:
     """Cross-checks of analyses.reduced/sweep/map (which pull in analyses.reduced)."""
     ana = scene["analyses"]
-    if not ({"sweep", "map", "masa"} & set(ana) or "reduced" in ana):
+    if not ({"sweep", "map", "masa", "transient"} & set(ana) or "reduced" in ana):
         return
     ana.setdefault("reduced", _check_fields({}, ANALYSES["reduced"], "analyses.reduced"))
     frictional = [n for n, t in scene["interfaces"].items()
@@ -412,26 +536,29 @@ def _check_reduced(scene: dict, volumes) -> None:
             if ana["sweep"]["range"][0] <= 0:
                 raise SceneError(f"analyses.sweep.range: Young's modulus must be > 0 "
                                  f"(got {ana['sweep']['range']})")
-    if "masa" in ana:
-        m = ana["masa"]
+    for name in ("masa", "transient"):
+        if name not in ana:
+            continue
+        m = ana[name]
         if not any(t["type"] == "contact" for t in scene["interfaces"].values()):
-            raise SceneError("analyses.masa: needs an interface of type 'contact' (its points carry the "
+            raise SceneError(f"analyses.{name}: needs an interface of type 'contact' (its points carry the "
                              "nonlinear contact law)")
         if scene["preload"]["mode"] != "nonlinear":
-            raise SceneError("analyses.masa: needs preload.mode = 'nonlinear' (MASA starts from the static "
+            raise SceneError(f"analyses.{name}: needs preload.mode = 'nonlinear' (it starts from the static "
                              "equilibrium)")
         if m["cubic_share"] > 1:
-            raise SceneError(f"analyses.masa.cubic_share: must be in [0, 1] (got {m['cubic_share']})")
+            raise SceneError(f"analyses.{name}.cubic_share: must be in [0, 1] (got {m['cubic_share']})")
         for key in ("patches", "attachments"):
-            v = m[key]
-            if v and (len(v) != 2 or not all(isinstance(n, int) and n >= 1 for n in v)):
-                raise SceneError(f"analyses.masa.{key}: must be [] or [n_radial, n_angular], integers >= 1 "
-                                 f"(got {v})")
-        cd = m["contact_damping"]
-        if cd and (len(cd) != 2 or not all(isinstance(v, (int, float)) and v > 0 for v in cd)):
-            raise SceneError(f"analyses.masa.contact_damping: must be [] or [c_max > 0, depth > 0] (got {cd})")
-        if not all(isinstance(v, (int, float)) for v in m["mu"]):
-            raise SceneError(f"analyses.masa.mu: must be a list of numbers (got {m['mu']})")
+            _check_patch_list(f"analyses.{name}.{key}", m[key])
+        _check_damping_pair(f"analyses.{name}.contact_damping", m["contact_damping"])
+    if "masa" in ana and not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in ana["masa"]["mu"]):
+        raise SceneError(f"analyses.masa.mu: must be a list of numbers (got {ana['masa']['mu']})")
+    if "transient" in ana:
+        t = ana["transient"]
+        if t["dt"] >= t["t_end"]:
+            raise SceneError(f"analyses.transient.dt: must be < t_end = {t['t_end']} (got {t['dt']})")
+        if t["friction"] == "stribeck" and t["v_d"] <= t["v_s"]:
+            raise SceneError(f"analyses.transient.v_d: must be > v_s = {t['v_s']} (got {t['v_d']})")
     if "map" in ana:
         m = ana["map"]
         if m["part"] not in volumes:

@@ -96,105 +96,126 @@ def _verify(par, model, point: dict, band, growth_tol: float, options) -> dict:
             "unstable_full": [complex(x) for x in full[bad]]}
 
 
-def run_studies(comm, scene: dict, spec, ops, preload, outdir: Path, say, timings: dict) -> dict[str, Any]:
-    """The reduced, sweep and map analyses of ``scene`` (see the module docstring)."""
-    from fem_squeal import plots
-    from fem_squeal.output import write_json_atomic
+def stage_reduced(ctx, work: Path, timings: dict) -> dict[str, Any]:
+    """analyses.reduced: the basis grown to ``tol`` about the preload; ``reduced_model.npz``."""
+    from fem_squeal.pipeline import extra_vector_settings
     from fem_squeal.reduction import ParametricOperators, adaptive_reduce, common_mu
 
+    scene, spec, comm, say = ctx.scene, ctx.spec, ctx.comm, ctx.say
+    ops, preload = ctx.products["linear"], ctx.products["preload"]
     ana = scene["analyses"]
     a = ana["reduced"]
     band = tuple(a["band_hz"])
     opts = scene["solver"]["petsc_options"]
-    rank0 = comm.rank == 0
     mu0 = common_mu(spec)
     checks, samples, parts = design_points(scene, spec, mu0)
+    if "transient" in ana:     # every part's stiffness: component strain-energy shares along the cycle
+        parts = sorted(spec.materials)
     par = ParametricOperators(ops, spec, mu0, parts)
     t = time.perf_counter()
-    extra = masa_vectors(ops, preload, ana["masa"], band, opts) if "masa" in ana else None
+    attach = extra_vector_settings(scene)
+    extra = masa_vectors(ops, preload, attach, band, opts) if attach is not None else None
     model, basis, report = adaptive_reduce(
         ops, par, band, checks, tol=a["tol"], cut_factors=tuple(a["cut_factors"]), samples=samples,
         static=a["static_correction"], sigma_hz=a["sigma_hz"] or None, growth_tol=a["growth_tol"],
-        enrich_rtol=a["enrich_rtol"],
-        preload=preload, options=opts, log=say, extra=extra)
+        enrich_rtol=a["enrich_rtol"], preload=preload, options=opts, log=say, extra=extra)
     timings["reduced_basis"] = time.perf_counter() - t
-    if rank0:
-        model.save(outdir / "reduced_model.npz")
-    out: dict[str, Any] = {"reduced": {"size": model.size, "parameters": model.parameters, "mu0": mu0,
-                                       **report.as_dict()}}
+    if comm.rank == 0:
+        model.save(work / "reduced_model.npz")
+    out: dict[str, Any] = {"size": model.size, "parameters": model.parameters, "mu0": mu0, **report.as_dict()}
     say(f"[fem_squeal] reduced model: {model.size} vectors {basis.counts}, estimated error "
         f"{report.estimate:.1e}, {timings['reduced_basis']:.1f} s")
     if a["verify"]:
         t = time.perf_counter()
         rows = [_verify(par, model, p, band, a["growth_tol"], opts) for p in checks]
         timings["reduced_verify"] = time.perf_counter() - t
-        out["reduced"]["verification"] = rows
+        out["verification"] = rows
         say("[fem_squeal] reduced vs full CEA: " + ", ".join(
             f"{r['point']}: {r['max_rel_error']:.1e}" for r in rows))
-    gt = a["growth_tol"]
+    par.destroy()
+    ctx.products["reduced"] = model
+    return {"reduced": out}
 
-    if "sweep" in ana:
-        s = ana["sweep"]
-        t = time.perf_counter()
-        values = np.linspace(*s["range"], s["n"])
-        fixed = {} if s["parameter"] == MU else {MU: mu0}
-        tr = track(path_solver(model, s["parameter"], fixed), values, growth_tol=gt,
-                   start=0.0 if s["parameter"] == MU and values[0] <= 0 <= values[-1] else None)
-        timings["sweep"] = time.perf_counter() - t
-        f = tr.freqs_hz
-        inside = np.flatnonzero(np.any((f >= band[0]) & (f <= band[1]), axis=0))
-        events = [e for e in tr.events if band[0] <= e.freq_hz <= band[1]]
-        out["sweep"] = {"parameter": s["parameter"], "values": values, "branches": [
-            {"label": tr.labels[j], "parent_hz": tr.parents_hz[j], "freq_hz": f[:, j],
-             "real_part": tr.eigenvalues[:, j].real} for j in inside],
-            "critical": [e.as_dict() for e in events], "solves": tr.solves,
-            "ambiguous_steps": tr.ambiguous_steps, "seconds": timings["sweep"]}
-        say(f"[fem_squeal] sweep of {s['parameter']}: {s['n']} values, {tr.solves} reduced solves, "
+
+def stage_sweep(ctx, work: Path, timings: dict) -> dict[str, Any]:
+    """analyses.sweep on the reduced model: sweep.json, root_locus.png, complex_plane.png."""
+    from fem_squeal import plots
+    from fem_squeal.output import write_json_atomic
+
+    scene, model = ctx.scene, ctx.reduced_model()
+    s = scene["analyses"]["sweep"]
+    band = tuple(scene["analyses"]["reduced"]["band_hz"])
+    gt = scene["analyses"]["reduced"]["growth_tol"]
+    t = time.perf_counter()
+    values = np.linspace(*s["range"], s["n"])
+    fixed = {} if s["parameter"] == MU else {MU: model.mu0}
+    tr = track(path_solver(model, s["parameter"], fixed), values, growth_tol=gt,
+               start=0.0 if s["parameter"] == MU and values[0] <= 0 <= values[-1] else None,
+               progress=ctx.comm.rank == 0)
+    timings["sweep"] = time.perf_counter() - t
+    f = tr.freqs_hz
+    inside = np.flatnonzero(np.any((f >= band[0]) & (f <= band[1]), axis=0))
+    events = [e for e in tr.events if band[0] <= e.freq_hz <= band[1]]
+    out = {"parameter": s["parameter"], "values": values, "branches": [
+        {"label": tr.labels[j], "parent_hz": tr.parents_hz[j], "freq_hz": f[:, j],
+         "real_part": tr.eigenvalues[:, j].real} for j in inside],
+        "critical": [e.as_dict() for e in events], "solves": tr.solves,
+        "ambiguous_steps": tr.ambiguous_steps, "seconds": timings["sweep"]}
+    ctx.say(f"[fem_squeal] sweep of {s['parameter']}: {s['n']} values, {tr.solves} reduced solves, "
             f"{len(events)} stability changes in the band, {timings['sweep']:.2f} s")
-        if rank0:
-            write_json_atomic(outdir / "sweep.json", out["sweep"])
-            xlabel = "sign(v) μ" if s["parameter"] == MU else f"{s['parameter']} [Pa]"
-            plots.root_locus(outdir / "root_locus.png", values, tr.eigenvalues, unstable(tr.eigenvalues, gt),
-                             xlabel, band, tr.labels, scene["title"])
-            plots.complex_plane(outdir / "complex_plane.png", tr.eigenvalues, band, gt, scene["title"])
-        out["sweep"].pop("branches")  # kept in sweep.json; results.json holds the summary
+    if ctx.comm.rank == 0:
+        write_json_atomic(work / "sweep.json", out)
+        xlabel = "sign(v) μ" if s["parameter"] == MU else f"{s['parameter']} [Pa]"
+        plots.root_locus(work / "root_locus.png", values, tr.eigenvalues, unstable(tr.eigenvalues, gt),
+                         xlabel, band, tr.labels, scene["title"])
+        plots.complex_plane(work / "complex_plane.png", tr.eigenvalues, band, gt, scene["title"])
+    out.pop("branches")  # kept in sweep.json; results.json holds the summary
+    return {"sweep": out}
 
-    if "map" in ana:
-        m = ana["map"]
-        name = e_param(m["part"])
-        E = np.linspace(*map_E_range(scene, spec), m["n_E"])
-        grid = Grid({name: E, MU: signed_mu_axis(m["mu_max"], m["n_mu"])})
-        res = evaluate(model, grid, comm)
-        timings["map"] = res.seconds
-        bands = equal_bands(band, m["n_bands"])
-        smap = stability_map(res, bands, gt)
-        out["map"] = {"parameter": name, "points": grid.size, "seconds": res.seconds,
-                      "seconds_per_point": res.seconds_per_point, **smap.as_dict()}
-        say(f"[fem_squeal] stability map: {grid.size} points in {res.seconds:.2f} s "
+
+def stage_map(ctx, work: Path, timings: dict) -> dict[str, Any]:
+    """analyses.map: unstable modes per band over the (sign(v)μ, E) design; stability_map.npz/png."""
+    from fem_squeal import plots
+    from fem_squeal.output import write_npz_atomic
+
+    scene, model = ctx.scene, ctx.reduced_model()
+    m = scene["analyses"]["map"]
+    band = tuple(scene["analyses"]["reduced"]["band_hz"])
+    gt = scene["analyses"]["reduced"]["growth_tol"]
+    name = e_param(m["part"])
+    E = np.linspace(*map_E_range(scene, ctx.spec), m["n_E"])
+    grid = Grid({name: E, MU: signed_mu_axis(m["mu_max"], m["n_mu"])})
+    res = evaluate(model, grid, ctx.comm, progress=True)
+    timings["map"] = res.seconds
+    bands = equal_bands(band, m["n_bands"])
+    smap = stability_map(res, bands, gt)
+    out = {"parameter": name, "points": grid.size, "seconds": res.seconds,
+           "seconds_per_point": res.seconds_per_point, **smap.as_dict()}
+    ctx.say(f"[fem_squeal] stability map: {grid.size} points in {res.seconds:.2f} s "
             f"({1e3 * res.seconds_per_point:.2f} ms per point per rank), "
             f"at most {int(smap.total.max())} unstable modes")
-        if rank0:
-            from fem_squeal.output import write_npz_atomic
-
-            write_npz_atomic(outdir / "stability_map.npz", {"mu": grid.axes[MU], "E": E, "counts": smap.counts,
-                                                            "total": smap.total, "eigenvalues": res.eigenvalues,
-                                                            "bands_hz": np.array(bands)})
-            plots.stability_maps(outdir / "stability_map.png", grid.axes[MU], E / 1e9, smap.counts, smap.total,
-                                 bands, f"E of {m['part']} [GPa]", scene["title"])
-    if "masa" in ana:
-        out["masa"] = run_masa_analysis(comm, scene, model, outdir, say, timings)
-    par.destroy()
-    return out
+    if ctx.comm.rank == 0:
+        write_npz_atomic(work / "stability_map.npz", {"mu": grid.axes[MU], "E": E, "counts": smap.counts,
+                                                       "total": smap.total, "eigenvalues": res.eigenvalues,
+                                                       "bands_hz": np.array(bands)})
+        plots.stability_maps(work / "stability_map.png", grid.axes[MU], E / 1e9, smap.counts, smap.total,
+                             bands, f"E of {m['part']} [GPa]", scene["title"])
+    return {"map": out}
 
 
-def masa_vectors(ops, preload, m: dict, band, options) -> np.ndarray:
-    """Basis vectors MASA needs beyond the modes: the preload displacement (so that the reduced
-    static equilibrium reproduces the full one) and the contact-patch attachments."""
+def stage_masa(ctx, work: Path, timings: dict) -> dict[str, Any]:
+    return {"masa": run_masa_analysis(ctx.comm, ctx.scene, ctx.reduced_model(), work, ctx.say, timings)}
+
+
+def masa_vectors(ops, preload, attachments: list, band, options) -> np.ndarray:
+    """Basis vectors MASA and the transient need beyond the modes: the preload displacement (so
+    that the reduced static equilibrium reproduces the full one) and the contact-patch
+    attachments ([n_radial, n_angular]; [] = none)."""
     from fem_squeal.reduction import contact_attachments
 
     cols = [preload.u.array_r.copy()[:, None]]
-    if m["attachments"]:
-        cols.append(contact_attachments(ops, tuple(m["attachments"]), 0.1 * band[1], options))
+    if attachments:
+        cols.append(contact_attachments(ops, tuple(attachments), 0.1 * band[1], options))
     return np.hstack(cols)
 
 
@@ -219,9 +240,6 @@ def run_masa_analysis(comm, scene: dict, model, outdir: Path, say, timings: dict
     mus = [float(v) for v in m["mu"]] or [model.mu0]
     cd = m["contact_damping"] or [0.0, np.inf]
     out: dict[str, Any] = {"settings": m, "cases": []}
-    if comm.rank == 0:  # figures of an earlier run would mix with this one's
-        for old in (outdir / "masa").glob("mu*Hz*.png"):
-            old.unlink()
     t0 = time.perf_counter()
     for mu in mus:
         t = time.perf_counter()
@@ -232,7 +250,7 @@ def run_masa_analysis(comm, scene: dict, model, outdir: Path, say, timings: dict
         targets = prob.instabilities()
         amps = masa_amplitudes(prob, targets, m)
         results = run_masa(prob, targets, amps, sweep_break=m["sweep_break"], update_shape=m["update_shape"],
-                           refine=m["refine"], comm=comm)
+                           refine=m["refine"], comm=comm, progress=True)
         seconds = time.perf_counter() - t
         unit = "× first contact loss" if m["amplitude_unit"] == "loss" else "modal amplitude p"
         case = {"mu": mu, "equilibrium": eq.as_dict(), "elements": prob.n_elements, "basis": mm.size,

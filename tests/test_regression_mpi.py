@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 
@@ -91,7 +92,8 @@ def test_scene_with_real_modes_and_damping_writes_all_outputs(tmp_path):
                          write_fields=False, log=lambda *a: None)
     shift = eigenvalues(res).real - eigenvalues(undamped).real
     assert np.allclose(shift, -1.0, atol=1e-3)
-    (tmp_path / "u" / "results.json").unlink()
-    (tmp_path / "u").rmdir()
+    assert sorted(p.name for p in (tmp_path / "u").iterdir()) == ["report.html", "results.json"]
+    shutil.rmtree(tmp_path / "u")
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "complex_modes.h5", "complex_modes.xdmf", "real_modes.h5", "real_modes.xdmf", "results.json"]
+        "complex_modes.h5", "complex_modes.xdmf", "real_modes.h5", "real_modes.xdmf", "report.html", "results.json"]
+    assert sorted(res["files"]) == ["complex_modes.h5", "complex_modes.xdmf", "real_modes.h5", "real_modes.xdmf"]

@@ -453,13 +453,17 @@ def _stationary(prob: MasaProblem, res: MasaResult, shapes, refine: int) -> None
 
 
 def run_masa(prob: MasaProblem, targets: Sequence[Instability], amplitudes, *, sweep_break: bool = True,
-             update_shape: bool = False, refine: int = 10, comm=None) -> list[MasaResult]:
+             update_shape: bool = False, refine: int = 10, comm=None, progress: bool = False
+             ) -> list[MasaResult]:
     """MASA of every instability in ``targets`` over ``amplitudes`` (ascending, from 0 or above).
 
     With MPI ``comm``: instabilities are dealt round-robin to the ranks when a sweep is sequential
     (sweep break or shape update); otherwise every (instability, amplitude) pair is dealt out, so
     two ranks help even for one instability.  Every rank returns all results, identical to a
-    serial run (the same arithmetic runs for each pair whatever the rank count)."""
+    serial run (the same arithmetic runs for each pair whatever the rank count).  ``progress``
+    draws rank 0's share of the work."""
+    from fem_squeal.progress import ProgressBar
+
     amplitudes = np.asarray(amplitudes, float)
     grids = np.broadcast_to(amplitudes, (len(targets), amplitudes.shape[-1])) \
         if amplitudes.ndim in (1, 2) else None
@@ -467,8 +471,12 @@ def run_masa(prob: MasaProblem, targets: Sequence[Instability], amplitudes, *, s
         raise MasaError("amplitudes: need >= 2 increasing values >= 0 (one row, or one row per instability)")
     rank, size = (comm.rank, comm.size) if comm is not None else (0, 1)
     if sweep_break or update_shape:
-        mine = [_sweep(prob, t, grids[n], sweep_break, update_shape, refine)
-                for n, t in enumerate(targets) if n % size == rank]
+        own = [n for n in range(len(targets)) if n % size == rank]
+        mine = []
+        with ProgressBar(len(own), "MASA", enabled=progress and rank == 0, unit=" instabilities") as bar:
+            for k, n in enumerate(own):
+                mine.append(_sweep(prob, targets[n], grids[n], sweep_break, update_shape, refine))
+                bar.update(k + 1)
         parts = comm.allgather(mine) if comm is not None else [mine]
         out = [None] * len(targets)
         for r, chunk in enumerate(parts):
@@ -478,11 +486,13 @@ def run_masa(prob: MasaProblem, targets: Sequence[Instability], amplitudes, *, s
     n_p = grids.shape[1]
     pairs = [(n, i) for n in range(len(targets)) for i in range(n_p)]
     mine = {}
-    for k, (n, i) in enumerate(pairs):
-        if k % size == rank:
-            t = targets[n]
-            lam, _, st, a = prob.state(t.y, t.lam.imag, grids[n, i])
-            mine[(n, i)] = (lam, st, a)
+    with ProgressBar(len(pairs), "MASA", enabled=progress and rank == 0, unit=" states") as bar:
+        for k, (n, i) in enumerate(pairs):
+            if k % size == rank:
+                t = targets[n]
+                lam, _, st, a = prob.state(t.y, t.lam.imag, grids[n, i])
+                mine[(n, i)] = (lam, st, a)
+                bar.update(k + 1)
     if comm is not None:
         for d in comm.allgather(mine):
             mine.update(d)

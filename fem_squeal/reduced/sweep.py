@@ -70,11 +70,14 @@ class SweepResult:
 
 
 def solve_points(model: ReducedModel, points: Mapping[str, np.ndarray], vectors: bool = False,
-                 chunk: int = 32):
-    """Eigenvalues (n, m) [and vectors (n, m, m)] at the points given as flat arrays."""
+                 chunk: int = 32, bar=None):
+    """Eigenvalues (n, m) [and vectors (n, m, m)] at the points given as flat arrays
+    (``bar``: a :class:`~fem_squeal.progress.ProgressBar` fed with the points done)."""
     n = len(next(iter(points.values()))) if points else 1
     lams, Ys = [], []
     for s in range(0, n, chunk):
+        if bar is not None:
+            bar.update(s)
         sub = {k: np.asarray(v)[s:s + chunk] for k, v in points.items()}
         K, C = model.matrices(sub, min(chunk, n - s))
         out = quadratic_eigs(K, C, vectors)
@@ -87,14 +90,19 @@ def solve_points(model: ReducedModel, points: Mapping[str, np.ndarray], vectors:
     return (lam, np.concatenate(Ys)) if vectors else lam
 
 
-def evaluate(model: ReducedModel, grid: Grid, comm=None, chunk: int = 32) -> SweepResult:
+def evaluate(model: ReducedModel, grid: Grid, comm=None, chunk: int = 32, progress: bool = False
+             ) -> SweepResult:
     """Eigenvalues at every point of ``grid``; the points are shared among the ranks of ``comm``
-    (an mpi4py communicator, or None for serial) and the result is on every rank."""
+    (an mpi4py communicator, or None for serial) and the result is on every rank.  ``progress``
+    draws rank 0's share of the points."""
+    from fem_squeal.progress import ProgressBar
+
     t = time.perf_counter()
     pts = grid.points()
     size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
     mine = np.arange(rank, grid.size, size)
-    lam = solve_points(model, {k: v[mine] for k, v in pts.items()}, chunk=chunk)
+    with ProgressBar(mine.size, "stability map", enabled=progress and rank == 0, unit=" points") as bar:
+        lam = solve_points(model, {k: v[mine] for k, v in pts.items()}, chunk=chunk, bar=bar)
     if comm is not None and size > 1:
         parts = comm.allgather((mine, lam))
         full = np.empty((grid.size, model.size), complex)

@@ -32,6 +32,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from fem_squeal.progress import ProgressBar
 from scipy.optimize import linear_sum_assignment
 
 from fem_squeal.reduced.eigensolve import TWO_PI
@@ -167,7 +169,8 @@ class _Walker:
 def track(solve: Solver, values: np.ndarray, *, start: float | None = None, mac_min: float = 0.8,
           max_depth: int = 10, budget: int = 48, order_rtol: float = 1e-9, cluster_rtol: float = 1e-8,
           growth_tol: float = 1e-6,
-          coalescence_rtol: float = 1e-3, tol: float = 1e-10, labels: list[str] | None = None) -> Tracking:
+          coalescence_rtol: float = 1e-3, tol: float = 1e-10, labels: list[str] | None = None,
+          progress: bool = False) -> Tracking:
     """Track every eigenvalue of ``solve(p) -> (λ (m,), Y (m, m))`` over the sorted ``values``.
 
     ``start`` (default 0 if inside the range, else the first value) is where branches are
@@ -185,12 +188,16 @@ def track(solve: Solver, values: np.ndarray, *, start: float | None = None, mac_
     parents_hz = lam0.imag / TWO_PI
     labels = labels or [f"M{j + 1}" for j in range(m)]
     out = np.empty((values.size, m), complex)
-    for side in (values[values >= start], values[values < start][::-1]):
-        st = {"p": start, "lam": lam0, "Y": Y0, "p_prev": None, "lam_prev": None}
-        for p in side:
-            if p != start:
-                st = walker.step(st, float(p))
-            out[np.searchsorted(values, p)] = st["lam"]
+    done = 0
+    with ProgressBar(values.size, "sweep", enabled=progress, unit=" values") as bar:
+        for side in (values[values >= start], values[values < start][::-1]):
+            st = {"p": start, "lam": lam0, "Y": Y0, "p_prev": None, "lam_prev": None}
+            for p in side:
+                if p != start:
+                    st = walker.step(st, float(p))
+                out[np.searchsorted(values, p)] = st["lam"]
+                done += 1
+                bar.update(done)
     tr = Tracking(values, out, parents_hz, labels)
     tr.events = _events(tr, solve, start, growth_tol, coalescence_rtol, tol * (values[-1] - values[0]))
     tr.solves, tr.ambiguous_steps = walker.solves, walker.ambiguous

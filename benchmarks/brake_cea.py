@@ -1,6 +1,6 @@
 """Brake corner CEA: wall time, memory and mesh convergence of the unstable modes.
 
-Each case runs ``scenes/brake_corner.toml`` in a fresh process (peak memory per case) and reports
+Each case runs ``scenes/brake_corner_cea.toml`` in a fresh process (peak memory per case) and reports
 DOFs, the wall time split into mesh / assembly (volume forms) / interface operators / preload /
 eigensolve, the peak RSS per rank, and the unstable modes.  The unstable modes of each mesh are
 matched to those of the finest mesh (nearest frequency with the same disc nodal diameter) and
@@ -33,7 +33,7 @@ def run_case(mesh_size: str, matching: bool) -> dict:
     from fem_squeal.scene import load_scene
 
     comm = MPI.COMM_WORLD
-    scene = load_scene(ROOT / "scenes" / "brake_corner.toml",
+    scene = load_scene(ROOT / "scenes" / "brake_corner_cea.toml",
                        [f"geometry.mesh_size={mesh_size}", f"geometry.matching={str(matching).lower()}"])
     with tempfile.TemporaryDirectory() as tmp:
         tmp = comm.bcast(tmp, root=0)

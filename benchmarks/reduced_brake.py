@@ -46,7 +46,8 @@ def main() -> None:
 
     comm = MPI.COMM_WORLD
     limit_threads_for(comm)
-    scene = load_scene(ROOT / "scenes" / "brake_corner.toml", ["geometry.mesh_size=0.016"] if args.quick else [])
+    scene = load_scene(ROOT / "scenes" / "brake_corner_cea.toml",
+                       ["geometry.mesh_size=0.016"] if args.quick else [])
     spec = model_spec(scene)
     md = build_mesh(comm, scene)
     ops = assemble_operators(md, spec, parts=True)

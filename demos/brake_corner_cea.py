@@ -28,7 +28,7 @@ args = sys.argv[1:]
 sets = [args[i + 1] for i, a in enumerate(args) if a == "--set"]
 positional = [a for i, a in enumerate(args) if a != "--set" and (i == 0 or args[i - 1] != "--set")]
 outdir = Path(positional[0]) if positional else root / "out" / "brake_corner_cea"
-scene = load_scene(root / "scenes" / "brake_corner.toml", sets)
+scene = load_scene(root / "scenes" / "brake_corner_cea.toml", sets)
 comm = MPI.COMM_WORLD
 res = run_scene(scene, outdir, comm)
 say = print if comm.rank == 0 else (lambda *a, **k: None)

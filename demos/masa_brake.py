@@ -41,7 +41,7 @@ outdir = Path(args[0]) if args else root / "out" / "masa_brake"
 overrides = [a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--set=")]
 comm = MPI.COMM_WORLD
 say = print if comm.rank == 0 else (lambda *a, **k: None)
-scene = load_scene(root / "scenes" / "brake_corner.toml",
+scene = load_scene(root / "scenes" / "brake_corner_cea.toml",
                    ["analyses.masa.amplitude_max=5.0", "analyses.masa.n_amplitudes=100",
                     "analyses.masa.sweep_break=true", *overrides])
 res = run_scene(scene, outdir, comm, write_fields=False)

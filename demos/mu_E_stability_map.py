@@ -29,7 +29,7 @@ args = [a for a in sys.argv[1:] if not a.startswith("--")]
 outdir = Path(args[0]) if args else root / "out" / "mu_E_stability_map"
 overrides = [a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--set=")]
 comm = MPI.COMM_WORLD
-scene = load_scene(root / "scenes" / "brake_corner.toml",
+scene = load_scene(root / "scenes" / "brake_corner_cea.toml",
                    ["analyses.map.n_mu=101", "analyses.map.n_E=21", "analyses.map.mu_max=1.0",
                     "analyses.reduced.verify=true", *overrides])
 res = run_scene(scene, outdir, comm, write_fields=False)

@@ -54,7 +54,7 @@ if len(fwd) != 5 or not np.allclose(fwd, bwd, rtol=1e-6) or max(abs(c["value"]) 
 
 # --- 2. the brake corner -------------------------------------------------------------------------
 if "--ring-only" not in sys.argv:
-    brake = load_scene(root / "scenes" / "brake_corner.toml", SWEEP)
+    brake = load_scene(root / "scenes" / "brake_corner_cea.toml", SWEEP)
     res = run_scene(brake, outdir / "brake", comm, write_fields=False)
     red, sw = res["reduced"], res["sweep"]
     failures += verification_failures(red, "brake: ")

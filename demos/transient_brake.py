@@ -50,7 +50,7 @@ else:
     from fem_squeal.scene import load_scene
 
     overrides = [a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--set=")]
-    scene = load_scene(root / "scenes" / "brake_corner.toml", ["analyses.masa.n_amplitudes=2", *overrides])
+    scene = load_scene(root / "scenes" / "brake_corner_cea.toml", ["analyses.masa.n_amplitudes=2", *overrides])
     run_scene(scene, outdir / "fe", comm, write_fields=False)
     model_file = outdir / "fe" / "reduced_model.npz"
 if comm.rank != 0:          # the reduced transient is small: rank 0 runs it, the others wait

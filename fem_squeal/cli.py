@@ -107,7 +107,8 @@ def main(argv: list[str] | None = None) -> int:
     except (EigenSolveError, PreloadError, ReductionError, MasaError, TransientError, ValueError, KeyError) as e:
         return fail(3, str(e))
     if rank0:
-        say(f"[fem_squeal] results in {outdir}/results.json" + ("" if args.no_report else f", {outdir}/report.html"))
+        say(f"[fem_squeal] results in {outdir}/results.json"
+            + ("" if args.no_report else f", {outdir}/report.html"))
     return 0
 
 

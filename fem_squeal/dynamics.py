@@ -122,7 +122,8 @@ def stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
                    for q in ("normal_force", "torque") if f"{cs.name}.{q}" in res.contact}
         write_npz_atomic(work / "transient.npz", {"t": res.t, "probe": x, "probe_rate": xv, "q_static": qs,
                                                    "q0": q0, **contact})
-        extra = {f"{cs.name} normal force [kN]": res.contact[f"{cs.name}.normal_force"] / 1e3 for cs in dm.contacts}
+        extra = {f"{cs.name} normal force [kN]": res.contact[f"{cs.name}.normal_force"] / 1e3
+                 for cs in dm.contacts}
         plots.transient(work / "transient.png", res.t, x, xv, extra,
                         title=f"{ctx.scene['title']}: closure of the most active contact element",
                         label="closure [µm]")
@@ -130,8 +131,10 @@ def stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
         out = {"basis": dm.size, "contact_elements": sum(c.size for c in dm.contacts), "steps": st["steps"],
                "dt": a["dt"], "t_end": a["t_end"], "wall_s": wall, "ms_per_step": 1e3 * wall / max(st["steps"], 1),
                "iterations_per_step": st["iterations"] / max(st["steps"], 1), "stats": st,
-               "resumed": resume, "static_closure": closure, "probe": {"contact": dm.contacts[k].name, "element": j},
-               "steady_sliding_unstable": [{"freq_hz": z.imag / TWO_PI, "real_part": z.real} for z in lam[unstable]],
+               "resumed": resume, "static_closure": closure,
+               "probe": {"contact": dm.contacts[k].name, "element": j},
+               "steady_sliding_unstable": [{"freq_hz": z.imag / TWO_PI, "real_part": z.real}
+                                           for z in lam[unstable]],
                "pushed_mode": {"freq_hz": lam[i].imag / TWO_PI, "real_part": lam[i].real} if i >= 0 else None,
                "peak_closure_change": float(np.abs(x - x[0]).max()), "energy_leak": leak,
                "friction_work": float(res.energy["W_friction"][-1])}
@@ -144,8 +147,15 @@ def stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
 def stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
     from fem_squeal import plots
     from fem_squeal.output import write_json_atomic
-    from fem_squeal.reduced.limit_cycle import (detect_limit_cycle, dynamic_stability, follow_mode, mac,
-                                                mode_cycle, space_time_svd, strain_energy_shares)
+    from fem_squeal.reduced.limit_cycle import (
+        detect_limit_cycle,
+        dynamic_stability,
+        follow_mode,
+        mac,
+        mode_cycle,
+        space_time_svd,
+        strain_energy_shares,
+    )
     from fem_squeal.reduced.transient import load_history
 
     a = ctx.scene["analyses"]["limit_cycle"]
@@ -173,7 +183,8 @@ def stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
         near = (lam.imag > 0) & (lam.imag / TWO_PI >= band[0]) & (lam.imag / TWO_PI <= band[1])
         cand = np.flatnonzero(near)
         macs = mac(svd.shapes[:, :n_sh], Y[:, cand])
-        best = [{"shape": r + 1, "freq_hz": float(lam[cand[c]].imag / TWO_PI), "real_part": float(lam[cand[c]].real),
+        best = [{"shape": r + 1, "freq_hz": float(lam[cand[c]].imag / TWO_PI),
+                 "real_part": float(lam[cand[c]].real),
                  "mac": float(macs[r, c])} for r, c in enumerate(np.argmax(macs, axis=1))]
         samples = np.flatnonzero(t >= t[-1] - period)
         samples = samples[:: max(samples.size // a["stability_samples"], 1)]

@@ -13,7 +13,6 @@ them to cover the band.
 from __future__ import annotations
 
 from contextlib import contextmanager
-
 from dataclasses import dataclass
 
 import numpy as np

@@ -30,6 +30,11 @@ def _clean(o):
     return o
 
 
+def jsonable(o):
+    """``o`` as it reads back from JSON: arrays to lists, non-finite floats to strings."""
+    return _clean(o)
+
+
 def _write_atomic(path: Path, write, mode: str = "w") -> None:
     """Write ``path`` through a temporary file in the same folder and ``os.replace``: readers
     see the old file or the whole new one, never a part (call on one rank only)."""

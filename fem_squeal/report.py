@@ -52,7 +52,8 @@ def _sections(res: dict) -> list[str]:
     out = []
     if "model" in res:
         m = res["model"]
-        out.append(f"<h2>Model</h2><p>{m['cells']} cells, {m['dofs']} DOFs (P{m['degree']}), {m['ranks']} rank(s)</p>")
+        out.append(f"<h2>Model</h2><p>{m['cells']} cells, {m['dofs']} DOFs (P{m['degree']}), "
+                   f"{m['ranks']} rank(s)</p>")
     if res.get("preload", {}).get("interfaces"):
         rows = [[k, v["normal_force"], v["friction_force"], v["contact_area"] * 1e4, 100 * v["closed_share"],
                  v["peak_pressure"] / 1e6] for k, v in res["preload"]["interfaces"].items()]
@@ -75,7 +76,8 @@ def _sections(res: dict) -> list[str]:
     if "reduced" in res:
         r = res["reduced"]
         txt = (f"<h2>Reduced model</h2><p>{r['size']} vectors, parameters {_e(r['parameters'])}, estimated "
-               f"error {_num(r.get('estimated_error'))} (tol {_num(r['tol'])}), converged {_e(r.get('converged'))}.</p>")
+               f"error {_num(r.get('estimated_error'))} (tol {_num(r['tol'])}), "
+               f"converged {_e(r.get('converged'))}.</p>")
         if r.get("verification"):
             txt += _table(["point", "max rel. error", "unstable full", "unstable reduced"],
                           [[v["point"], v["max_rel_error"], v["n_unstable_full"], v["n_unstable_reduced"]]
@@ -90,10 +92,12 @@ def _sections(res: dict) -> list[str]:
     if "map" in res:
         m = res["map"]
         out.append(f"<h2>Stability map</h2><p>{m['points']} points of (sign(v)μ, {_e(m['parameter'])}) in "
-                   f"{_num(m['seconds'])} s; at most {_num(max(max(r) for r in m['total']) if m.get('total') else 0)} "
+                   f"{_num(m['seconds'])} s; at most "
+                   f"{_num(max(max(r) for r in m['total']) if m.get('total') else 0)} "
                    "unstable modes.</p>")
     if "masa" in res:
-        rows = [[c["mu"], i["freq_hz"], i["real_part"], ", ".join(f"{v:.3g}" for v in i["stationary_in_unit"]) or "–",
+        rows = [[c["mu"], i["freq_hz"], i["real_part"],
+                 ", ".join(f"{v:.3g}" for v in i["stationary_in_unit"]) or "–",
                  i["broke_at"]] for c in res["masa"]["cases"] for i in c["instabilities"]]
         out.append("<h2>MASA</h2>" + _table(["μ", "f [Hz]", "Re λ at 0 [1/s]", "stationary amplitudes",
                                             "sweep broke at"], rows))
@@ -110,7 +114,8 @@ def _sections(res: dict) -> list[str]:
         txt = (f"<h2>Limit cycle</h2><p>saturated: <b>{_e(c['saturated'])}</b>, {_num(c['frequency_hz'])} Hz, "
                f"amplitude {_num(c['amplitude'] * 1e6)} µm.</p>")
         txt += _table(["SVD shape", "energy share", "best CEA mode [Hz]", "MAC"],
-                      [[b["shape"], lc["svd_energy"][b["shape"] - 1], b["freq_hz"], b["mac"]] for b in lc["svd_best_mac"]])
+                      [[b["shape"], lc["svd_energy"][b["shape"] - 1], b["freq_hz"], b["mac"]]
+                       for b in lc["svd_best_mac"]])
         if lc["energy_shares"]:
             txt += _table(["component", "strain-energy share"], [[k, v] for k, v in lc["energy_shares"].items()])
         if lc["mode_cycles"]:

@@ -295,7 +295,7 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
     import tempfile
 
     from fem_squeal.blas import limit_threads_for
-    from fem_squeal.output import write_json_atomic
+    from fem_squeal.output import jsonable, write_json_atomic
     from fem_squeal.pipeline import Cache, make_plan, publish, scratch
 
     outdir = Path(outdir)
@@ -322,7 +322,7 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
                 stage_t: dict[str, float] = {}
                 writer = scratch(comm) if item.status == "memory" else store.writing(comm, item.stage, item.key)
                 with writer as work:
-                    sections = functions[item.stage](ctx, work, stage_t)
+                    sections = jsonable(functions[item.stage](ctx, work, stage_t))
                     entry = {"stage": item.stage, "key": item.key, "results": sections, "timings": stage_t,
                              "seconds": time.perf_counter() - t0}
                     if rank0 and item.status != "memory":

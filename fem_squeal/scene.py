@@ -7,6 +7,7 @@ value is parsed as TOML (``0.3``, ``[1, 2]``, ``"top"``) and falls back to a bar
 
 Sections
 --------
+extends          another scene file (relative path) whose tables this one's are merged onto
 title            free text
 geometry         builder = "annular_disc": mean_radius, width, thickness [m], mesh_size [m],
                  order (1 or 2; 2 = curved second-order tetrahedra)
@@ -261,7 +262,8 @@ ANALYSES = {
         "tangent": Field(str, "modified", one_of("modified", "full"), "Newton tangent reuse"),
         "adaptive": Field(bool, False, None, "halve the step around contact and stick/slip events"),
         "friction": Field(str, "constant", one_of("constant", "stribeck", "coulomb"),
-                          "constant μ (the CEA's), Stribeck μ(v) (seed 004 eq. 4), elastic Coulomb (seed 002 eq. 3)"),
+                          "constant μ (the CEA's), Stribeck μ(v) (seed 004 eq. 4), elastic Coulomb "
+                          "(seed 002 eq. 3)"),
         "mu_s": Field(REAL, 0.0, non_negative, "static μ (stribeck, coulomb); 0 = the scene's μ"),
         "mu_d": Field(REAL, 0.0, non_negative, "dynamic μ (stribeck, coulomb); 0 = the scene's μ"),
         "v_s": Field(REAL, 1e-3, positive, "Stribeck static transition velocity [m/s]"),
@@ -273,7 +275,8 @@ ANALYSES = {
                                  "[] = none"),
         "patches": Field(list, [8, 16], None, "[n_radial, n_angular] contact elements per pad; [] = every point"),
         "attachments": Field(list, [4, 8], None, "[n_radial, n_angular] patch attachment vectors in the basis"),
-        "f_cut_hz": Field(REAL, 18000.0, non_negative, "modal damping of the basis above this frequency; 0 = none"),
+        "f_cut_hz": Field(REAL, 18000.0, non_negative,
+                          "modal damping of the basis above this frequency; 0 = none"),
         "zeta_cut": Field(REAL, 0.2, non_negative, "damping ratio above f_cut_hz"),
         "amplitude": Field(REAL, 1e-3, positive, "initial push along the most unstable mode [× static closure]"),
         "record_every": Field(int, 10, positive, "record every k steps"),
@@ -551,7 +554,8 @@ def _check_reduced(scene: dict, volumes) -> None:
         for key in ("patches", "attachments"):
             _check_patch_list(f"analyses.{name}.{key}", m[key])
         _check_damping_pair(f"analyses.{name}.contact_damping", m["contact_damping"])
-    if "masa" in ana and not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in ana["masa"]["mu"]):
+    if "masa" in ana and not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                 for v in ana["masa"]["mu"]):
         raise SceneError(f"analyses.masa.mu: must be a list of numbers (got {ana['masa']['mu']})")
     if "transient" in ana:
         t = ana["transient"]
@@ -596,16 +600,40 @@ def apply_overrides(raw: dict, overrides: list[str]) -> dict:
     return raw
 
 
-def load_scene(path: str | Path, overrides: list[str] | None = None) -> dict:
-    """Read, override and validate a scene file."""
+def merge(base: dict, over: dict) -> dict:
+    """``over`` on top of ``base``: tables merge key by key, any other value replaces."""
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        out[k] = merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else copy.deepcopy(v)
+    return out
+
+
+def read_scene(path: str | Path, _seen: tuple = ()) -> dict:
+    """The raw table of a scene file, with ``extends = "other.toml"`` (relative to the file)
+    resolved: the file's tables are merged on top of the other scene's."""
     path = Path(path)
     try:
         raw = tomllib.loads(path.read_text())
-    except FileNotFoundError:
+    except (FileNotFoundError, IsADirectoryError):
         raise SceneError(f"{path}: no such scene file") from None
+    except UnicodeDecodeError:
+        raise SceneError(f"{path}: not a text file") from None
     except tomllib.TOMLDecodeError as e:
         raise SceneError(f"{path}: not valid TOML ({e})") from None
-    return validate(apply_overrides(raw, overrides or []))
+    base = raw.pop("extends", None)
+    if base is None:
+        return raw
+    if not isinstance(base, str):
+        raise SceneError(f"extends: must be a scene file name (got {base!r})")
+    base_path = (path.parent / base).resolve()
+    if base_path in _seen or base_path == path.resolve():
+        raise SceneError(f"extends: {base} is extended in a cycle")
+    return merge(read_scene(base_path, (*_seen, path.resolve())), raw)
+
+
+def load_scene(path: str | Path, overrides: list[str] | None = None) -> dict:
+    """Read (resolving ``extends``), override and validate a scene file."""
+    return validate(apply_overrides(read_scene(path), overrides or []))
 
 
 def model_spec(scene: dict) -> ModelSpec:

@@ -10,7 +10,7 @@ venv=${FEM_SQUEAL_VENV:-$repo/.venv}
 
 pkgs=(python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh python3-meshio
       python3-venv python3-setuptools python3-pip python3-pytest python3-matplotlib python3-scipy
-      python3-hypothesis openmpi-bin libopenblas0-pthread)
+      python3-hypothesis openmpi-bin libopenblas0-pthread chromium)
 
 missing=()
 for p in "${pkgs[@]}"; do

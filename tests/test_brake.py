@@ -16,7 +16,7 @@ from conftest import ROOT, clean_env
 from mpi4py import MPI
 
 COMM = MPI.COMM_WORLD
-SCENE = ROOT / "scenes" / "brake_corner.toml"
+SCENE = ROOT / "scenes" / "brake_corner_cea.toml"
 COARSE = ["geometry.mesh_size=0.016"]
 BAND = (0.0, 6000.0)
 

@@ -95,5 +95,6 @@ def test_scene_with_real_modes_and_damping_writes_all_outputs(tmp_path):
     assert sorted(p.name for p in (tmp_path / "u").iterdir()) == ["report.html", "results.json"]
     shutil.rmtree(tmp_path / "u")
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "complex_modes.h5", "complex_modes.xdmf", "real_modes.h5", "real_modes.xdmf", "report.html", "results.json"]
+        "complex_modes.h5", "complex_modes.xdmf", "real_modes.h5", "real_modes.xdmf", "report.html",
+        "results.json"]
     assert sorted(res["files"]) == ["complex_modes.h5", "complex_modes.xdmf", "real_modes.h5", "real_modes.xdmf"]

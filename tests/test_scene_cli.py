@@ -1,6 +1,7 @@
 """Scene validation, --set overrides and the CLI's handling of bad input."""
 from __future__ import annotations
 
+import copy
 import subprocess
 import sys
 import tomllib
@@ -10,7 +11,7 @@ from conftest import ROOT, clean_env
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fem_squeal.scene import SceneError, apply_overrides, load_scene, model_spec, validate
+from fem_squeal.scene import SceneError, apply_overrides, load_scene, model_spec, read_scene, validate
 
 SCENE = ROOT / "scenes" / "ryzhik_ring.toml"
 
@@ -55,7 +56,7 @@ def test_bad_values_name_the_key_and_the_reason(override, message):
         load_scene(SCENE, [override])
 
 
-BRAKE = ROOT / "scenes" / "brake_corner.toml"
+BRAKE = ROOT / "scenes" / "brake_corner_cea.toml"
 
 
 @pytest.mark.parametrize("override, message", [
@@ -139,17 +140,27 @@ def _paths(d, prefix=()):
             yield from _paths(v, prefix + (k,))
 
 
-PATHS = sorted(_paths(raw()))
-BRAKE_PATHS = sorted(_paths(tomllib.loads(BRAKE.read_text())))
+BUNDLED = sorted((ROOT / "scenes").glob("*.toml"))
 
 
-@pytest.mark.parametrize("scene, paths", [(SCENE, PATHS), (BRAKE, BRAKE_PATHS)], ids=["ring", "brake"])
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def _check_valid(s: dict) -> None:
+    """A valid scene must also give a model and a plan without error."""
+    from fem_squeal.pipeline import required, stage_keys
+
+    if "geometry" in s:
+        model_spec(s)
+    stage_keys(s, required(s), version="fuzz")
+
+
+@pytest.mark.parametrize("scene", BUNDLED, ids=[p.stem for p in BUNDLED])
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data())
-def test_fuzzed_scenes_give_clear_errors(scene, paths, data):
+def test_fuzzed_scenes_give_clear_errors(scene, data):
+    base = read_scene(scene)
+    paths = sorted(_paths(base))
     mutation = st.tuples(st.sampled_from(paths), values, st.booleans())
     mutations = data.draw(st.lists(mutation, min_size=1, max_size=4))
-    r = tomllib.loads(scene.read_text())
+    r = copy.deepcopy(base)
     for path, value, delete in mutations:
         node = r
         for p in path[:-1]:
@@ -168,7 +179,72 @@ def test_fuzzed_scenes_give_clear_errors(scene, paths, data):
         assert str(e).split(":")[0], e
         assert "\n" not in str(e)
     else:
-        model_spec(s)
+        _check_valid(s)
+
+
+# random scenes: arbitrary TOML-like trees over the known section names
+keys = st.sampled_from(["title", "geometry", "materials", "analyses", "interfaces", "segmented_pad", "cea",
+                        "transient", "speeds", "builder", "disc", "E", "x", "preload", "solver", "extends"])
+trees = st.recursive(values, lambda inner: st.dictionaries(keys, inner, max_size=4), max_leaves=12)
+
+
+@settings(max_examples=300, deadline=None)
+@given(tree=st.dictionaries(keys, trees, max_size=5))
+def test_random_scenes_give_clear_errors(tree):
+    try:
+        s = validate(tree)
+    except SceneError as e:
+        assert "\n" not in str(e) and str(e).split(":")[0]
+    else:
+        _check_valid(s)
+
+
+def test_scene_files_that_cannot_be_read(tmp_path):
+    (tmp_path / "a.toml").write_text('extends = "b.toml"\n')
+    (tmp_path / "b.toml").write_text('extends = "a.toml"\n')
+    with pytest.raises(SceneError, match="extended in a cycle"):
+        load_scene(tmp_path / "a.toml")
+    (tmp_path / "c.toml").write_text("analyses = [")
+    with pytest.raises(SceneError, match=r"c\.toml: not valid TOML"):
+        load_scene(tmp_path / "c.toml")
+    (tmp_path / "d.toml").write_bytes(b"\xff\xfe\x00")
+    with pytest.raises(SceneError, match=r"d\.toml: not a text file"):
+        load_scene(tmp_path / "d.toml")
+    with pytest.raises(SceneError, match=r"e\.toml: no such scene file"):
+        load_scene(tmp_path / "e.toml")
+
+
+@pytest.mark.parametrize("override, message", [
+    ("analyses.segmented_pad.speeds=[0.1, 0.05]", r"^analyses\.segmented_pad\.speeds: must be increasing"),
+    ("analyses.segmented_pad.velocity_pairs=[[0.01, 0.001]]",
+     r"^analyses\.segmented_pad\.velocity_pairs\[0\]: must satisfy 0 < v_s < v_d"),
+    ("analyses.segmented_pad.v_d=0.0005", r"^analyses\.segmented_pad\.v_d: must be > v_s"),
+    ("analyses.segmented_pad.n_side=0", r"^analyses\.segmented_pad\.n_side: must be >= 1"),
+    ("analyses.segmented_pad.dt=1.0", r"^analyses\.segmented_pad\.dt: must be < t_end"),
+    ("geometry.builder=annular_disc", r"^geometry\.mean_radius: required"),
+])
+def test_bad_segmented_pad_values(override, message):
+    with pytest.raises(SceneError, match=message):
+        load_scene(ROOT / "scenes" / "segmented_pad.toml", [override])
+
+
+@pytest.mark.parametrize("override, message", [
+    ("analyses.transient.dt=1.0", r"^analyses\.transient\.dt: must be < t_end"),
+    ("analyses.transient.alpha=-0.5", r"^analyses\.transient\.alpha: must be in \[-1/3, 0\]"),
+    ("analyses.transient.friction=viscous", r"^analyses\.transient\.friction: must be one of"),
+    ("analyses.transient.patches=[8]", r"^analyses\.transient\.patches: must be \[\] or"),
+    ("preload.mode=all_closed", r"^analyses\.transient: needs preload\.mode = 'nonlinear'"),
+])
+def test_bad_transient_values(override, message):
+    with pytest.raises(SceneError, match=message):
+        load_scene(ROOT / "scenes" / "brake_transient.toml", [override])
+
+
+def test_limit_cycle_needs_the_transient():
+    with pytest.raises(SceneError, match=r"^analyses\.limit_cycle: needs analyses\.transient"):
+        r = read_scene(ROOT / "scenes" / "brake_transient.toml")
+        del r["analyses"]["transient"]
+        validate(r)
 
 
 def test_override_syntax_errors():

@@ -32,10 +32,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from fem_squeal.progress import ProgressBar
 from scipy.optimize import linear_sum_assignment
 
+from fem_squeal.progress import ProgressBar
 from fem_squeal.reduced.eigensolve import TWO_PI
 
 Solver = Callable[[float], tuple[np.ndarray, np.ndarray]]

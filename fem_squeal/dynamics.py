@@ -96,9 +96,10 @@ def stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
         dm, integ, qs = brake_model(rm, a)
         lam, Y, unstable, i = most_unstable(integ, qs, band)
         closure = static_closure(dm, qs)
+        top = sorted(lam[unstable], key=lambda z: -z.real)[:5]
         say(f"[fem_squeal] transient: {dm.size} basis vectors, {sum(c.size for c in dm.contacts)} contact "
-            f"elements; unstable at steady sliding: "
-            + (", ".join(f"{z.imag / TWO_PI:.0f} Hz ({z.real:.0f}/s)" for z in lam[unstable]) or "none"))
+            f"elements; {int(unstable.sum())} unstable at steady sliding, the fastest: "
+            + (", ".join(f"{z.imag / TWO_PI:.0f} Hz ({z.real:.1f}/s)" for z in top) or "none"))
         y = Y[:, i] if i >= 0 else Y[:, int(np.argmax(lam.real))]
         k, j = probe(dm, y)
         push = a["amplitude"] * closure / np.abs(dm.contacts[k].D[j] @ y)
@@ -153,6 +154,7 @@ def stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
         follow_mode,
         mac,
         mode_cycle,
+        plane_mac,
         space_time_svd,
         strain_energy_shares,
     )
@@ -183,9 +185,10 @@ def stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
         near = (lam.imag > 0) & (lam.imag / TWO_PI >= band[0]) & (lam.imag / TWO_PI <= band[1])
         cand = np.flatnonzero(near)
         macs = mac(svd.shapes[:, :n_sh], Y[:, cand])
+        planes = plane_mac(svd.shapes[:, :n_sh], Y[:, cand])
         best = [{"shape": r + 1, "freq_hz": float(lam[cand[c]].imag / TWO_PI),
-                 "real_part": float(lam[cand[c]].real),
-                 "mac": float(macs[r, c])} for r, c in enumerate(np.argmax(macs, axis=1))]
+                 "real_part": float(lam[cand[c]].real), "mac": float(macs[r, c]),
+                 "plane_share": float(planes[r, c])} for r, c in enumerate(np.argmax(planes, axis=1))]
         samples = np.flatnonzero(t >= t[-1] - period)
         samples = samples[:: max(samples.size // a["stability_samples"], 1)]
         ds = dynamic_stability(integ, t[samples], Q[samples], V[samples])
@@ -225,8 +228,8 @@ def stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
                           t[samples], shares_t, list(K_parts), cycles, ctx.scene["title"])
         timings["limit_cycle"] = time.perf_counter() - t0
         ctx.say(f"[fem_squeal] limit cycle: saturated {lc.saturated}, {lc.frequency_hz:.0f} Hz, amplitude "
-                f"{lc.amplitude * 1e6:.3g} µm; SVD shape 1 best MAC {best[0]['mac']:.2f} with the "
-                f"{best[0]['freq_hz']:.0f} Hz mode")
+                f"{lc.amplitude * 1e6:.3g} µm; SVD shape 1 lies {100 * best[0]['plane_share']:.0f} % in the plane "
+                f"of the {best[0]['freq_hz']:.0f} Hz mode (MAC {best[0]['mac']:.2f})")
     out = comm.bcast(out, root=0)
     return {"limit_cycle": out}
 

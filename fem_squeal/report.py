@@ -113,8 +113,8 @@ def _sections(res: dict) -> list[str]:
         c = lc["limit_cycle"]
         txt = (f"<h2>Limit cycle</h2><p>saturated: <b>{_e(c['saturated'])}</b>, {_num(c['frequency_hz'])} Hz, "
                f"amplitude {_num(c['amplitude'] * 1e6)} µm.</p>")
-        txt += _table(["SVD shape", "energy share", "best CEA mode [Hz]", "MAC"],
-                      [[b["shape"], lc["svd_energy"][b["shape"] - 1], b["freq_hz"], b["mac"]]
+        txt += _table(["SVD shape", "energy share", "best CEA mode [Hz]", "share in its plane", "MAC"],
+                      [[b["shape"], lc["svd_energy"][b["shape"] - 1], b["freq_hz"], b["plane_share"], b["mac"]]
                        for b in lc["svd_best_mac"]])
         if lc["energy_shares"]:
             txt += _table(["component", "strain-energy share"], [[k, v] for k, v in lc["energy_shares"].items()])

@@ -3,7 +3,8 @@
 - :func:`detect_limit_cycle`: envelope saturation, frequency and amplitude of the cycle.
 - :func:`space_time_svd`: the space–time decomposition X = U S Vᵀ of the cycle (seed 002 Fig. 8),
   optionally in the strain-energy norm ‖x‖²_W = xᵀWx (shapes W^(−½)U of the SVD of W^(½)X).
-- :func:`mac`: modal assurance criterion |aᴴb|²/(aᴴa bᴴb) of two shape sets (Fig. 9).
+- :func:`mac`: modal assurance criterion |aᴴb|²/(aᴴa bᴴb) of two shape sets (Fig. 9), and
+  :func:`plane_mac`: the share of a real shape in the plane of a complex mode.
 - :func:`dynamic_stability`: tangent CEA at time samples along a cycle (Fig. 10).
 - :func:`strain_energy_shares`: per-component share Re(ψᴴK_cψ)/Σ of a shape (Fig. 11).
 - :func:`mode_cycle`: the complex-mode pseudo-trajectory Re(αψe^(iωt)) (eq. 6) or, with
@@ -125,6 +126,21 @@ def mac(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     B = np.atleast_2d(np.asarray(B).T).T
     num = np.abs(A.conj().T @ B) ** 2
     return num / np.outer(np.sum(np.abs(A) ** 2, axis=0), np.sum(np.abs(B) ** 2, axis=0))
+
+
+def plane_mac(U: np.ndarray, Psi: np.ndarray) -> np.ndarray:
+    """Share ‖P_j u_i‖²/‖u_i‖² of each real shape u_i (columns of U) in the plane span{Re ψ_j, Im ψ_j}
+    of each complex mode (columns of Psi).  A complex (travelling) mode moves in that plane, so a
+    real cycle shape made of it scores 1 here while its plain :func:`mac` with ψ can be as low
+    as ½; for a real mode it equals the MAC."""
+    U = np.atleast_2d(np.asarray(U, float).T).T
+    out = np.empty((U.shape[1], Psi.shape[1]))
+    for j in range(Psi.shape[1]):
+        P = np.column_stack([Psi[:, j].real, Psi[:, j].imag])
+        Q, R = np.linalg.qr(P)
+        Q = Q[:, np.abs(np.diag(R)) > 1e-12 * np.abs(R).max()]
+        out[:, j] = np.sum((Q.T @ U) ** 2, axis=0) / np.sum(U ** 2, axis=0)
+    return out
 
 
 def _mass_scaled(K: np.ndarray, C: np.ndarray | None, M: np.ndarray | None):

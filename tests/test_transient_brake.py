@@ -1,0 +1,81 @@
+"""The brake_transient scene through the pipeline, on the coarse brake and 2 ranks: reduced model,
+3 ms of transient from the most unstable tangent-CEA mode, and the limit-cycle post-processing.
+
+3 ms at 2 µs keeps the response in the linear regime (the push is 1e-3 of the static closure and
+grows ≈ e^(0.003 Re λ) ≈ 4×), so every result has an exact linear counterpart:
+
+- the space–time SVD of a single unstable complex mode has two shapes spanning its plane;
+- the tangent CEA along the cycle is the steady-sliding one (the cubic law's tangent moves by
+  O(amplitude/closure) ≈ 1e-3 relative);
+- the complex-mode cycle at α → 0 has the CEA real part, and its friction work grows as α²;
+- the discrete energy balance of the trapezoidal rule closes to round-off.
+
+A second run that changes a limit_cycle option recomputes that stage only.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import ROOT, clean_env
+
+SCENE = ROOT / "scenes" / "brake_transient.toml"
+COARSE = ["geometry.mesh_size=0.016", "analyses.reduced.band_hz=[0.0, 6000.0]",
+          "analyses.cea.band_hz=[0.0, 6000.0]",
+          "analyses.transient.t_end=0.003", "analyses.transient.dt=2e-6", "analyses.transient.patches=[4, 8]",
+          "analyses.transient.attachments=[2, 4]", "analyses.limit_cycle.stability_samples=8",
+          "analyses.limit_cycle.mode_cycle_amplitudes=[0.01, 0.1, 1.0]"]
+
+
+def _run(mpirun, cache, out, extra=()):
+    sets = [a for s in [*COARSE, *extra] for a in ("--set", s)]
+    cli = [sys.executable, "-m", "fem_squeal.cli", "--cache-dir", str(cache)]
+    p = subprocess.run(mpirun + cli + ["run", str(SCENE), "-o", str(out), "--no-fields", *sets],
+                       capture_output=True, text=True, timeout=900, env=clean_env())
+    assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
+    return json.loads((out / "results.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory, mpirun):
+    base = tmp_path_factory.mktemp("brake_transient")
+    return base, mpirun, _run(mpirun, base / "cache", base / "out")
+
+
+@pytest.mark.mpi
+def test_transient_and_limit_cycle_in_the_linear_regime(results):
+    _, _, r = results
+    t, lc = r["transient"], r["limit_cycle"]
+    pushed = t["pushed_mode"]
+    assert t["steps"] == 1500 and t["energy_leak"] < 1e-9
+    assert t["peak_closure_change"] < 0.05 * t["static_closure"]          # linear regime indeed
+    assert lc["limit_cycle"]["saturated"] is False
+    assert lc["limit_cycle"]["frequency_hz"] == pytest.approx(pushed["freq_hz"], rel=0.02)
+    assert sum(lc["svd_energy"][:2]) > 0.999
+    first = lc["svd_best_mac"][0]
+    assert first["freq_hz"] == pytest.approx(pushed["freq_hz"], rel=1e-9) and first["plane_share"] > 0.99
+    followed = np.array(lc["dynamic_stability"]["followed_real_part"])
+    assert np.max(np.abs(followed - pushed["real_part"])) < 1e-3 * pushed["real_part"]
+    cyc = {c["alpha"]: c for c in lc["mode_cycles"]}
+    assert cyc[0.01]["pseudo_real_part_min"] == pytest.approx(pushed["real_part"], rel=1e-3)
+    assert cyc[0.01]["friction_work"] > 0               # an unstable mode draws energy from friction
+    assert cyc[0.1]["friction_work"] / cyc[0.01]["friction_work"] == pytest.approx(100.0, rel=1e-3)
+    shares = lc["energy_shares"]
+    assert set(shares) == set(r["scene"]["materials"]) and sum(shares.values()) == pytest.approx(1.0, abs=1e-9)
+    out_files = set(r["files"])
+    assert {"transient.png", "limit_cycle.png", "dynamic_stability.png", "limit_cycle.json"} <= out_files
+    assert any(f.startswith("run/chunk_") for f in out_files)
+
+
+@pytest.mark.mpi
+def test_changing_a_limit_cycle_option_reruns_that_stage_only(results):
+    base, mpirun, first = results
+    r = _run(mpirun, base / "cache", base / "out2", ["analyses.limit_cycle.svd_shapes=3"])
+    status = {s["stage"]: s["status"] for s in r["stages"]}
+    assert status == {"mesh": "cached", "operators": "cached", "preload": "cached", "cea": "cached",
+                      "reduced": "cached", "transient": "cached", "limit_cycle": "run"}
+    assert len(r["limit_cycle"]["svd_energy"]) == 3
+    assert r["transient"] == first["transient"]

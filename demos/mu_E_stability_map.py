@@ -1,7 +1,7 @@
 """Stability map of the brake corner over friction and disc stiffness (seed 001 §4, Figs. 17-19).
 
-A full-factorial design of 101 values of sign(v)μ (forward and backward sliding) × 21 values of
-the disc's Young's modulus (nominal ± 20 %) is evaluated on the reduced model, the points shared
+A sweep of sign(v)μ over [−1, 1] tracks every branch, and a full-factorial design of 101 values
+of sign(v)μ (forward and backward sliding) × 21 values of the disc's Young's modulus (nominal ± 20 %) is evaluated on the reduced model, the points shared
 among the MPI ranks.  The basis holds the frictionless modes at the nominal disc and at both ends
 of the E range, plus the static corrections of the friction forces; it is grown until the
 unstable eigenvalues at the corners of the design move by < 1e-3, and the full CEA is run at
@@ -10,7 +10,9 @@ equal bands of 0-10 kHz, as the seed's ranges A-F) and in total.
 
 Checks: reduced = full CEA within tol at every check point (including the unstable count), and
 the map's count at the nominal point equals the full CEA of the scene.  Outputs under
-out/mu_E_stability_map/: stability_map.png/.npz, results.json.  Run with ``mpirun -n 2``.
+out/mu_E_stability_map/: stability_map.png/.npz, root_locus.png, results.json, report.html.
+The scene is ``scenes/brake_mu_E_map.toml``; stages are cached in ``.fem_squeal_cache`` (a second
+run recomputes nothing).  Run with ``mpirun -n 2`` (``scripts/demo.sh``).
 """
 from __future__ import annotations
 
@@ -29,10 +31,8 @@ args = [a for a in sys.argv[1:] if not a.startswith("--")]
 outdir = Path(args[0]) if args else root / "out" / "mu_E_stability_map"
 overrides = [a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--set=")]
 comm = MPI.COMM_WORLD
-scene = load_scene(root / "scenes" / "brake_corner_cea.toml",
-                   ["analyses.map.n_mu=101", "analyses.map.n_E=21", "analyses.map.mu_max=1.0",
-                    "analyses.reduced.verify=true", *overrides])
-res = run_scene(scene, outdir, comm, write_fields=False)
+scene = load_scene(root / "scenes" / "brake_mu_E_map.toml", overrides)
+res = run_scene(scene, outdir, comm, write_fields=False, cache=root / ".fem_squeal_cache")
 
 red, smap = res["reduced"], res["map"]
 failures = verification_failures(red)
@@ -51,6 +51,7 @@ if comm.rank == 0:
     fwd = total[:, mu_axis > 0]
     print(f"unstable modes: min {total.min()}, max {total.max()}; stable share of the design "
           f"{np.mean(total == 0) * 100:.1f} % (forward sliding {np.mean(fwd == 0) * 100:.1f} %)")
+    print(f"report: {outdir / 'report.html'}")
     print("CHECK FAILED:\n  " + "\n  ".join(failures) if failures else
           "check passed: reduced = full CEA at the design corners; map matches the CEA at the nominal point")
 sys.exit(1 if failures else 0)

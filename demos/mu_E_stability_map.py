@@ -1,12 +1,13 @@
 """Stability map of the brake corner over friction and disc stiffness (seed 001 §4, Figs. 17-19).
 
 A sweep of sign(v)μ over [−1, 1] tracks every branch, and a full-factorial design of 101 values
-of sign(v)μ (forward and backward sliding) × 21 values of the disc's Young's modulus (nominal
-± 20 %) is evaluated on the reduced model, the points shared among the MPI ranks.  The basis
-holds the frictionless modes at the nominal disc and at both ends of the E range, plus the
-static corrections of the friction forces; it is grown until the unstable eigenvalues at the corners of the design move by < 1e-3, and the full CEA is run at
-those corners to confirm it.  The number of unstable modes is counted per frequency band (six
-equal bands of 0-10 kHz, as the seed's ranges A-F) and in total.
+of sign(v)μ (forward and backward sliding) × 21 values of the disc's Young's modulus (nominal ±
+20 %) is evaluated on the reduced model, the points shared among the MPI ranks. The basis holds
+the frictionless modes at the nominal disc and at both ends of the E range, plus the static
+corrections of the friction forces; it is grown until the unstable eigenvalues at the corners of
+the design move by < 1e-3, and the full CEA is run at those corners to confirm it. The number of
+unstable modes is counted per frequency band (six equal bands of 0-10 kHz, as the seed's ranges
+A-F) and in total.
 
 Checks: reduced = full CEA within tol at every check point (including the unstable count), and
 the map's count at the nominal point equals the full CEA of the scene.  Outputs under

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal.dynamics import brake_model, most_unstable, static_closure
+from fem_squeal.dynamics import brake_start, static_closure
 from fem_squeal.reduced.eigensolve import TWO_PI
 from fem_squeal.reduced.model import ReducedModel
 from fem_squeal.reduced.transient import run_transient
@@ -51,9 +51,7 @@ if comm.rank == 0:
     a = scene["analyses"]["transient"]
     band = tuple(scene["analyses"]["reduced"]["band_hz"])
     rm = ReducedModel.load(outdir / "reduced_model.npz")
-    dm, integ, qs = brake_model(rm, a)
-    lam, Y, unstable, i = most_unstable(integ, qs, band)
-    y = Y[:, i]
+    dm, integ, qs, lam, Y, unstable, i, y = brake_start(rm, a, band)
     Kt, Ct = integ.tangent_matrices(qs, np.zeros_like(qs))
     m = dm.size
     A = np.block([[np.zeros((m, m)), np.eye(m)], [-Kt, -Ct]])

@@ -26,7 +26,7 @@ import dataclasses
 import shutil
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -71,6 +71,27 @@ def most_unstable(integ, qs: np.ndarray, band) -> tuple[np.ndarray, np.ndarray, 
     return lam, Y, unstable, i
 
 
+class BrakeStart(NamedTuple):
+    """The transient's start: dynamic model, integrator, steady sliding q_s, tangent CEA there
+    (λ, shapes Y, unstable mask) and the pushed mode (index i, −1 if none is unstable; shape y)."""
+    dm: Any
+    integ: Any
+    qs: np.ndarray
+    lam: np.ndarray
+    Y: np.ndarray
+    unstable: np.ndarray
+    i: int
+    y: np.ndarray
+
+
+def brake_start(rm, a: dict, band) -> BrakeStart:
+    """:func:`brake_model` and :func:`most_unstable` of analyses.transient ``a``."""
+    dm, integ, qs = brake_model(rm, a)
+    lam, Y, unstable, i = most_unstable(integ, qs, band)
+    y = Y[:, i] if i >= 0 else Y[:, int(np.argmax(lam.real))]
+    return BrakeStart(dm, integ, qs, lam, Y, unstable, i, y)
+
+
 def static_closure(dm, qs: np.ndarray) -> float:
     return float(np.median(np.concatenate([cs.d0 + cs.D @ qs for cs in dm.contacts])))
 
@@ -92,15 +113,12 @@ def stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
     out: dict[str, Any] | None = None
     if comm.rank == 0:
         t0 = time.perf_counter()
-        rm = ctx.reduced_model()
-        dm, integ, qs = brake_model(rm, a)
-        lam, Y, unstable, i = most_unstable(integ, qs, band)
+        dm, integ, qs, lam, Y, unstable, i, y = brake_start(ctx.reduced_model(), a, band)
         closure = static_closure(dm, qs)
         top = sorted(lam[unstable], key=lambda z: -z.real)[:5]
         say(f"[fem_squeal] transient: {dm.size} basis vectors, {sum(c.size for c in dm.contacts)} contact "
             f"elements; {int(unstable.sum())} unstable at steady sliding, the fastest: "
             + (", ".join(f"{z.imag / TWO_PI:.0f} Hz ({z.real:.1f}/s)" for z in top) or "none"))
-        y = Y[:, i] if i >= 0 else Y[:, int(np.argmax(lam.real))]
         k, j = probe(dm, y)
         push = a["amplitude"] * closure / np.abs(dm.contacts[k].D[j] @ y)
         q0, v0 = qs + (push * y).real, (push * lam[i if i >= 0 else 0] * y).real
@@ -168,11 +186,9 @@ def stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
     if comm.rank == 0:
         t0 = time.perf_counter()
         rm = ctx.reduced_model()
-        dm, integ, qs = brake_model(rm, ta)
-        lam, Y, unstable, i = most_unstable(integ, qs, band)
+        dm, integ, qs, lam, Y, unstable, i, y = brake_start(rm, ta, band)
         h = load_history(ctx.entry("transient") / "run")
         t, Q, V = h["t"], h["q"], h["v"]
-        y = Y[:, i] if i >= 0 else Y[:, int(np.argmax(lam.real))]
         k, j = probe(dm, y)
         x = Q @ dm.contacts[k].D[j]
         lc = detect_limit_cycle(t, x)

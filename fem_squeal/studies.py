@@ -96,6 +96,12 @@ def _verify(par, model, point: dict, band, growth_tol: float, options) -> dict:
             "unstable_full": [complex(x) for x in full[bad]]}
 
 
+def band_and_growth_tol(scene: dict) -> tuple[tuple[float, float], float]:
+    """analyses.reduced's band [Hz] and growth tolerance (unstable: Re λ > growth_tol |λ|)."""
+    a = scene["analyses"]["reduced"]
+    return tuple(a["band_hz"]), a["growth_tol"]
+
+
 def stage_reduced(ctx, work: Path, timings: dict) -> dict[str, Any]:
     """analyses.reduced: the basis grown to ``tol`` about the preload; ``reduced_model.npz``."""
     from fem_squeal.pipeline import extra_vector_settings
@@ -144,8 +150,7 @@ def stage_sweep(ctx, work: Path, timings: dict) -> dict[str, Any]:
 
     scene, model = ctx.scene, ctx.reduced_model()
     s = scene["analyses"]["sweep"]
-    band = tuple(scene["analyses"]["reduced"]["band_hz"])
-    gt = scene["analyses"]["reduced"]["growth_tol"]
+    band, gt = band_and_growth_tol(scene)
     t = time.perf_counter()
     values = np.linspace(*s["range"], s["n"])
     fixed = {} if s["parameter"] == MU else {MU: model.mu0}
@@ -180,8 +185,7 @@ def stage_map(ctx, work: Path, timings: dict) -> dict[str, Any]:
 
     scene, model = ctx.scene, ctx.reduced_model()
     m = scene["analyses"]["map"]
-    band = tuple(scene["analyses"]["reduced"]["band_hz"])
-    gt = scene["analyses"]["reduced"]["growth_tol"]
+    band, gt = band_and_growth_tol(scene)
     name = e_param(m["part"])
     E = np.linspace(*map_E_range(scene, ctx.spec), m["n_E"])
     grid = Grid({name: E, MU: signed_mu_axis(m["mu_max"], m["n_mu"])})
@@ -235,8 +239,7 @@ def run_masa_analysis(comm, scene: dict, model, outdir: Path, say, timings: dict
     from fem_squeal.reduced.masa import MasaProblem, from_reduced, run_masa, static_equilibrium
 
     m = scene["analyses"]["masa"]
-    band = tuple(scene["analyses"]["reduced"]["band_hz"])
-    gt = scene["analyses"]["reduced"]["growth_tol"]
+    band, gt = band_and_growth_tol(scene)
     mus = [float(v) for v in m["mu"]] or [model.mu0]
     cd = m["contact_damping"] or [0.0, np.inf]
     out: dict[str, Any] = {"settings": m, "cases": []}

@@ -53,7 +53,8 @@ def brake_model(rm, a: dict):
     cd = a["contact_damping"] or [0.0, np.inf]
     dm = from_reduced(rm, omega=a["omega"], cubic_share=a["cubic_share"], c_max=cd[0], depth=cd[1],
                       patches=tuple(a["patches"]) if a["patches"] else None,
-                      friction=friction_law(a, abs(rm.mu0)), f_cut=a["f_cut_hz"] or None, zeta_cut=a["zeta_cut"])
+                      friction=friction_law(a, abs(rm.mu0)), f_cut=a["f_cut_hz"] or None, zeta_cut=a["zeta_cut"],
+                      normal=a["normal"])
     integ = NewmarkHHT(dm, a["dt"], alpha=a["alpha"], rtol=a["rtol"], tangent=a["tangent"])
     qs = integ.steady_sliding(rm.q_static)
     return dm, integ, qs

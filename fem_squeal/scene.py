@@ -270,6 +270,9 @@ ANALYSES = {
         "v_d": Field(REAL, 1e-2, positive, "Stribeck dynamic transition velocity [m/s]"),
         "k_t": Field(REAL, 1e8, positive, "elastic Coulomb tangential stiffness per element [N/m]"),
         "c_t": Field(REAL, 0.0, non_negative, "elastic Coulomb stick damping per element [N s/m]"),
+        "normal": Field(str, "cubic", one_of("cubic", "exponential"),
+                        "normal law per element: cubic with contact damping (seed 000 eq. 3, seed 004 eq. 3) "
+                        "or exponential p0 e^(-λg) (seed 002 eq. 2)"),
         "cubic_share": Field(REAL, 0.3, non_negative, "share of the preload tangent from the cubic term"),
         "contact_damping": Field(list, [2e5, 1e-6], None, "[c_max per area N s/m³, depth m] (seed 004 eq. 3); "
                                  "[] = none"),

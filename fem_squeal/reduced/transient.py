@@ -38,6 +38,7 @@ import scipy.linalg as sla
 
 from fem_squeal.output import write_json_atomic, write_npz_atomic
 from fem_squeal.progress import ProgressBar
+from fem_squeal.reduced.contact_law import ExponentialLaw
 from fem_squeal.reduced.friction import ConstantFriction, CoulombState, ElasticCoulomb
 
 ENERGY_KEYS = ("kinetic", "strain", "W_ext", "W_friction", "W_normal", "D_damping", "W_skew")
@@ -648,18 +649,28 @@ def out_of_band_damping(K: np.ndarray, f_cut: float, zeta: float = 0.2) -> np.nd
 
 def from_reduced(rm, omega: float, *, params: dict | None = None, cubic_share: float = 0.3, c_max: float = 0.0,
                  depth: float = np.inf, patches: tuple[int, int] | None = (8, 16), friction=None,
-                 f_cut: float | None = None, zeta_cut: float = 0.2, axis=(0.0, 0.0, 1.0)) -> DynamicModel:
+                 f_cut: float | None = None, zeta_cut: float = 0.2, axis=(0.0, 0.0, 1.0),
+                 normal: str = "cubic") -> DynamicModel:
     """The dynamic model of a reduced brake (:class:`~fem_squeal.reduced.model.ReducedModel`).
 
-    Contact laws as :func:`fem_squeal.reduced.masa.from_reduced` (tuned per interface at the
-    mean preload pressure); the points of each pad are grouped into n_r × n_θ polar ``patches``
-    (None: every quadrature point is an element).  The disc turns at ``omega`` [rad/s] about
-    ``axis``: each element's counter-face speed is Ω r in the interface's sliding direction and
-    its lever arm is r.  ``f_cut`` adds :func:`out_of_band_damping` above that frequency."""
+    ``normal="cubic"``: the contact laws of :func:`fem_squeal.reduced.masa.from_reduced` (tuned
+    per interface at the mean preload pressure, with ``cubic_share`` and the damping c_max,
+    depth).  ``normal="exponential"``: seed 002 eq. 2, p = p₀e^(λδ) per element with, per
+    interface, λ = k_n/p̄ and p₀ = p̄/e (p̄: the area-weighted mean preload pressure), so that at
+    the linear penalty's mean closure δ = p̄/k_n the pressure is p̄ and its tangent k_n.
+    The points of each pad are grouped into n_r × n_θ polar ``patches`` (None: every
+    quadrature point is an element).  The disc turns at ``omega`` [rad/s] about ``axis``: each
+    element's counter-face speed is Ω r in the interface's sliding direction and its lever arm
+    is r.  ``f_cut`` adds :func:`out_of_band_damping` above that frequency (tangent at steady
+    sliding with the final laws)."""
     from fem_squeal.reduced.masa import MasaModel, aggregate, polar_patches
     from fem_squeal.reduced.masa import from_reduced as masa_model
 
-    mm = masa_model(rm, params, cubic_share=cubic_share, c_max=c_max, depth=depth)
+    if normal not in ("cubic", "exponential"):
+        raise TransientError(f"normal: must be 'cubic' or 'exponential' (got {normal!r})")
+    exponential = normal == "exponential"
+    mm = masa_model(rm, params, cubic_share=0.0 if exponential else cubic_share,
+                    c_max=0.0 if exponential else c_max, depth=depth)
     sets = [aggregate(cs, polar_patches(cs.x, *patches, axis)) if patches else cs for cs in mm.contacts]
     a = np.asarray(axis, float) / np.linalg.norm(axis)
 
@@ -669,6 +680,12 @@ def from_reduced(rm, omega: float, *, params: dict | None = None, cubic_share: f
     dm = from_masa(MasaModel(K=mm.K, contacts=sets, C=mm.C, f=mm.f), speed=1.0, friction=friction, radius=radius)
     for cs in dm.contacts:
         cs.V = cs.V * (omega * cs.radius[:, None])
+        if exponential:                     # the linear law's k_l is k_n × element area
+            cr = rm.contacts[cs.name]
+            closed = cr.active & (cr.pressure > 0)
+            p_mean = float(cr.pressure[closed] @ cr.weight[closed] / cr.weight[closed].sum())
+            kn = float(np.mean(cr.kn))
+            cs.normal = ExponentialLaw(p0=p_mean / np.e, lam=kn / p_mean, weight=np.asarray(cs.normal.k_l) / kn)
     if f_cut:
         integ = NewmarkHHT(dm, 1.0)
         q = integ.steady_sliding(rm.q_static)

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal.dynamics import brake_start, static_closure
+from fem_squeal.dynamics import brake_start, integrator_options, static_closure
 from fem_squeal.reduced.eigensolve import TWO_PI
 from fem_squeal.reduced.model import ReducedModel
 from fem_squeal.reduced.transient import run_transient
@@ -59,7 +59,7 @@ if comm.rank == 0:
     left = VL[:, np.argmin(np.abs(mu_l - lam[i]))]
     a_lin = 1e-5 * static_closure(dm, qs) / max(np.abs(cs.D @ y).max() for cs in dm.contacts)
     lin = run_transient(dm, qs + (a_lin * y).real, (a_lin * lam[i] * y).real, 3e-3, a["dt"], record_every=10,
-                        alpha=a["alpha"], rtol=a["rtol"], tangent=a["tangent"])
+                        **integrator_options(a))
     eta = np.abs(np.column_stack([lin.q - qs, lin.v]) @ left)
     late = lin.t > 5e-4
     rate = np.polyfit(lin.t[late], np.log(eta[late]), 1)[0]

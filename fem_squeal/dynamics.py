@@ -46,6 +46,11 @@ def friction_law(a: dict, mu: float):
     return ElasticCoulomb(mu_s, mu_d, a["k_t"], a["c_t"])
 
 
+def integrator_options(a: dict) -> dict:
+    """The :class:`~fem_squeal.reduced.transient.NewmarkHHT` options of analyses.transient ``a``."""
+    return {k: a[k] for k in ("alpha", "rtol", "tangent", "adaptive", "max_iterations", "event_limit")}
+
+
 def brake_model(rm, a: dict):
     """(dynamic model, integrator, steady-sliding state) of analyses.transient ``a`` on the reduced model."""
     from fem_squeal.reduced.transient import NewmarkHHT, from_reduced
@@ -54,8 +59,8 @@ def brake_model(rm, a: dict):
     dm = from_reduced(rm, omega=a["omega"], cubic_share=a["cubic_share"], c_max=cd[0], depth=cd[1],
                       patches=tuple(a["patches"]) if a["patches"] else None,
                       friction=friction_law(a, abs(rm.mu0)), f_cut=a["f_cut_hz"] or None, zeta_cut=a["zeta_cut"],
-                      normal=a["normal"])
-    integ = NewmarkHHT(dm, a["dt"], alpha=a["alpha"], rtol=a["rtol"], tangent=a["tangent"])
+                      normal=a["normal"], zeta=a["zeta"])
+    integ = NewmarkHHT(dm, a["dt"], **integrator_options(a))
     qs = integ.steady_sliding(rm.q_static)
     return dm, integ, qs
 
@@ -130,7 +135,7 @@ def stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
         t1 = time.perf_counter()
         res = run_transient(dm, q0, v0, a["t_end"], a["dt"], record_every=a["record_every"], folder=run_dir,
                             checkpoint_every=a["checkpoint_every"], resume=resume, progress=True,
-                            alpha=a["alpha"], rtol=a["rtol"], tangent=a["tangent"], adaptive=a["adaptive"])
+                            **integrator_options(a))
         wall = time.perf_counter() - t1
         shutil.move(str(run_dir), str(work / "run"))
         st = res.stats

@@ -261,7 +261,8 @@ ANALYSES = {
         "rtol": Field(REAL, 1e-9, positive, "Newton tolerance on the dynamic force scale"),
         "tangent": Field(str, "modified", one_of("modified", "full"), "Newton tangent reuse"),
         "adaptive": Field(bool, False, None, "halve the step around contact and stick/slip events"),
-        "friction": Field(str, "constant", one_of("constant", "stribeck", "coulomb"),
+        "friction": Field(str, "constant", one_of("constant", "stribeck", "coulomb"),  # constant: never
+                          # reverses (the CEA's sliding law), so it cannot bound a cycle by stick-slip
                           "constant μ (the CEA's), Stribeck μ(v) (seed 004 eq. 4), elastic Coulomb "
                           "(seed 002 eq. 3)"),
         "mu_s": Field(REAL, 0.0, non_negative, "static μ (stribeck, coulomb); 0 = the scene's μ"),
@@ -281,6 +282,10 @@ ANALYSES = {
         "f_cut_hz": Field(REAL, 18000.0, non_negative,
                           "modal damping of the basis above this frequency; 0 = none"),
         "zeta_cut": Field(REAL, 0.2, non_negative, "damping ratio above f_cut_hz"),
+        "zeta": Field(REAL, 0.0, non_negative, "structural damping ratio on every mode of the basis"),
+        "max_iterations": Field(int, 30, positive, "Newton iterations per step"),
+        "event_limit": Field(int, 0, non_negative, "adaptive: contact/stick events a step may hold before it "
+                             "is halved (a Newton failure always halves)"),
         "amplitude": Field(REAL, 1e-3, positive, "initial push along the most unstable mode [× static closure]"),
         "record_every": Field(int, 10, positive, "record every k steps"),
         "checkpoint_every": Field(int, 20000, non_negative, "checkpoint every k steps (0 = at the end only)"),

@@ -27,7 +27,7 @@ COARSE = ["geometry.mesh_size=0.016", "analyses.reduced.band_hz=[0.0, 6000.0]",
           "analyses.cea.band_hz=[0.0, 6000.0]",
           "analyses.transient.t_end=0.003", "analyses.transient.dt=2e-6", "analyses.transient.patches=[4, 8]",
           "analyses.transient.attachments=[2, 4]", "analyses.limit_cycle.stability_samples=8",
-          "analyses.limit_cycle.mode_cycle_amplitudes=[0.01, 0.1, 1.0]"]
+          "analyses.limit_cycle.mode_cycle_amplitudes=[0.01, 0.1, 1.0]", "analyses.transient.amplitude=1e-3"]
 
 
 def _run(mpirun, cache, out, extra=()):

@@ -280,8 +280,7 @@ class NewmarkHHT:
         """K_t = K + ∂g/∂q and C_t = C + ∂g/∂q̇ at the state (q, q̇): the linearised (tangent)
         CEA matrices of seed 002 §3.2.2's dynamic stability diagram."""
         if states is None:
-            states = [cs.friction.initial_state(cs.size, cs.n_dir) if cs.friction is not None else None
-                      for cs in self.model.contacts]
+            states = self.sliding_states(q, v)
         _, tg = self.forces(q, v, q, 0.0, states, derivatives=True)
         Kt = self.K + self._contact_jacobian(tg, 1.0, 0.0)
         Ct = self._contact_jacobian(tg, 0.0, 1.0)
@@ -290,6 +289,20 @@ class NewmarkHHT:
         return Kt, Ct
 
     # ---------------------------------------------------------------- start
+    def sliding_states(self, q: np.ndarray, v: np.ndarray) -> list:
+        """Friction histories of steady sliding at (q, q̇): the elastic Coulomb stick springs
+        stretched to their sliding limit μ_d F along V (other laws have no history)."""
+        states = []
+        for cs in self.model.contacts:
+            if isinstance(cs.friction, ElasticCoulomb):
+                F = cs.normal.evaluate(cs.d0 + cs.D @ q, cs.D @ v)[0]
+                f = ConstantFriction(cs.friction.mu_d).evaluate(F, cs.V, cs.V, None, None)[0]
+                states.append(CoulombState(-f / np.asarray(cs.friction.k_t, float).reshape(-1, 1),
+                                           np.zeros(cs.size, bool)))
+            else:
+                states.append(None if cs.friction is None else cs.friction.initial_state(cs.size, cs.n_dir))
+        return states
+
     def initial_state(self, q0: np.ndarray, v0: np.ndarray | None = None, t0: float = 0.0) -> State:
         """State at t0 with the acceleration from the equation of motion; friction histories in
         steady sliding (elastic stick springs at their sliding limit)."""
@@ -298,15 +311,7 @@ class NewmarkHHT:
         v0 = np.zeros(m) if v0 is None else np.asarray(v0, float)
         if q0.shape != (m,) or v0.shape != (m,):
             raise TransientError(f"initial state: q0 and v0 must have {m} entries")
-        states = []
-        for cs in self.model.contacts:
-            if isinstance(cs.friction, ElasticCoulomb):
-                F = cs.normal.evaluate(cs.d0 + cs.D @ q0, cs.D @ v0)[0]
-                f = ConstantFriction(cs.friction.mu_d).evaluate(F, cs.V, cs.V, None, None)[0]
-                states.append(CoulombState(-f / np.asarray(cs.friction.k_t, float).reshape(-1, 1),
-                                           np.zeros(cs.size, bool)))
-            else:
-                states.append(None if cs.friction is None else cs.friction.initial_state(cs.size, cs.n_dir))
+        states = self.sliding_states(q0, v0)
         fr = self.forces(q0, v0, None, 0.0, states)
         rhs = self.f - self.K @ q0 - fr.g_normal + fr.g_friction
         if self.C is not None:
@@ -476,7 +481,9 @@ class NewmarkHHT:
         return new
 
     # ---------------------------------------------------------------- records
-    def record(self, s: State, energy: dict) -> dict:
+    def record(self, s: State, energy: dict, elements: bool = True) -> dict:
+        """The recorded quantities at ``s``: state, energies, contact totals per interface and,
+        with ``elements``, every element's normal force F and relative velocity w."""
         fr = s.forces if s.forces is not None else self.forces(s.q, s.v, None, 0.0, s.friction)
         rec = {"t": s.t, "q": s.q.copy(), "v": s.v.copy(),
                "kinetic": 0.5 * s.v @ (self.M @ s.v), "strain": 0.5 * s.q @ (self.K_sym @ s.q)}
@@ -489,8 +496,9 @@ class NewmarkHHT:
                 rec[f"{cs.name}.torque"] = float(cs.radius @ f[:, 0])
             if isinstance(st, CoulombState):
                 rec[f"{cs.name}.stuck"] = int(np.count_nonzero(st.stick))
-            rec[f"{cs.name}.F"] = F.copy()
-            rec[f"{cs.name}.w"] = w.copy()
+            if elements:
+                rec[f"{cs.name}.F"] = F.copy()
+                rec[f"{cs.name}.w"] = w.copy()
         return rec
 
 
@@ -537,7 +545,7 @@ def run_transient(model: DynamicModel, q0: np.ndarray, v0: np.ndarray | None, t_
         for old in folder.glob("chunk_*.npz"):
             old.unlink()
     if s.step == 0:
-        records.append(integ.record(s, energy))
+        records.append(integ.record(s, energy, record_elements))
     t0 = time.perf_counter()
 
     def flush(state):
@@ -561,13 +569,13 @@ def run_transient(model: DynamicModel, q0: np.ndarray, v0: np.ndarray | None, t_
                 where = f"; last good state (t = {s.t:.6e} s, step {s.step}) saved to {folder}" if folder else ""
                 raise TransientError(f"{e}{where}") from e
             if s.step % record_every == 0:
-                records.append(integ.record(s, energy))
+                records.append(integ.record(s, energy, record_elements))
             if checkpoint_every and s.step % checkpoint_every == 0:
                 flush(s)
             if progress and s.step % 200 == 0:
                 bar.update(s.step)
     if s.step % record_every:          # the final state is always recorded
-        records.append(integ.record(s, energy))
+        records.append(integ.record(s, energy, record_elements))
     wall = time.perf_counter() - t0
     if folder is not None:
         flush(s)
@@ -641,16 +649,22 @@ def out_of_band_damping(K: np.ndarray, f_cut: float, zeta: float = 0.2) -> np.nd
     eigenvalues almost unchanged (check with :func:`~fem_squeal.reduced.eigensolve.quadratic_eigs`)."""
     if not f_cut > 0 or not zeta >= 0:
         raise TransientError(f"out-of-band damping: f_cut must be > 0 and zeta >= 0 (got {f_cut}, {zeta})")
+    return modal_damping(K, lambda f: np.where(f > f_cut, zeta, 0.0))
+
+
+def modal_damping(K: np.ndarray, zeta) -> np.ndarray:
+    """C = Σ_j 2ζ(f_j)ω_j φ_jφ_jᵀ on the eigenvectors of sym(K) (M = I); ``zeta`` maps the
+    frequencies f_j [Hz] to damping ratios (a number: the same ratio on every mode)."""
     w2, Phi = np.linalg.eigh(0.5 * (K + K.T))
     w = np.sqrt(np.maximum(w2, 0.0))
-    hi = w > 2 * np.pi * f_cut
-    return (Phi[:, hi] * (2 * zeta * w[hi])) @ Phi[:, hi].T
+    z = zeta(w / (2 * np.pi)) if callable(zeta) else np.full_like(w, float(zeta))
+    return (Phi * (2 * z * w)) @ Phi.T
 
 
 def from_reduced(rm, omega: float, *, params: dict | None = None, cubic_share: float = 0.3, c_max: float = 0.0,
                  depth: float = np.inf, patches: tuple[int, int] | None = (8, 16), friction=None,
                  f_cut: float | None = None, zeta_cut: float = 0.2, axis=(0.0, 0.0, 1.0),
-                 normal: str = "cubic") -> DynamicModel:
+                 normal: str = "cubic", zeta: float = 0.0) -> DynamicModel:
     """The dynamic model of a reduced brake (:class:`~fem_squeal.reduced.model.ReducedModel`).
 
     ``normal="cubic"``: the contact laws of :func:`fem_squeal.reduced.masa.from_reduced` (tuned
@@ -661,8 +675,9 @@ def from_reduced(rm, omega: float, *, params: dict | None = None, cubic_share: f
     The points of each pad are grouped into n_r × n_θ polar ``patches`` (None: every
     quadrature point is an element).  The disc turns at ``omega`` [rad/s] about ``axis``: each
     element's counter-face speed is Ω r in the interface's sliding direction and its lever arm
-    is r.  ``f_cut`` adds :func:`out_of_band_damping` above that frequency (tangent at steady
-    sliding with the final laws)."""
+    is r.  ``f_cut`` adds :func:`out_of_band_damping` above that frequency, and ``zeta`` a
+    structural damping ratio on every mode (both on the tangent at steady sliding with the final
+    laws; the reduced model itself carries no damping unless its materials do)."""
     from fem_squeal.reduced.masa import MasaModel, aggregate, polar_patches
     from fem_squeal.reduced.masa import from_reduced as masa_model
 
@@ -686,10 +701,12 @@ def from_reduced(rm, omega: float, *, params: dict | None = None, cubic_share: f
             p_mean = float(cr.pressure[closed] @ cr.weight[closed] / cr.weight[closed].sum())
             kn = float(np.mean(cr.kn))
             cs.normal = ExponentialLaw(p0=p_mean / np.e, lam=kn / p_mean, weight=np.asarray(cs.normal.k_l) / kn)
-    if f_cut:
+    if f_cut or zeta:
+        if zeta < 0 or (f_cut and not f_cut > 0):
+            raise TransientError(f"damping: zeta must be >= 0 and f_cut > 0 (got {zeta}, {f_cut})")
         integ = NewmarkHHT(dm, 1.0)
         q = integ.steady_sliding(rm.q_static)
         Kt, _ = integ.tangent_matrices(q, np.zeros_like(q))
-        Ch = out_of_band_damping(Kt, f_cut, zeta_cut)
+        Ch = modal_damping(Kt, lambda f: zeta + np.where(f > (f_cut or np.inf), zeta_cut, 0.0))
         dm.C = Ch if dm.C is None else dm.C + Ch
     return dm

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from fem_squeal.pipeline import default_cache_dir
 from fem_squeal.run import run_scene
 from fem_squeal.scene import load_scene
 from fem_squeal.studies import verification_failures
@@ -33,7 +34,7 @@ outdir = Path(args[0]) if args else root / "out" / "mu_E_stability_map"
 overrides = [a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--set=")]
 comm = MPI.COMM_WORLD
 scene = load_scene(root / "scenes" / "brake_mu_E_map.toml", overrides)
-res = run_scene(scene, outdir, comm, write_fields=False, cache=root / ".fem_squeal_cache")
+res = run_scene(scene, outdir, comm, write_fields=False, cache=default_cache_dir(root))
 
 red, smap = res["reduced"], res["map"]
 failures = verification_failures(red)

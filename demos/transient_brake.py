@@ -24,6 +24,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_squeal.dynamics import brake_start, integrator_options, static_closure
+from fem_squeal.pipeline import default_cache_dir
 from fem_squeal.reduced.eigensolve import TWO_PI
 from fem_squeal.reduced.model import ReducedModel
 from fem_squeal.reduced.transient import run_transient
@@ -39,7 +40,7 @@ say = print if comm.rank == 0 else (lambda *a, **k: None)
 
 # --- 1. the scene ------------------------------------------------------------------------------
 scene = load_scene(root / "scenes" / "brake_transient.toml", overrides)
-res = run_scene(scene, outdir, comm, write_fields=False, cache=root / ".fem_squeal_cache")
+res = run_scene(scene, outdir, comm, write_fields=False, cache=default_cache_dir(root))
 tr, lc = res["transient"], res["limit_cycle"]
 failures = []
 if comm.rank == 0:

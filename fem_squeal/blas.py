@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+from contextlib import contextmanager
 
 
 def _openblas() -> ctypes.CDLL | None:
@@ -46,3 +47,22 @@ def limit_threads_for(comm) -> int | None:
         return limit_threads(node.size)
     finally:
         node.Free()
+
+
+@contextmanager
+def single_threaded():
+    """Run the block with one OpenBLAS thread, then restore the previous count.
+
+    Time integration of friction-induced vibration is chaotic in stick-slip: a last-bit change
+    (a BLAS reduction split over another number of threads) grows into a different trajectory.
+    One thread makes a transient the same whatever the rank count or core count of the run."""
+    lib = _openblas()
+    if lib is None:
+        yield
+        return
+    n = lib.openblas_get_num_threads()
+    lib.openblas_set_num_threads(1)
+    try:
+        yield
+    finally:
+        lib.openblas_set_num_threads(n)

@@ -109,6 +109,13 @@ def probe(dm, y: np.ndarray) -> tuple[int, int]:
 
 
 def stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
+    from fem_squeal.blas import single_threaded
+
+    with single_threaded():
+        return _stage_transient(ctx, work, timings)
+
+
+def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
     from fem_squeal import plots
     from fem_squeal.output import write_npz_atomic
     from fem_squeal.reduced.transient import run_transient
@@ -170,6 +177,13 @@ def stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
 
 
 def stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
+    from fem_squeal.blas import single_threaded
+
+    with single_threaded():
+        return _stage_limit_cycle(ctx, work, timings)
+
+
+def _stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
     from fem_squeal import plots
     from fem_squeal.output import write_json_atomic
     from fem_squeal.reduced.limit_cycle import (

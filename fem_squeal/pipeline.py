@@ -284,8 +284,9 @@ def format_plan(plan: list[PlanItem]) -> str:
                                  if any(p.status == "memory" for p in plan) else "")])
 
 
-def default_cache_dir() -> Path:
-    return Path(os.environ.get(CACHE_ENV, DEFAULT_CACHE))
+def default_cache_dir(base: str | os.PathLike = ".") -> Path:
+    """``$FEM_SQUEAL_CACHE`` if set, else ``<base>/.fem_squeal_cache``."""
+    return Path(os.environ.get(CACHE_ENV) or Path(base) / DEFAULT_CACHE)
 
 
 def publish(entry: Path, outdir: Path) -> list[str]:

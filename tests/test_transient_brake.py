@@ -7,7 +7,8 @@ grows ≈ e^(0.003 Re λ) ≈ 4×), so every result has an exact linear counterp
 - the space–time SVD of a single unstable complex mode has two shapes spanning its plane;
 - the tangent CEA along the cycle is the steady-sliding one (the cubic law's tangent moves by
   O(amplitude/closure) ≈ 1e-3 relative);
-- the complex-mode cycle at α → 0 has the CEA real part, and its friction work grows as α²;
+- the complex-mode cycle at α → 0 has the CEA real part, and its friction work grows as α²
+  (the scene's exponential law adds O(α) corrections, bounded below);
 - the discrete energy balance of the trapezoidal rule closes to round-off.
 
 A second run that changes a limit_cycle option recomputes that stage only.
@@ -27,7 +28,7 @@ COARSE = ["geometry.mesh_size=0.016", "analyses.reduced.band_hz=[0.0, 6000.0]",
           "analyses.cea.band_hz=[0.0, 6000.0]",
           "analyses.transient.t_end=0.003", "analyses.transient.dt=2e-6", "analyses.transient.patches=[4, 8]",
           "analyses.transient.attachments=[2, 4]", "analyses.limit_cycle.stability_samples=8",
-          "analyses.limit_cycle.mode_cycle_amplitudes=[0.01, 0.1, 1.0]", "analyses.transient.amplitude=1e-3"]
+          "analyses.limit_cycle.mode_cycle_amplitudes=[0.001, 0.01, 1.0]", "analyses.transient.amplitude=1e-3"]
 
 
 def _run(mpirun, cache, out, extra=()):
@@ -60,9 +61,12 @@ def test_transient_and_limit_cycle_in_the_linear_regime(results):
     followed = np.array(lc["dynamic_stability"]["followed_real_part"])
     assert np.max(np.abs(followed - pushed["real_part"])) < 1e-3 * pushed["real_part"]
     cyc = {c["alpha"]: c for c in lc["mode_cycles"]}
-    assert cyc[0.01]["pseudo_real_part_min"] == pytest.approx(pushed["real_part"], rel=1e-3)
-    assert cyc[0.01]["friction_work"] > 0               # an unstable mode draws energy from friction
-    assert cyc[0.1]["friction_work"] / cyc[0.01]["friction_work"] == pytest.approx(100.0, rel=1e-3)
+    # exponential law: the contact tangent λF varies as 1 + λΔδ along a cycle of closure amplitude
+    # α × closure (λ × closure ≈ 0.5-0.7), so the pseudo real part moves O(α) and the friction work
+    # is α²(1 + O(α)): 1e-3 and 1e-2 bounds at α = 1e-3 and for the ratio of α = 1e-2 to 1e-3
+    assert cyc[0.001]["pseudo_real_part_min"] == pytest.approx(pushed["real_part"], rel=1e-3)
+    assert cyc[0.001]["friction_work"] > 0               # an unstable mode draws energy from friction
+    assert cyc[0.01]["friction_work"] / cyc[0.001]["friction_work"] == pytest.approx(100.0, rel=1e-2)
     shares = lc["energy_shares"]
     assert set(shares) == set(r["scene"]["materials"]) and sum(shares.values()) == pytest.approx(1.0, abs=1e-9)
     out_files = set(r["files"])

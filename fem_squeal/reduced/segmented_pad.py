@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fem_squeal.blas import single_threaded
 from fem_squeal.reduced.contact_law import UnilateralLaw
 from fem_squeal.reduced.friction import StribeckFriction
 from fem_squeal.reduced.transient import DynamicModel, FrictionContact, NewmarkHHT, run_transient
@@ -162,6 +163,11 @@ def simulate(pad: SegmentedPad, speed: float, *, t_end: float = 0.3, dt: float =
     sub-v_s branch of the law (its time constant m/(μ'(0)F) is a few µs)."""
     if not speed > 0:
         raise ValueError(f"segmented_pad speed: must be > 0 (got {speed})")
+    with single_threaded():
+        return _simulate(pad, speed, t_end, dt, alpha, analyse_from, kick, record_every, tangent)
+
+
+def _simulate(pad, speed, t_end, dt, alpha, analyse_from, kick, record_every, tangent) -> PadRun:
     model = build(pad, speed / pad.radius)
     integ = NewmarkHHT(model, dt, alpha=alpha)
     N = pad.n_elements

@@ -1,13 +1,15 @@
-"""Run a validated scene: mesh → operators → preload → real modes and/or CEA → descriptors → outputs.
+"""The stage functions of a scene run and :func:`run_scene`, which plans them
+(:mod:`fem_squeal.pipeline`: only the stages the analyses need, cached by content hash) and
+writes ``outdir``: ``results.json`` (schema below, written atomically by rank 0), the stages'
+files (XDMF, PNG, npz, json) and ``report.html``.
 
-Each stage is a function of the scene and the upstream results, and only the stages that the
-requested analyses need are run (a scene without ``analyses.real_modes`` solves no real modes).
-Outputs go to ``outdir``: ``results.json`` (schema below, written atomically by rank 0) and XDMF
-files of the mode shapes.
-
-results.json (schema_version 2)
+results.json (schema_version 3)
 -------------------------------
 scene            the validated scene (all defaults filled in)
+stages           [{stage, key, status ("run" | "cached" | "memory" | "forced"), seconds (of the
+                 run that computed it)}]
+files            output files of the stages (relative to outdir)
+mesh             cells, volumes (part names)
 model            dofs, cells, ranks, degree
 timings_s        wall time per stage
 preload          (models with contact interfaces) mode, iterations, history [[closed points,
@@ -27,6 +29,17 @@ reduced          size, parameters, mu0, rounds [{cut_hz, modes, sampled_modes, s
 sweep            parameter, values, critical [{branch, partner, value, bracket, freq_hz, kind,
                  onset, labels}], solves, seconds (branches in sweep.json)
 map              parameter, points, seconds, seconds_per_point, axes, bands_hz, counts, total
+masa             cases [{mu, equilibrium, elements, basis, instabilities [{freq_hz, real_part,
+                 stationary_amplitudes, stationary_in_unit, broke_at, steps}], seconds}]
+transient        basis, contact_elements, steps, dt, t_end, wall_s, ms_per_step,
+                 iterations_per_step, stats, resumed, static_closure, probe, steady_sliding_unstable
+                 [{freq_hz, real_part}], pushed_mode, peak_closure_change, energy_leak, friction_work
+limit_cycle      limit_cycle {saturated, frequency_hz, amplitude, t_saturation, growth_rate},
+                 window_s, svd_energy, svd_best_mac [{shape, freq_hz, real_part, mac, plane_share}],
+                 dynamic_stability {samples, followed_real_part, unstable_share}, energy_shares,
+                 mode_energy_shares, mode_cycles [{alpha, friction_work, torque_mean, ...}]
+segmented_pad    runs [{kind, speed, v_s, v_d, regimes, regime, fractions (stick, creep, slip per
+                 element), steps}], seconds
 
 Files: real_modes.xdmf, complex_modes.xdmf (mode_re, mode_im), preload.xdmf
 (preload_displacement, contact_pressure), contact_pressure.png; reduced_model.npz,
@@ -45,7 +58,7 @@ from mpi4py import MPI
 from fem_squeal.scene import model_spec
 from fem_squeal.tags import COMPONENT_GROUPS
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 
 def build_mesh(comm: MPI.Comm, scene: dict):

@@ -248,7 +248,8 @@ def limit_cycle(path: Path, t: np.ndarray, x: np.ndarray, lc, svd_energy, best_m
     k = np.arange(1, len(svd_energy) + 1)
     ax[0, 1].bar(k, svd_energy, color="C0")
     for b in best_mac:
-        ax[0, 1].annotate(f"{b['freq_hz']:.0f} Hz\nMAC {b['mac']:.2f}", (b["shape"], svd_energy[b["shape"] - 1]),
+        ax[0, 1].annotate(f"{b['freq_hz']:.0f} Hz\nplane {100 * b['plane_share']:.0f} %, MAC {b['mac']:.2f}",
+                          (b["shape"], svd_energy[b["shape"] - 1]),
                           ha="center", va="bottom", fontsize=7)
     ax[0, 1].set(xlabel="SVD shape", ylabel="energy share", title="space–time SVD (strain-energy norm)")
     if shares is not None:

@@ -1,7 +1,7 @@
 """Cost per transient step against basis size and contact elements on the reduced brake.
 
 Usage: python benchmarks/transient_brake.py MODEL.npz [--steps=2000]
-(MODEL.npz: out/transient_brake/fe/reduced_model.npz, written by demos/transient_brake.py).
+(MODEL.npz: out/transient_brake/reduced_model.npz, written by demos/transient_brake.py).
 
 For each basis size m (the leading m vectors of the basis, a Galerkin sub-model) and each
 contact discretisation (polar patches n_r × n_θ per pad, or every quadrature point) it times

@@ -214,8 +214,7 @@ class NewmarkHHT:
         self.has_skew = bool(np.abs(self.K_skew).max() > 1e-13 * np.abs(self.K).max())
         # one stacked row matrix per interface: [D; T_1; (T_2)]
         self.rows = [np.vstack([cs.D, *cs.T]) for cs in model.contacts]
-        self._lu = None
-        self._lu_dt = None
+        self._lus: dict[float, tuple] = {}     # factorised tangent per step size (adaptive halving)
         self.stats = {"steps": 0, "iterations": 0, "factorisations": 0, "halvings": 0, "events": 0}
 
     # ---------------------------------------------------------------- forces
@@ -374,8 +373,7 @@ class NewmarkHHT:
 
     # ---------------------------------------------------------------- one step
     def _factor(self, tangents, dt):
-        self._lu = sla.lu_factor(self._tangent(tangents, dt), check_finite=False)
-        self._lu_dt = dt
+        self._lus[dt] = sla.lu_factor(self._tangent(tangents, dt), check_finite=False)
         self.stats["factorisations"] += 1
 
     def try_step(self, s: State, dt: float) -> tuple[State, Forces, Forces, dict]:
@@ -396,8 +394,9 @@ class NewmarkHHT:
         q = s.q + dt * s.v + 0.5 * dt * dt * s.a
         a_star = s.q + dt * s.v + dt * dt * (0.5 - be) * s.a      # q = a_star + βΔt² a
         history = []
-        if self._lu is None or self._lu_dt != dt or self.tangent == "full":
-            _, tg = self.forces(q, s.v, s.q, dt, s.friction, derivatives=True)
+        if dt not in self._lus or self.tangent == "full":
+            # at the predictor the Newmark velocity is v + Δt a (a = c2 (q − a_star) = a_n)
+            _, tg = self.forces(q, s.v + dt * s.a, s.q, dt, s.friction, derivatives=True)
             self._factor(tg, dt)
         def residual(q):
             a = c2 * (q - a_star)
@@ -422,7 +421,7 @@ class NewmarkHHT:
                     and history[-2] > 0.5 * history[-3]):
                 stalled = True      # round-off floor: the residual no longer decreases
                 break
-            dq = sla.lu_solve(self._lu, -r, check_finite=False)
+            dq = sla.lu_solve(self._lus[dt], -r, check_finite=False)
             theta = 1.0
             while True:   # backtracking: stick/slip and open/closed switches can make full steps cycle
                 trial = residual(q + theta * dq)

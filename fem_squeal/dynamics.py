@@ -134,7 +134,8 @@ def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
             + (", ".join(f"{z.imag / TWO_PI:.0f} Hz ({z.real:.1f}/s)" for z in top) or "none"))
         k, j = probe(dm, y)
         push = a["amplitude"] * closure / np.abs(dm.contacts[k].D[j] @ y)
-        q0, v0 = qs + (push * y).real, (push * lam[i if i >= 0 else 0] * y).real
+        lam_y = lam[i] if i >= 0 else lam[int(np.argmax(lam.real))]   # the eigenvalue of y
+        q0, v0 = qs + (push * y).real, (push * lam_y * y).real
         run_dir = ctx.cache.root / f".run-transient-{ctx.keys['transient']}"
         resume = (run_dir / "checkpoint.npz").exists()
         if resume:

@@ -118,7 +118,7 @@ def modes_below(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, *, n_start: int = 2
     nev = n_start
     target = 1e-3 * f_cut_hz  # a small positive shift: K may be singular (free bodies)
     while True:
-        rm = solve_real_modes(K, M, nev, target, options=options, prefix=prefix)
+        rm = solve_real_modes(K, M, nev, target, options=options, prefix=prefix, progress=True)
         f = rm.freqs_hz
         if f[-1] > f_cut_hz or nev >= max_modes:
             keep = f <= f_cut_hz

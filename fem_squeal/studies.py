@@ -71,7 +71,7 @@ def full_cea(par, point: dict, band, nev: int, options) -> tuple[np.ndarray, flo
     t = time.perf_counter()
     target = np.sqrt(0.5 * (band[0] ** 2 + band[1] ** 2))
     cm = solve_complex_modes(K, par.ops.M, C, nev, target, band_hz=tuple(band), options=options,
-                             prefix="verify_")
+                             prefix="verify_", progress=True)
     seconds = time.perf_counter() - t
     for A in (K, C, *cm.vectors_re, *cm.vectors_im):
         if A is not None:

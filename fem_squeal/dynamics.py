@@ -161,7 +161,8 @@ def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
                         title=f"{ctx.scene['title']}: closure of the most active contact element",
                         label="closure [µm]")
         timings["transient"] = time.perf_counter() - t0
-        out = {"basis": dm.size, "contact_elements": sum(c.size for c in dm.contacts), "steps": st["steps"],
+        out = {"basis": dm.size, "contact_elements": sum(c.size for c in dm.contacts), "steps": st["n_steps"],
+               "steps_computed": st["steps"],
                "dt": a["dt"], "t_end": a["t_end"], "wall_s": wall, "ms_per_step": 1e3 * wall / max(st["steps"], 1),
                "iterations_per_step": st["iterations"] / max(st["steps"], 1), "stats": st,
                "resumed": resume, "static_closure": closure,

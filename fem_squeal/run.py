@@ -31,7 +31,8 @@ sweep            parameter, values, critical [{branch, partner, value, bracket, 
 map              parameter, points, seconds, seconds_per_point, axes, bands_hz, counts, total
 masa             cases [{mu, equilibrium, elements, basis, instabilities [{freq_hz, real_part,
                  stationary_amplitudes, stationary_in_unit, broke_at, steps}], seconds}]
-transient        basis, contact_elements, steps, dt, t_end, wall_s, ms_per_step,
+transient        basis, contact_elements, steps, steps_computed (fewer when resumed), dt, t_end,
+                 wall_s, ms_per_step,
                  iterations_per_step, stats, resumed, static_closure, probe, steady_sliding_unstable
                  [{freq_hz, real_part}], pushed_mode, peak_closure_change, energy_leak, friction_work
 limit_cycle      limit_cycle {saturated, frequency_hz, amplitude, t_saturation, growth_rate},

@@ -303,6 +303,7 @@ def stage_segmented_pad(ctx, work: Path, timings: dict) -> dict[str, Any]:
             centre = p.n_elements // 2
             mine[n] = {"kind": kind, "speed": speed, "v_s": p.v_s, "v_d": p.v_d, "regimes": r.regime,
                        "fractions": r.fractions, "steps": r.stats["steps"],
+                       "s_min": np.linalg.norm(r.w[late], axis=-1).min(axis=0),
                        "portrait": {"x": r.q[late, 3 * centre + 1], "v": r.v[late, 3 * centre + 1],
                                     "w": np.linalg.norm(r.w[late, centre], axis=-1), "t": r.t[late]}}
     runs: dict[int, dict] = {}
@@ -310,7 +311,7 @@ def stage_segmented_pad(ctx, work: Path, timings: dict) -> dict[str, Any]:
         runs.update(d)
     rows = [runs[n] for n in range(len(cases))]
     timings["segmented_pad"] = time.perf_counter() - t0
-    summary = [{k: r[k] for k in ("kind", "speed", "v_s", "v_d", "regimes", "fractions", "steps")} |
+    summary = [{k: r[k] for k in ("kind", "speed", "v_s", "v_d", "regimes", "fractions", "s_min", "steps")} |
                {"regime": _majority(r["regimes"])} for r in rows]
     if comm.rank == 0:
         write_json_atomic(work / "segmented_pad.json", {"runs": summary})

@@ -39,8 +39,8 @@ limit_cycle      limit_cycle {saturated, frequency_hz, amplitude, t_saturation, 
                  window_s, svd_energy, svd_best_mac [{shape, freq_hz, real_part, mac, plane_share}],
                  dynamic_stability {samples, followed_real_part, unstable_share}, energy_shares,
                  mode_energy_shares, mode_cycles [{alpha, friction_work, torque_mean, ...}]
-segmented_pad    runs [{kind, speed, v_s, v_d, regimes, regime, fractions (stick, creep, slip per
-                 element), steps}], seconds
+segmented_pad    runs [{kind, speed, v_s, v_d, regimes, regime, fractions (time shares of s < v_s,
+                 v_s ≤ s < v_d, s ≥ v_d per element), s_min (per element) [m/s], steps}], seconds
 
 Files: real_modes.xdmf, complex_modes.xdmf (mode_re, mode_im), preload.xdmf
 (preload_displacement, contact_pressure), contact_pressure.png; reduced_model.npz,

@@ -96,8 +96,14 @@ def test_classify_and_bad_parameters():
     w = np.zeros((1001, 1, 2))
     w[:, 0, 1] = -1.0 + 0.5 * np.sin(40 * t)          # always sliding, oscillating
     assert classify(w, 1.0, 1e-3, 3e-2)[0] == ["periodic"]
-    w[:, 0, 1] = -0.02                                 # inside the transition band
-    assert classify(w, 1.0, 1e-3, 3e-2)[0] == ["creep"]
+    w[:, 0, 1] = -0.02                                 # inside the transition band, steadily
+    assert classify(w, 1.0, 1e-3, 3e-2)[0] == ["steady creep"]
+    w[:, 0, 1] = -0.01 + 0.0095 * np.sin(40 * t)       # oscillating, dipping to 0.5 v_s: creep
+    assert classify(w, 0.5, 1e-3, 3e-2)[0] == ["creep"]
+    w[:, 0, 1] = -0.01 + 0.01 * np.sin(40 * t)         # reaching s = 0: stick-slip
+    assert classify(w, 0.5, 1e-3, 3e-2)[0] == ["stick-slip"]
+    w[:, 0, 1] = -0.5                                  # steady sliding above v_d
+    assert classify(w, 0.5, 1e-3, 3e-2)[0] == ["steady"]
     with pytest.raises(ValueError, match="v_d"):
         SegmentedPad(v_s=0.05, v_d=0.01)
     with pytest.raises(ValueError, match="speed"):

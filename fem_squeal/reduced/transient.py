@@ -30,7 +30,7 @@ import hashlib
 import json
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -99,7 +99,6 @@ class DynamicModel:
     M: np.ndarray | None = None
     C: np.ndarray | None = None
     f: np.ndarray | None = None
-    K_parts: dict[str, np.ndarray] = field(default_factory=dict)   # strain energy per component
 
     def __post_init__(self):
         m = self.K.shape[0]

@@ -25,20 +25,17 @@ from __future__ import annotations
 
 import json
 import sys
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
+from fem_squeal.cli import demo_arguments
 from fem_squeal.reduced.masa import MasaProblem, from_reduced, static_equilibrium
 from fem_squeal.reduced.model import ReducedModel
 from fem_squeal.run import run_scene
 from fem_squeal.scene import load_scene
 
-root = Path(__file__).resolve().parents[1]
-args = [a for a in sys.argv[1:] if not a.startswith("--")]
-outdir = Path(args[0]) if args else root / "out" / "masa_brake"
-overrides = [a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--set=")]
+root, outdir, overrides = demo_arguments(__file__)
 comm = MPI.COMM_WORLD
 say = print if comm.rank == 0 else (lambda *a, **k: None)
 scene = load_scene(root / "scenes" / "brake_corner_cea.toml",

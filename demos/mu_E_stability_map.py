@@ -18,20 +18,17 @@ run recomputes nothing).  Run with ``mpirun -n 2`` (``scripts/demo.sh``).
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
+from fem_squeal.cli import demo_arguments
 from fem_squeal.pipeline import default_cache_dir
 from fem_squeal.run import run_scene
 from fem_squeal.scene import load_scene
 from fem_squeal.studies import verification_failures
 
-root = Path(__file__).resolve().parents[1]
-args = [a for a in sys.argv[1:] if not a.startswith("--")]
-outdir = Path(args[0]) if args else root / "out" / "mu_E_stability_map"
-overrides = [a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--set=")]
+root, outdir, overrides = demo_arguments(__file__)
 comm = MPI.COMM_WORLD
 scene = load_scene(root / "scenes" / "brake_mu_E_map.toml", overrides)
 res = run_scene(scene, outdir, comm, write_fields=False, cache=default_cache_dir(root))

@@ -19,18 +19,16 @@ complex_plane.png, sweep.json, results.json).
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
+from fem_squeal.cli import demo_arguments
 from fem_squeal.run import run_scene
 from fem_squeal.scene import load_scene
 from fem_squeal.studies import verification_failures
 
-root = Path(__file__).resolve().parents[1]
-args = [a for a in sys.argv[1:] if not a.startswith("--")]
-outdir = Path(args[0]) if args else root / "out" / "mu_sweep"
+root, outdir, _ = demo_arguments(__file__)
 comm = MPI.COMM_WORLD
 say = print if comm.rank == 0 else (lambda *a, **k: None)
 failures: list[str] = []

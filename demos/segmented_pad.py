@@ -18,20 +18,17 @@ segmented_pad.json, report.html.  Run: ``mpirun -n 2 .venv/bin/python demos/segm
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
+from fem_squeal.cli import demo_arguments
 from fem_squeal.dynamics import pad_parameters
 from fem_squeal.pipeline import default_cache_dir
 from fem_squeal.run import run_scene
 from fem_squeal.scene import load_scene
 
-root = Path(__file__).resolve().parents[1]
-args = [a for a in sys.argv[1:] if not a.startswith("--")]
-outdir = Path(args[0]) if args else root / "out" / "segmented_pad"
-overrides = [a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--set=")]
+root, outdir, overrides = demo_arguments(__file__)
 comm = MPI.COMM_WORLD
 scene = load_scene(root / "scenes" / "segmented_pad.toml", overrides)
 res = run_scene(scene, outdir, comm, cache=default_cache_dir(root))

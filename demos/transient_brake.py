@@ -18,11 +18,11 @@ Run: ``mpirun -n 2 .venv/bin/python demos/transient_brake.py``.
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
+from fem_squeal.cli import demo_arguments
 from fem_squeal.dynamics import brake_start, integrator_options, static_closure
 from fem_squeal.pipeline import default_cache_dir
 from fem_squeal.reduced.eigensolve import TWO_PI
@@ -31,10 +31,7 @@ from fem_squeal.reduced.transient import run_transient
 from fem_squeal.run import run_scene
 from fem_squeal.scene import load_scene
 
-root = Path(__file__).resolve().parents[1]
-args = [a for a in sys.argv[1:] if not a.startswith("--")]
-outdir = Path(args[0]) if args else root / "out" / "transient_brake"
-overrides = [a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--set=")]
+root, outdir, overrides = demo_arguments(__file__)
 comm = MPI.COMM_WORLD
 say = print if comm.rank == 0 else (lambda *a, **k: None)
 

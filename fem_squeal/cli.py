@@ -13,6 +13,23 @@ import argparse
 import logging
 import sys
 from pathlib import Path
+from typing import NamedTuple
+
+
+class DemoArguments(NamedTuple):
+    root: Path                  # the repository (demos/..)
+    outdir: Path
+    overrides: list[str]        # --set=key=value, as for ``fem-squeal run --set``
+
+
+def demo_arguments(script: str, argv: list[str] | None = None) -> DemoArguments:
+    """The command line shared by the demos: ``demos/X.py [OUTDIR] [--set=key=value ...]``,
+    OUTDIR defaulting to ``out/X`` in the repository; other ``--flags`` are left to the demo."""
+    argv = sys.argv[1:] if argv is None else argv
+    root = Path(script).resolve().parents[1]
+    positional = [a for a in argv if not a.startswith("--")]
+    outdir = Path(positional[0]) if positional else root / "out" / Path(script).stem
+    return DemoArguments(root, outdir, [a.split("=", 1)[1] for a in argv if a.startswith("--set=")])
 
 
 def _scene_args(p: argparse.ArgumentParser) -> None:

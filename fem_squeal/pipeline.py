@@ -66,17 +66,14 @@ def _analysis(name: str) -> Callable[[dict], Any]:
 
 
 def _reduced_inputs(scene: dict) -> dict:
-    """What the reduced basis depends on: analyses.reduced, the check points and E samples that
-    sweep, map and masa imply, and the extra vectors that masa and transient add."""
-    from fem_squeal.model import common_mu
+    """What the reduced basis depends on: analyses.reduced, the check points, E samples and parts
+    of :func:`fem_squeal.studies.basis_design`, and the extra vectors that masa and transient add."""
     from fem_squeal.scene import model_spec
-    from fem_squeal.studies import design_points
+    from fem_squeal.studies import basis_design
 
-    ana = scene["analyses"]
-    spec = model_spec(scene)
-    checks, samples, parts = design_points(scene, spec, common_mu(spec))
-    return {"reduced": ana["reduced"], "checks": checks, "samples": samples, "parts": parts,
-            "extra_vectors": extra_vector_settings(scene), "all_parts": "transient" in ana}
+    _, checks, samples, parts = basis_design(scene, model_spec(scene))
+    return {"reduced": scene["analyses"]["reduced"], "checks": checks, "samples": samples, "parts": parts,
+            "extra_vectors": extra_vector_settings(scene)}
 
 
 def extra_vector_settings(scene: dict) -> list | None:

@@ -63,6 +63,18 @@ def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict]
     return uniq(checks), uniq(samples), sorted(set(parts))
 
 
+def basis_design(scene: dict, spec) -> tuple[float, list[dict], list[dict], list[str]]:
+    """(μ₀, check points, E samples, parts whose stiffness the basis carries): :func:`design_points`,
+    with every part when a transient asks for component strain-energy shares along its cycle."""
+    from fem_squeal.model import common_mu
+
+    mu0 = common_mu(spec)
+    checks, samples, parts = design_points(scene, spec, mu0)
+    if "transient" in scene["analyses"]:
+        parts = sorted(spec.materials)
+    return mu0, checks, samples, parts
+
+
 def full_cea(par, point: dict, band, nev: int, options) -> tuple[np.ndarray, float]:
     """Eigenvalues (Im λ > 0, in ``band``) of the full CEA at ``point`` and its wall time [s]."""
     from fem_squeal.eigen import solve_complex_modes
@@ -105,18 +117,14 @@ def band_and_growth_tol(scene: dict) -> tuple[tuple[float, float], float]:
 def stage_reduced(ctx, work: Path, timings: dict) -> dict[str, Any]:
     """analyses.reduced: the basis grown to ``tol`` about the preload; ``reduced_model.npz``."""
     from fem_squeal.pipeline import extra_vector_settings
-    from fem_squeal.reduction import ParametricOperators, adaptive_reduce, common_mu
+    from fem_squeal.reduction import ParametricOperators, adaptive_reduce
 
     scene, spec, comm, say = ctx.scene, ctx.spec, ctx.comm, ctx.say
     ops, preload = ctx.products["linear"], ctx.products["preload"]
-    ana = scene["analyses"]
-    a = ana["reduced"]
+    a = scene["analyses"]["reduced"]
     band = tuple(a["band_hz"])
     opts = scene["solver"]["petsc_options"]
-    mu0 = common_mu(spec)
-    checks, samples, parts = design_points(scene, spec, mu0)
-    if "transient" in ana:     # every part's stiffness: component strain-energy shares along the cycle
-        parts = sorted(spec.materials)
+    mu0, checks, samples, parts = basis_design(scene, spec)
     par = ParametricOperators(ops, spec, mu0, parts)
     t = time.perf_counter()
     attach = extra_vector_settings(scene)

@@ -3,6 +3,8 @@
     fem-squeal plan SCENE.toml [--set key=value ...]      stages that would run, and the cached ones
     fem-squeal run SCENE.toml [--set ...] [-o OUTDIR] [--force STAGE] [--petsc-option k=v] [--no-fields]
     fem-squeal clean                                       remove the cache
+    fem-squeal convert IN OUT [--scale S]                  convert a mesh (.msh .inp .bdf .vtu), keeping its sets
+    fem-squeal mesh SCENE.toml OUT [--set ...] [--scale S] write a scene's mesh (e.g. the gmsh brake as .inp)
 
 The cache is ``--cache-dir`` (default ``$FEM_SQUEAL_CACHE`` or ``.fem_squeal_cache``).  Exit
 codes: 0 done, 2 invalid scene or command line, 3 a stage failed (the message names it).
@@ -61,7 +63,29 @@ def _parser() -> argparse.ArgumentParser:
     _scene_args(pl)
     pl.add_argument("--force", action="append", default=[], metavar="STAGE")
     sub.add_parser("clean", help="remove the cache")
+    c = sub.add_parser("convert", help="convert a mesh file, keeping its element sets, surfaces and node sets")
+    c.add_argument("input", type=Path)
+    c.add_argument("output", type=Path)
+    c.add_argument("--scale", type=float, default=1.0, help="multiply the coordinates (1000: m -> mm)")
+    c.add_argument("--input-format", default="", help="meshio format of the input (default: from the extension)")
+    c.add_argument("--id-field", default="", help="integer cell data holding the set numbers (VTU)")
+    m = sub.add_parser("mesh", help="write the mesh of a scene's geometry (parts and faces as named sets)")
+    _scene_args(m)
+    m.add_argument("output", type=Path)
+    m.add_argument("--scale", type=float, default=1.0, help="multiply the coordinates (1000: m -> mm)")
     return p
+
+
+def _convert(args, comm, say) -> None:
+    from geometry.mesh_file import convert
+
+    if comm.rank != 0:
+        return
+    mf, warns = convert(args.input, args.output, scale=args.scale, fmt_in=args.input_format, id_field=args.id_field)
+    for w in warns:
+        say(f"[fem_squeal] warning: {w}")
+    say(f"[fem_squeal] {args.output}: {len(mf.points)} nodes, {len(mf.cells)} tetrahedra (P{mf.degree}); element "
+        f"sets {sorted(mf.cell_sets)}; surfaces {sorted(mf.surfaces)}; node sets {sorted(mf.node_sets)}")
 
 
 def _load(args):
@@ -98,15 +122,29 @@ def main(argv: list[str] | None = None) -> int:
         n = cache.clean() if rank0 else 0
         say(f"[fem_squeal] removed {n} cache entries from {args.cache_dir}")
         return 0
+    from geometry.mesh_file import MeshImportError
+
     try:
+        if args.command == "convert":
+            _convert(args, comm, say)
+            return 0
         scene = _load(args)
+        if args.command == "mesh":
+            from geometry import write_geometry
+
+            for w in write_geometry(comm, scene["geometry"], args.output, args.scale):
+                say(f"[fem_squeal] warning: {w}")
+            say(f"[fem_squeal] wrote {args.output}")
+            return 0
         if args.command == "plan":
             plan = make_plan(scene, cache, force=args.force, write_fields=not args.no_fields)
             if rank0:
                 print(f"plan for {args.scene} (cache {args.cache_dir}):\n{format_plan(plan)}")
             return 0
-    except (SceneError, PipelineError) as e:
+    except (SceneError, PipelineError, MeshImportError) as e:
         return fail(2, str(e)) if rank0 else 2
+    except OSError as e:
+        return fail(2, f"{e.filename}: {e.strerror}") if rank0 else 2
 
     from fem_squeal.eigen import EigenSolveError
     from fem_squeal.preload import PreloadError
@@ -119,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         run_scene(scene, outdir, comm, write_fields=not args.no_fields, log=say, cache=args.cache_dir,
                   force=args.force, report=not args.no_report)
-    except PipelineError as e:
+    except (PipelineError, MeshImportError) as e:
         return fail(2, str(e))
     except (EigenSolveError, PreloadError, ReductionError, MasaError, TransientError, ValueError, KeyError) as e:
         return fail(3, str(e))

@@ -35,23 +35,31 @@ def jsonable(o):
     return _clean(o)
 
 
-def _write_atomic(path: Path, write, mode: str = "w") -> None:
-    """Write ``path`` through a temporary file in the same folder and ``os.replace``: readers
-    see the old file or the whole new one, never a part (call on one rank only)."""
+@contextmanager
+def atomic_path(path: str | os.PathLike):
+    """Yield a temporary file name next to ``path`` (same suffix) to write; on success it replaces
+    ``path`` with ``os.replace``, so readers see the old file or the whole new one, never a part
+    (call on one rank only).  On failure the temporary file is removed."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
     try:
-        os.fchmod(fd, 0o644)
-        with os.fdopen(fd, mode) as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
+        yield Path(tmp)
+        os.chmod(tmp, 0o644)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def _write_atomic(path: Path, write, mode: str = "w") -> None:
+    """Write ``path`` through :func:`atomic_path` with ``write(file)``, synced before the rename."""
+    with atomic_path(path) as tmp, open(tmp, mode) as f:
+        write(f)
+        f.flush()
+        os.fsync(f.fileno())
 
 
 def write_json_atomic(path: Path, data: dict) -> None:

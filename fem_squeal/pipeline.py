@@ -86,8 +86,23 @@ def extra_vector_settings(scene: dict) -> list | None:
     return max(non_empty, key=lambda s: s[0] * s[1]) if non_empty else []
 
 
+def _mesh_inputs(scene: dict) -> dict:
+    """The geometry section; a mesh file counts by its content (SHA-256), not by its path."""
+    geo = dict(scene["geometry"])
+    if geo["builder"] == "mesh_file":
+        h = hashlib.sha256()
+        try:
+            with open(geo["file"], "rb") as f:
+                for chunk in iter(lambda: f.read(1 << 20), b""):
+                    h.update(chunk)
+        except OSError as e:
+            raise PipelineError(f"geometry.file: cannot read {geo['file']} ({e.strerror})") from None
+        geo["file"] = h.hexdigest()
+    return geo
+
+
 STAGES: dict[str, Stage] = {s.name: s for s in (
-    Stage("mesh", (), lambda s: s["geometry"], "gmsh geometry and tagged mesh", memory=True),
+    Stage("mesh", (), _mesh_inputs, "geometry (gmsh builder or mesh file) and tagged mesh", memory=True),
     Stage("operators", ("mesh",), lambda s: {k: s[k] for k in MODEL_SECTIONS[1:]},
           "function space, forms, K, M, C and interface operators", memory=True),
     Stage("preload", ("operators",), lambda s: s["preload"],

@@ -161,7 +161,16 @@ def stage_mesh(ctx: Context, work: Path, timings: dict) -> dict:
     md = build_mesh(ctx.comm, ctx.scene)
     timings["mesh"] = time.perf_counter() - t
     ctx.products["mesh"] = md
-    return {"mesh": {"cells": md.mesh.topology.index_map(3).size_global, "volumes": sorted(md.volumes)}}
+    out = {"cells": md.mesh.topology.index_map(3).size_global, "volumes": sorted(md.volumes)}
+    if md.info:
+        out["import"] = md.info
+        q = md.info["quality"]
+        ctx.say(f"[fem_squeal] mesh file {Path(md.info['file']).name} ({md.info['format']}): {md.info['elements']} "
+                f"{md.info['element']}, worst aspect ratio {q['worst_aspect_ratio']:.3g}, min Jacobian ratio "
+                f"{q['min_jacobian_ratio']:.3g}")
+        for w in md.info["warnings"]:
+            ctx.say(f"[fem_squeal] warning: {w}")
+    return {"mesh": out}
 
 
 def stage_operators(ctx: Context, work: Path, timings: dict) -> dict:

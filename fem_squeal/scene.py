@@ -7,9 +7,13 @@ value is parsed as TOML (``0.3``, ``[1, 2]``, ``"top"``) and falls back to a bar
 
 Sections
 --------
-extends          another scene file (relative path) whose tables this one's are merged onto
+extends          another scene file (relative path) whose tables this one's are merged onto (a
+                 geometry with another builder replaces the base's geometry table)
 title            free text
-geometry         builder = "annular_disc": mean_radius, width, thickness [m], mesh_size [m],
+geometry         builder = "mesh_file": file (relative to the scene file), format, scale, center, axis,
+                 id_field, max_aspect_ratio, parts.<part> = [sets], faces.<face> = [sets]: a mesh from
+                 gmsh/Abaqus/Nastran/VTU (see geometry.mesh_file)
+                 builder = "annular_disc": mean_radius, width, thickness [m], mesh_size [m],
                  order (1 or 2; 2 = curved second-order tetrahedra)
                  builder = "brake_corner": every field of ``geometry.brake_corner.BrakeCornerParams``
                  (dimensions [m], angles [deg], mesh sizes [m], matching) plus order
@@ -157,7 +161,64 @@ GEOMETRY = {
         "order": Field(int, 2, one_of(1, 2), "geometry order: 2 = curved tetrahedra"),
     },
     "brake_corner": _brake_corner_fields(),
+    "mesh_file": {
+        "builder": Field(str),
+        "file": Field(str, check=nonempty_str, doc="mesh file (.msh, .inp, .bdf/.nas, .vtu), relative to the scene"),
+        "format": Field(str, "", None, "meshio format name; '' = from the extension"),
+        "scale": Field(REAL, 1.0, positive, "length factor to metres (0.001 for a mesh in mm)"),
+        "center": Field(list, [0.0, 0.0, 0.0], None, "a point of the disc axis, after scaling [m]"),
+        "axis": Field(list, [0.0, 0.0, 1.0], None, "disc axis; the mesh is turned so that it becomes +z"),
+        "id_field": Field(str, "", None, "integer cell data holding set numbers; '' = automatic"),
+        "max_aspect_ratio": Field(REAL, 10.0, at_least(1), "warn about elements of larger aspect ratio"),
+        "parts": Field(dict, check=lambda v: None if v else "must map at least one part",
+                       doc="part -> [element sets / PSOLID IDs / physical groups / cell-data values]"),
+        "faces": Field(dict, {}, None, "face -> [surfaces / node sets / surface PIDs / physical groups]"),
+    },
 }
+
+
+def _set_lists(table: dict, key: str) -> dict[str, list]:
+    """geometry.parts / geometry.faces: name -> non-empty list of set names or numbers."""
+    out = {}
+    for name, sets in table.items():
+        sets = sets if isinstance(sets, list) else [sets]
+        if not sets or not all(isinstance(x, (str, int)) and not isinstance(x, bool) for x in sets):
+            raise SceneError(f"geometry.{key}.{name}: must be a set name or number, or a non-empty list of them "
+                             f"(got {table[name]!r})")
+        out[name] = [str(x) for x in sets]
+    return out
+
+
+def _check_mesh_file(geo: dict) -> None:
+    for key in ("center", "axis"):
+        v = geo[key]
+        if len(v) != 3 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+            raise SceneError(f"geometry.{key}: must be [x, y, z] (got {v!r})")
+    if math.hypot(*geo["axis"]) == 0:
+        raise SceneError("geometry.axis: must not be zero")
+    geo["parts"] = _set_lists(geo["parts"], "parts")
+    geo["faces"] = _set_lists(geo["faces"], "faces")
+    clash = sorted(set(geo["parts"]) & set(geo["faces"]))
+    if clash:
+        raise SceneError(f"geometry.faces.{clash[0]}: also a part name; use distinct names")
+    from geometry.mesh_file import MeshImportError, file_format
+
+    if not Path(geo["file"]).is_file():
+        raise SceneError(f"geometry.file: {geo['file']} does not exist (a relative path is taken from the "
+                         "scene file's folder)")
+    try:
+        file_format(Path(geo["file"]), geo["format"])
+    except MeshImportError as e:
+        raise SceneError(str(e)) from None
+
+
+def geometry_tags(geo: dict) -> tuple[dict[str, int], dict[str, int]]:
+    """Part and face tags of a validated geometry section."""
+    if geo["builder"] == "mesh_file":
+        from fem_squeal.tags import mesh_file_tags
+
+        return mesh_file_tags(list(geo["parts"]), list(geo["faces"]))
+    return dict(GEOMETRY_TAGS[geo["builder"]][0]), dict(GEOMETRY_TAGS[geo["builder"]][1])
 MATERIAL = {
     "E": Field(REAL, check=positive, doc="Young's modulus [Pa]"),
     "nu": Field(REAL, check=poisson, doc="Poisson's ratio"),
@@ -383,7 +444,9 @@ def validate(raw: dict) -> dict:
         raise SceneError(f"geometry.builder: must be one of {sorted(GEOMETRY)} (got {geo['builder']!r})")
     scene["geometry"] = _check_fields(geo, GEOMETRY[geo["builder"]], "geometry")
     builder = geo["builder"]
-    volumes, faces = GEOMETRY_TAGS[builder]
+    if builder == "mesh_file":
+        _check_mesh_file(scene["geometry"])
+    volumes, faces = geometry_tags(scene["geometry"])
     if builder == "annular_disc" and scene["geometry"]["width"] >= 2 * scene["geometry"]["mean_radius"]:
         raise SceneError("geometry.width: must be < 2 * mean_radius")
     if builder == "brake_corner":
@@ -628,6 +691,9 @@ def read_scene(path: str | Path, _seen: tuple = ()) -> dict:
         raise SceneError(f"{path}: not a text file") from None
     except tomllib.TOMLDecodeError as e:
         raise SceneError(f"{path}: not valid TOML ({e})") from None
+    geo = raw.get("geometry")
+    if isinstance(geo, dict) and isinstance(geo.get("file"), str) and geo["file"].strip():
+        geo["file"] = str((path.parent / geo["file"]).resolve())    # relative to the scene that names it
     base = raw.pop("extends", None)
     if base is None:
         return raw
@@ -636,7 +702,10 @@ def read_scene(path: str | Path, _seen: tuple = ()) -> dict:
     base_path = (path.parent / base).resolve()
     if base_path in _seen or base_path == path.resolve():
         raise SceneError(f"extends: {base} is extended in a cycle")
-    return merge(read_scene(base_path, (*_seen, path.resolve())), raw)
+    base_raw = read_scene(base_path, (*_seen, path.resolve()))
+    if isinstance(geo, dict) and "builder" in geo and geo["builder"] != base_raw.get("geometry", {}).get("builder"):
+        base_raw.pop("geometry", None)      # another builder: its parameters replace the base's
+    return merge(base_raw, raw)
 
 
 def load_scene(path: str | Path, overrides: list[str] | None = None) -> dict:

@@ -47,6 +47,14 @@ GEOMETRY_TAGS = MappingProxyType({
 })
 
 
+def mesh_file_tags(parts: list[str], faces: list[str]) -> tuple[dict[str, int], dict[str, int]]:
+    """Tags of a mesh read from a file (``geometry.builder = "mesh_file"``): the parts of the scene's
+    mapping get 1, 2, ... and its faces 101, 102, ..., in the order the scene lists them."""
+    if len(parts) > 100:
+        raise ValueError(f"geometry.parts: at most 100 parts (got {len(parts)})")
+    return {p: 1 + i for i, p in enumerate(parts)}, {f: 101 + i for i, f in enumerate(faces)}
+
+
 def face_tag(builder: str, name: str) -> int:
     """Facet tag of face ``name`` of geometry ``builder``; raises ``KeyError`` naming the options."""
     faces = GEOMETRY_TAGS[builder][1]

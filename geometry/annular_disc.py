@@ -10,7 +10,7 @@ import math
 from mpi4py import MPI
 
 from fem_squeal.tags import ANNULAR_DISC_FACES, ANNULAR_DISC_VOLUMES
-from geometry.gmsh_io import MeshData, to_dolfinx
+from geometry.gmsh_io import GmshModel, MeshData, to_dolfinx
 
 
 def _face_radius(model, tag: int) -> float:
@@ -62,9 +62,14 @@ def build_annular_disc(model, inner_radius: float, outer_radius: float, thicknes
     gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
 
 
-def annular_disc_mesh(comm: MPI.Comm, *, mean_radius: float, width: float, thickness: float,
-                      mesh_size: float, order: int = 2) -> MeshData:
-    """Distributed ring mesh of mean radius R, radial width b and axial thickness h."""
+def annular_disc_model(*, mean_radius: float, width: float, thickness: float, mesh_size: float,
+                       order: int = 2) -> GmshModel:
+    """The ring of mean radius R, radial width b and axial thickness h, as a gmsh model to build."""
     r_i, r_o = mean_radius - width / 2, mean_radius + width / 2
-    return to_dolfinx(comm, lambda m: build_annular_disc(m, r_i, r_o, thickness, mesh_size),
-                      order=order, volumes=dict(ANNULAR_DISC_VOLUMES), faces=dict(ANNULAR_DISC_FACES))
+    return GmshModel(lambda m: build_annular_disc(m, r_i, r_o, thickness, mesh_size), order,
+                     dict(ANNULAR_DISC_VOLUMES), dict(ANNULAR_DISC_FACES))
+
+
+def annular_disc_mesh(comm: MPI.Comm, **params) -> MeshData:
+    """Distributed ring mesh; ``params`` as :func:`annular_disc_model`."""
+    return to_dolfinx(comm, annular_disc_model(**params))

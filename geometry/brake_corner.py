@@ -40,7 +40,7 @@ from dataclasses import dataclass
 from mpi4py import MPI
 
 from fem_squeal.tags import BRAKE_CORNER_FACES, BRAKE_CORNER_VOLUMES
-from geometry.gmsh_io import MeshData, to_dolfinx
+from geometry.gmsh_io import GmshModel, MeshData, to_dolfinx
 
 _IDENTITY = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
 _CIRCLE_SEGMENTS = 12      # guide holes: at least this many elements round the circumference
@@ -532,8 +532,8 @@ def _generate(model, order: int) -> None:
                   RuntimeWarning, stacklevel=2)
 
 
-def brake_corner_mesh(comm: MPI.Comm, *, order: int = 2, **params) -> MeshData:
-    """Distributed brake-corner mesh; ``params`` are the fields of :class:`BrakeCornerParams`."""
+def brake_corner_model(*, order: int = 2, **params) -> GmshModel:
+    """The brake corner as a gmsh model to build; ``params`` are the fields of :class:`BrakeCornerParams`."""
     known = {f.name for f in dataclasses.fields(BrakeCornerParams)}
     for name in params:
         if name not in known:
@@ -544,4 +544,9 @@ def brake_corner_mesh(comm: MPI.Comm, *, order: int = 2, **params) -> MeshData:
         build_brake_corner(model, p)
         _generate(model, order)
 
-    return to_dolfinx(comm, build, order=order, volumes=dict(BRAKE_CORNER_VOLUMES), faces=dict(BRAKE_CORNER_FACES))
+    return GmshModel(build, order, dict(BRAKE_CORNER_VOLUMES), dict(BRAKE_CORNER_FACES))
+
+
+def brake_corner_mesh(comm: MPI.Comm, **params) -> MeshData:
+    """Distributed brake-corner mesh; ``params`` as :func:`brake_corner_model`."""
+    return to_dolfinx(comm, brake_corner_model(**params))

@@ -4,7 +4,7 @@ block whose bottom face (slave) lies on it.  The faces are separate surfaces, me
 the master face (coincident but distinct nodes)."""
 from __future__ import annotations
 
-from geometry.gmsh_io import MeshData, to_dolfinx
+from geometry.gmsh_io import GmshModel, MeshData, to_dolfinx
 
 VOLUMES = {"lower": 1, "upper": 2}
 FACES = {"master": 1, "slave": 2, "lower_bottom": 3, "upper_top": 4, "upper_sides": 5}
@@ -45,4 +45,4 @@ def two_blocks(comm, h_lower: float = 0.3, h_upper: float = 0.21, order: int = 2
             patch_faces = [t for t in top if abs(occ.getMass(2, t) - CONTACT_AREA) < 1e-9]
             model.mesh.setSize(model.getBoundary([(2, t) for t in patch_faces], recursive=True), h_upper)
             gmsh.model.mesh.setPeriodic(2, bot, patch_faces, [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1])
-    return to_dolfinx(comm, build, order=order, volumes=VOLUMES, faces=FACES)
+    return to_dolfinx(comm, GmshModel(build, order, VOLUMES, FACES))

@@ -77,11 +77,12 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _convert(args, comm, say) -> None:
-    from geometry.mesh_file import convert
+    from geometry.mesh_convert import convert
 
     if comm.rank != 0:
         return
-    mf, warns = convert(args.input, args.output, scale=args.scale, fmt_in=args.input_format, id_field=args.id_field)
+    mf, warns = convert(args.input, args.output, scale=args.scale, fmt_in=args.input_format,
+                        id_field=args.id_field)
     for w in warns:
         say(f"[fem_squeal] warning: {w}")
     say(f"[fem_squeal] {args.output}: {len(mf.points)} nodes, {len(mf.cells)} tetrahedra (P{mf.degree}); element "

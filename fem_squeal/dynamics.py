@@ -160,6 +160,8 @@ def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
         plots.transient(work / "transient.png", res.t, x, xv, extra,
                         title=f"{ctx.scene['title']}: closure of the most active contact element",
                         label="closure [µm]")
+        if a["snapshots"] and ctx.write_fields:
+            write_transient_snapshots(ctx, work, a, res, qs)
         timings["transient"] = time.perf_counter() - t0
         out = {"basis": dm.size, "contact_elements": sum(c.size for c in dm.contacts), "steps": st["n_steps"],
                "steps_computed": st["steps"],
@@ -176,6 +178,21 @@ def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
             f"{out['iterations_per_step']:.2f} Newton iterations/step), energy balance {leak:.1e}")
     out = comm.bcast(out, root=0)
     return {"transient": out}
+
+
+def write_transient_snapshots(ctx, work: Path, a: dict, res, qs: np.ndarray) -> None:
+    """``analyses.transient.snapshots`` fields Φ(q − q_static) evenly over the last ``snapshot_window``
+    (nearest recorded states), from the reduced stage's ``basis_field.npz``."""
+    from fem_squeal.output import write_snapshots
+
+    with np.load(ctx.entry("reduced") / "basis_field.npz") as f:
+        field = {k: f[k] for k in f.files}
+    window = a["snapshot_window"] or float(res.t[-1] - res.t[0])
+    wanted = np.linspace(res.t[-1] - window, res.t[-1], a["snapshots"])
+    idx = np.unique(np.abs(res.t[None, :] - wanted[:, None]).argmin(axis=1))
+    write_snapshots(work / "transient_snapshots", field, res.t[idx], res.q[idx], qs)
+    ctx.say(f"[fem_squeal] transient: {len(idx)} snapshots from t = {res.t[idx[0]] * 1e3:.3f} ms to "
+            f"{res.t[idx[-1]] * 1e3:.3f} ms in transient_snapshots.vtu/.xdmf")
 
 
 def stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:

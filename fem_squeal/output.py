@@ -155,3 +155,145 @@ def save_figure_atomic(fig, path: Path, dpi: int = 120) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def _owned_values(W, f) -> np.ndarray:
+    """Owned DOF values of a Function on W, (n_owned, block size)."""
+    im, bs = W.dofmap.index_map, W.dofmap.index_map_bs
+    return f.x.array[: im.size_local * bs].reshape(im.size_local, bs).copy()
+
+
+def _gather_rows(comm, W, rows: np.ndarray) -> np.ndarray | None:
+    """Owned rows of every rank, in global DOF order, on rank 0 (None elsewhere)."""
+    parts = comm.gather((W.dofmap.index_map.local_range[0], rows), root=0)
+    if comm.rank:
+        return None
+    n = sum(len(r) for _, r in parts)
+    out = np.empty((n, *rows.shape[1:]), dtype=rows.dtype)
+    for start, r in parts:
+        out[start:start + len(r)] = r
+    return out
+
+
+def vtu_mesh(comm, W) -> tuple[np.ndarray, np.ndarray, str] | None:
+    """Points (the DOF coordinates of the mesh's coordinate space W), cells in VTK node order and the
+    meshio cell type, gathered on rank 0 (None elsewhere).  Point i is global DOF i of W."""
+    from dolfinx import cpp
+
+    mesh = W.mesh
+    im = W.dofmap.index_map
+    points = _gather_rows(comm, W, W.tabulate_dof_coordinates()[: im.size_local])
+    n_cells = mesh.topology.index_map(mesh.topology.dim).size_local
+    per_cell = W.dofmap.dof_layout.num_dofs
+    local = W.dofmap.list.array.reshape(-1, per_cell)[:n_cells]
+    glob = im.local_to_global(local.ravel().astype(np.int32)).reshape(local.shape)
+    vtk = np.empty_like(glob)
+    vtk[:, cpp.io.perm_vtk(mesh.topology.cell_type, per_cell)] = glob
+    cells = comm.gather(vtk, root=0)
+    if comm.rank:
+        return None
+    return points, np.concatenate(cells), {4: "tetra", 10: "tetra10"}[per_cell]
+
+
+def field_rows(V, vectors, scalar: bool = False):
+    """Interpolate PETSc vectors (or Functions, or arrays of owned values) on V into the coordinate space W; yields W and then
+    the owned rows (n_owned, 3 or 1) of each."""
+    from dolfinx import fem
+
+    W = _coordinate_space(V, scalar)
+    yield W
+    src, dst = fem.Function(V), fem.Function(W)
+    for vec in vectors:
+        if isinstance(vec, fem.Function):
+            dst.interpolate(vec)
+        elif isinstance(vec, np.ndarray):          # owned values on V
+            src.x.array[: len(vec)] = vec
+            src.x.scatter_forward()
+            dst.interpolate(src)
+        else:
+            src.x.array[: vec.getLocalSize()] = vec.array_r
+            src.x.scatter_forward()
+            dst.interpolate(src)
+        yield _owned_values(W, dst)
+
+
+def write_vtu(comm, path: Path, V, point_data: dict[str, object], field_data: dict | None = None,
+              scalars: dict[str, object] | None = None) -> None:
+    """One VTU file (meshio, rank 0, atomic) with vector fields ``point_data`` (PETSc vectors or
+    Functions on V) and scalar Functions ``scalars``, on the mesh's coordinate nodes (curved P2
+    geometry as tetra10).  ``field_data``: name -> numbers (e.g. the frequencies)."""
+    import meshio
+
+    rows = field_rows(V, point_data.values())
+    W = next(rows)
+    layout = vtu_mesh(comm, W)
+    data = {name: _gather_rows(comm, W, r) for name, r in zip(point_data, rows)}
+    for name, f in (scalars or {}).items():
+        srows = field_rows(f.function_space, [f], scalar=True)
+        gathered = _gather_rows(comm, next(srows), next(srows))
+        if gathered is not None:
+            data[name] = gathered[:, 0]
+    if comm.rank == 0:
+        points, cells, kind = layout
+        with atomic_path(path) as tmp:
+            meshio.write(tmp, meshio.Mesh(points, [(kind, cells)], point_data=data), file_format="vtu")
+            add_vtu_field_data(tmp, field_data or {})
+    comm.barrier()
+
+
+def add_vtu_field_data(path: Path, arrays: dict[str, object]) -> None:
+    """Add ``<FieldData>`` arrays (name -> numbers) to a VTU file; meshio 7.0 reads them but cannot
+    write them."""
+    from xml.sax.saxutils import quoteattr
+
+    if not arrays:
+        return
+    body = []
+    for name, values in arrays.items():
+        v = np.atleast_1d(np.asarray(values))
+        kind = "Int64" if np.issubdtype(v.dtype, np.integer) else "Float64"
+        text = " ".join(str(int(x)) if kind == "Int64" else repr(float(x)) for x in v.ravel())
+        body.append(f'<DataArray type="{kind}" Name={quoteattr(name)} NumberOfTuples="{v.size}" '
+                    f'format="ascii">{text}</DataArray>\n')
+    text = Path(path).read_text()
+    i = text.index(">", text.index("<UnstructuredGrid")) + 1
+    Path(path).write_text(text[:i] + "\n<FieldData>\n" + "".join(body) + "</FieldData>" + text[i:])
+
+
+def write_basis_field(comm, path: Path, V, Phi: np.ndarray) -> None:
+    """The basis Φ (owned rows on V, one column per vector) on the mesh's coordinate nodes, for
+    field snapshots u = Φ q without dolfinx: ``points``, ``cells``, ``kind`` and ``phi`` (n_points,
+    3, m) in float32 (visualisation accuracy), written by rank 0 atomically."""
+    rows = field_rows(V, (np.ascontiguousarray(Phi[:, j]) for j in range(Phi.shape[1])))
+    W = next(rows)
+    layout = vtu_mesh(comm, W)
+    cols = [_gather_rows(comm, W, r.astype(np.float32)) for r in rows]
+    if comm.rank == 0:
+        points, cells, kind = layout
+        write_npz_atomic(path, {"points": points, "cells": cells, "kind": np.array(kind),
+                                "phi": np.stack(cols, axis=2)})
+
+
+def write_snapshots(path: Path, basis_field: dict, times: np.ndarray, q: np.ndarray, q_ref: np.ndarray) -> None:
+    """Displacement snapshots u_k = Φ (q_k − q_ref) as ``<path>.vtu`` (point data u_<k>, times in the
+    field data) and an XDMF time series ``<path>.xdmf``/``.h5`` (meshio, one process, atomic)."""
+    import meshio
+
+    phi = basis_field["phi"]
+    cells = [(str(basis_field["kind"]), basis_field["cells"])]
+    u = [np.einsum("pcm,m->pc", phi, qk - q_ref) for qk in q]
+    with atomic_path(path.with_suffix(".vtu")) as tmp:
+        mesh = meshio.Mesh(basis_field["points"], cells, point_data={f"u_{k}": uk for k, uk in enumerate(u)})
+        meshio.write(tmp, mesh, file_format="vtu")
+        add_vtu_field_data(tmp, {"time": times})
+    tmpdir = Path(tempfile.mkdtemp(prefix=".snapshots.", dir=path.parent))
+    try:
+        xdmf = tmpdir / path.with_suffix(".xdmf").name
+        with meshio.xdmf.TimeSeriesWriter(xdmf) as w:
+            w.write_points_cells(basis_field["points"], cells)
+            for t, uk in zip(times, u):
+                w.write_data(float(t), point_data={"u": uk})
+        for p in tmpdir.iterdir():
+            os.replace(p, path.parent / p.name)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)

@@ -73,7 +73,12 @@ def _reduced_inputs(scene: dict) -> dict:
 
     _, checks, samples, parts = basis_design(scene, model_spec(scene))
     return {"reduced": scene["analyses"]["reduced"], "checks": checks, "samples": samples, "parts": parts,
-            "extra_vectors": extra_vector_settings(scene)}
+            "extra_vectors": extra_vector_settings(scene), "field_basis": field_basis_needed(scene)}
+
+
+def field_basis_needed(scene: dict) -> bool:
+    """The transient writes snapshots, so the reduced stage keeps Φ on the mesh nodes (basis_field.npz)."""
+    return scene["analyses"].get("transient", {}).get("snapshots", 0) > 0
 
 
 def extra_vector_settings(scene: dict) -> list | None:
@@ -118,7 +123,7 @@ STAGES: dict[str, Stage] = {s.name: s for s in (
           "modal amplitude stability analysis"),
     Stage("transient", ("reduced",), lambda s: {"transient": s["analyses"]["transient"],
                                                 "band": s["analyses"]["reduced"]["band_hz"]},
-          "nonlinear transient of the reduced model"),
+          "nonlinear transient of the reduced model", fields=True),
     Stage("limit_cycle", ("transient",), _analysis("limit_cycle"),
           "limit cycle, space-time SVD, MAC, dynamic stability, mode cycles"),
     Stage("segmented_pad", (), _analysis("segmented_pad"), "lumped segmented pad (seed 004)"),

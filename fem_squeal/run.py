@@ -42,7 +42,9 @@ limit_cycle      limit_cycle {saturated, frequency_hz, amplitude, t_saturation, 
 segmented_pad    runs [{kind, speed, v_s, v_d, regimes, regime, fractions (time shares of s < v_s,
                  v_s ≤ s < v_d, s ≥ v_d per element), s_min (per element) [m/s], steps}], seconds
 
-Files: real_modes.xdmf, complex_modes.xdmf (mode_re, mode_im), preload.xdmf
+Files: real_modes.xdmf, complex_modes.xdmf (mode_re, mode_im), preload.xdmf, and the same fields
+as VTU (meshio; real_modes.vtu mode_<j>, complex_modes.vtu mode_<j>_re/_im, preload.vtu; frequencies
+in the field data) for tools other than ParaView
 (preload_displacement, contact_pressure), contact_pressure.png; reduced_model.npz,
 sweep.json, root_locus.png, complex_plane.png, stability_map.npz/png (fem_squeal.studies).
 """
@@ -91,7 +93,7 @@ def _preload_outputs(comm, outdir: Path, ops, pre, write_fields: bool, title: st
 
     from fem_squeal import plots
     from fem_squeal.interface import project_to_nodes
-    from fem_squeal.output import write_fields_xdmf
+    from fem_squeal.output import write_fields_xdmf, write_vtu
 
     summary: dict[str, Any] = {}
     plot_data = {}
@@ -124,6 +126,7 @@ def _preload_outputs(comm, outdir: Path, ops, pre, write_fields: bool, title: st
         u.x.array[: pre.u.getLocalSize()] = pre.u.array_r
         u.x.scatter_forward()
         write_fields_xdmf(comm, outdir / "preload.xdmf", {"preload_displacement": u, "contact_pressure": p_h})
+        write_vtu(comm, outdir / "preload.vtu", V, {"preload_displacement": u}, scalars={"contact_pressure": p_h})
     return summary
 
 
@@ -165,7 +168,8 @@ def stage_mesh(ctx: Context, work: Path, timings: dict) -> dict:
     if md.info:
         out["import"] = md.info
         q = md.info["quality"]
-        ctx.say(f"[fem_squeal] mesh file {Path(md.info['file']).name} ({md.info['format']}): {md.info['elements']} "
+        ctx.say(f"[fem_squeal] mesh file {Path(md.info['file']).name} ({md.info['format']}): "
+                f"{md.info['elements']} "
                 f"{md.info['element']}, worst aspect ratio {q['worst_aspect_ratio']:.3g}, min Jacobian ratio "
                 f"{q['min_jacobian_ratio']:.3g}")
         for w in md.info["warnings"]:
@@ -234,7 +238,7 @@ def stage_preload(ctx: Context, work: Path, timings: dict) -> dict:
 
 def stage_real_modes(ctx: Context, work: Path, timings: dict) -> dict:
     from fem_squeal.eigen import solve_real_modes
-    from fem_squeal.output import write_modes_xdmf
+    from fem_squeal.output import write_modes_xdmf, write_vtu
 
     ops, basis = ctx.products["linear"], ctx.products["basis"]
     a = ctx.scene["analyses"]["real_modes"]
@@ -250,13 +254,15 @@ def stage_real_modes(ctx: Context, work: Path, timings: dict) -> dict:
     ctx.say(f"[fem_squeal] real modes: {len(rows)} in {timings['real_modes']:.2f} s")
     if ctx.write_fields:
         write_modes_xdmf(ctx.comm, work / "real_modes.xdmf", ops.V, [(x, None) for x in rm.vectors])
+        write_vtu(ctx.comm, work / "real_modes.vtu", ops.V, {f"mode_{j}": x for j, x in enumerate(rm.vectors)},
+                  {"freq_hz": rm.freqs_hz})
     return {"real_modes": rows}
 
 
 def stage_cea(ctx: Context, work: Path, timings: dict) -> dict:
     from fem_squeal.descriptors import strain_energy_shares
     from fem_squeal.eigen import solve_complex_modes
-    from fem_squeal.output import write_modes_xdmf
+    from fem_squeal.output import write_modes_xdmf, write_vtu
 
     ops, basis, scene = ctx.products["linear"], ctx.products["basis"], ctx.scene
     a = scene["analyses"]["cea"]
@@ -281,6 +287,9 @@ def stage_cea(ctx: Context, work: Path, timings: dict) -> dict:
             f"{n_unstable} unstable, {timings['cea']:.2f} s")
     if ctx.write_fields:
         write_modes_xdmf(ctx.comm, work / "complex_modes.xdmf", ops.V, fields)
+        write_vtu(ctx.comm, work / "complex_modes.vtu", ops.V,
+                  {f"mode_{j}_{part}": x for j, pair in enumerate(fields) for part, x in zip(("re", "im"), pair)},
+                  {"freq_hz": [r["freq_hz"] for r in rows], "real_part": [r["real_part"] for r in rows]})
     return {"complex_modes": rows, "n_unstable": n_unstable, "cea_method": cm.method}
 
 

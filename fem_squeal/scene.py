@@ -163,7 +163,8 @@ GEOMETRY = {
     "brake_corner": _brake_corner_fields(),
     "mesh_file": {
         "builder": Field(str),
-        "file": Field(str, check=nonempty_str, doc="mesh file (.msh, .inp, .bdf/.nas, .vtu), relative to the scene"),
+        "file": Field(str, check=nonempty_str,
+                      doc="mesh file (.msh, .inp, .bdf/.nas, .vtu), relative to the scene"),
         "format": Field(str, "", None, "meshio format name; '' = from the extension"),
         "scale": Field(REAL, 1.0, positive, "length factor to metres (0.001 for a mesh in mm)"),
         "center": Field(list, [0.0, 0.0, 0.0], None, "a point of the disc axis, after scaling [m]"),
@@ -350,6 +351,9 @@ ANALYSES = {
         "amplitude": Field(REAL, 1e-3, positive, "initial push along the most unstable mode [× static closure]"),
         "record_every": Field(int, 10, positive, "record every k steps"),
         "checkpoint_every": Field(int, 20000, non_negative, "checkpoint every k steps (0 = at the end only)"),
+        "snapshots": Field(int, 0, non_negative, "displacement fields Φ(q − q_static) written to "
+                           "transient_snapshots.vtu/.xdmf, evenly over the last snapshot_window (0 = none)"),
+        "snapshot_window": Field(REAL, 0.0, non_negative, "time span of the snapshots [s] (0 = the whole run)"),
     },
     "limit_cycle": {
         "cycles": Field(REAL, 2.0, positive, "periods analysed at the end of the run (SVD window)"),
@@ -632,6 +636,9 @@ def _check_reduced(scene: dict, volumes) -> None:
         t = ana["transient"]
         if t["dt"] >= t["t_end"]:
             raise SceneError(f"analyses.transient.dt: must be < t_end = {t['t_end']} (got {t['dt']})")
+        if t["snapshot_window"] > t["t_end"]:
+            raise SceneError(f"analyses.transient.snapshot_window: must be <= t_end = {t['t_end']} "
+                             f"(got {t['snapshot_window']})")
         if t["friction"] == "stribeck" and t["v_d"] <= t["v_s"]:
             raise SceneError(f"analyses.transient.v_d: must be > v_s = {t['v_s']} (got {t['v_d']})")
     if "map" in ana:
@@ -703,7 +710,8 @@ def read_scene(path: str | Path, _seen: tuple = ()) -> dict:
     if base_path in _seen or base_path == path.resolve():
         raise SceneError(f"extends: {base} is extended in a cycle")
     base_raw = read_scene(base_path, (*_seen, path.resolve()))
-    if isinstance(geo, dict) and "builder" in geo and geo["builder"] != base_raw.get("geometry", {}).get("builder"):
+    base_builder = base_raw.get("geometry", {}).get("builder")
+    if isinstance(geo, dict) and "builder" in geo and geo["builder"] != base_builder:
         base_raw.pop("geometry", None)      # another builder: its parameters replace the base's
     return merge(base_raw, raw)
 

@@ -116,7 +116,8 @@ def band_and_growth_tol(scene: dict) -> tuple[tuple[float, float], float]:
 
 def stage_reduced(ctx, work: Path, timings: dict) -> dict[str, Any]:
     """analyses.reduced: the basis grown to ``tol`` about the preload; ``reduced_model.npz``."""
-    from fem_squeal.pipeline import extra_vector_settings
+    from fem_squeal.output import write_basis_field
+    from fem_squeal.pipeline import extra_vector_settings, field_basis_needed
     from fem_squeal.reduction import ParametricOperators, adaptive_reduce
 
     scene, spec, comm, say = ctx.scene, ctx.spec, ctx.comm, ctx.say
@@ -136,6 +137,8 @@ def stage_reduced(ctx, work: Path, timings: dict) -> dict[str, Any]:
     timings["reduced_basis"] = time.perf_counter() - t
     if comm.rank == 0:
         model.save(work / "reduced_model.npz")
+    if field_basis_needed(scene):
+        write_basis_field(comm, work / "basis_field.npz", ops.V, basis.Phi)
     out: dict[str, Any] = {"size": model.size, "parameters": model.parameters, "mu0": mu0, **report.as_dict()}
     say(f"[fem_squeal] reduced model: {model.size} vectors {basis.counts}, estimated error "
         f"{report.estimate:.1e}, {timings['reduced_basis']:.1f} s")

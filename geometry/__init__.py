@@ -10,7 +10,8 @@ from pathlib import Path
 from geometry.annular_disc import annular_disc_mesh, annular_disc_model, build_annular_disc
 from geometry.brake_corner import BrakeCornerParams, brake_corner_mesh, brake_corner_model, build_brake_corner
 from geometry.gmsh_io import MeshData, to_dolfinx, write_msh
-from geometry.mesh_file import convert, mesh_file_mesh
+from geometry.mesh_convert import convert
+from geometry.mesh_file import mesh_file_mesh
 
 BUILDERS = {"annular_disc": annular_disc_mesh, "brake_corner": brake_corner_mesh, "mesh_file": mesh_file_mesh}
 MODELS = {"annular_disc": annular_disc_model, "brake_corner": brake_corner_model}

@@ -103,7 +103,8 @@ def read_mesh_file(path: str | Path, fmt: str = "", id_field: str = "") -> MeshF
             warnings.simplefilter("ignore")
             m = meshio.read(path, file_format=fmt)
     except Exception as e:  # meshio raises ReadError, KeyError, ValueError, AssertionError ...
-        raise MeshImportError(f"geometry.file: cannot read {path.name} as {fmt}: {type(e).__name__}: {e}") from None
+        raise MeshImportError(f"geometry.file: cannot read {path.name} as {fmt}: "
+                              f"{type(e).__name__}: {e}") from None
 
     volume_blocks = [i for i, b in enumerate(m.cells) if b.type in TETRA]
     other = sorted({b.type for b in m.cells if b.type in OTHER_VOLUMES or b.type.startswith("polyhedron")})
@@ -271,7 +272,8 @@ def _check_abaqus(path: Path) -> None:
     instances = sum(1 for kw, _, _ in _abaqus_keywords(path) if kw == "INSTANCE")
     if nodes > 1 or instances:
         raise MeshImportError(f"geometry.file: {path.name} is an Abaqus assembly ({nodes} *NODE blocks, "
-                              f"{instances} *INSTANCE); write a flat input file (one *NODE block, no parts/instances)")
+                              f"{instances} *INSTANCE); write a flat input file (one *NODE block, "
+                              "no parts/instances)")
 
 
 def _abaqus_surfaces(path: Path, mf: MeshFile) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -315,7 +317,8 @@ def _abaqus_surfaces(path: Path, mf: MeshFile) -> tuple[np.ndarray, dict[str, np
         for ref, label in rows:
             lab = label.upper()
             if not re.fullmatch(r"S[1-4]", lab):
-                raise MeshImportError(f"geometry.file: *SURFACE {name}: face label {label!r}; tetrahedra have S1-S4")
+                raise MeshImportError(f"geometry.file: *SURFACE {name}: face label {label!r}; "
+                                      "tetrahedra have S1-S4")
             elems = [int(ref)] if ref.lstrip("-").isdigit() else elsets.get(ref.upper())
             if elems is None:
                 raise MeshImportError(f"geometry.file: *SURFACE {name}: unknown element set {ref!r}")
@@ -340,7 +343,7 @@ def _hypermesh_names(path: Path) -> dict[str, str]:
     return names
 
 
-def _lookup(name, table: dict, what: str):
+def _lookup(name, table: dict):
     """``table[name]``: exact, else the one case-insensitive match (Abaqus names are case-insensitive)."""
     key = str(name)
     if key in table:
@@ -358,7 +361,7 @@ def map_sets(mf: MeshFile, parts: dict[str, list], faces: dict[str, list]) -> Ma
     cell_values = np.zeros(len(mf.cells), dtype=np.int32)
     for part, sets in parts.items():
         for s in sets:
-            idx = _lookup(s, mf.cell_sets, "cells")
+            idx = _lookup(s, mf.cell_sets)
             if idx is None:
                 raise MeshImportError(f"geometry.parts.{part}: no element set {s!r} in the file; available: "
                                       f"{avail_cells}")
@@ -384,9 +387,9 @@ def map_sets(mf: MeshFile, parts: dict[str, list], faces: dict[str, list]) -> Ma
     for face, sets in faces.items():
         chosen: set[tuple[int, int]] = set()
         for s in sets:
-            surf = _lookup(s, mf.surfaces, "surfaces")
+            surf = _lookup(s, mf.surfaces)
             if surf is None:
-                nodes = _lookup(s, mf.node_sets, "nodes")
+                nodes = _lookup(s, mf.node_sets)
                 if nodes is None:
                     raise MeshImportError(f"geometry.faces.{face}: no surface or node set {s!r} in the file; "
                                           f"available: {avail_faces}")
@@ -526,148 +529,3 @@ def mesh_file_mesh(comm: MPI.Comm, *, file: str, parts: dict[str, list], faces: 
             warnings.warn(w, stacklevel=2)
     md = distribute(comm, mapped)
     return md._replace(info=info)
-
-
-def _partition(sets: dict[str, np.ndarray], key) -> tuple[dict[str, np.ndarray], list[str]]:
-    """Disjoint sets for formats that give each element one number: named sets first, then numbered
-    ones; a set equal to one already kept (a number aliasing a name) is dropped silently, one that
-    overlaps partly is dropped with a warning."""
-    kept: dict[str, np.ndarray] = {}
-    used: set = set()
-    dropped = []
-    for name in sorted(sets, key=lambda n: (n.isdigit(), int(n) if n.isdigit() else 0, n)):
-        members = {key(r) for r in sets[name]}
-        if any(members == {key(r) for r in v} for v in kept.values()):
-            continue
-        if members & used:
-            dropped.append(name)
-            continue
-        kept[name] = sets[name]
-        used |= members
-    return kept, dropped
-
-
-def _numbers(names: list[str], start: int, taken: set[int]) -> dict[str, int]:
-    """Set numbers: a numeric name keeps its number, the others get the next free ones."""
-    out = {n: int(n) for n in names if n.isdigit()}
-    taken = taken | set(out.values())
-    nxt = start
-    for n in names:
-        if n not in out:
-            while nxt in taken:
-                nxt += 1
-            out[n] = nxt
-            taken.add(nxt)
-    return out
-
-
-def write_mesh_file(mf: MeshFile, path: str | Path, fmt: str = "") -> list[str]:
-    """Write ``mf`` with its sets: Abaqus ELSET/NSET/*SURFACE; gmsh physical groups (named); Nastran
-    property IDs (CTETRA, CTRIA3/6 for surfaces) with ``$HMNAME COMP`` names; VTU integer cell data
-    ``set_id`` with the names in field data.  Node sets become surfaces where a format has none.
-    Written atomically.  Returns warnings about sets that could not be kept."""
-    import meshio
-
-    from fem_squeal.output import atomic_path
-
-    path = Path(path)
-    fmt = file_format(path, fmt)
-    tet = "tetra10" if mf.degree == 2 else "tetra"
-    tri = "triangle6" if mf.degree == 2 else "triangle"
-    warns: list[str] = []
-    surfaces = dict(mf.surfaces)
-    if fmt != "abaqus":
-        index = _FaceIndex(mf.cells)
-        for name, nodes in mf.node_sets.items():
-            if name in surfaces:
-                continue
-            faces = index.of_nodes(nodes)
-            if len(faces):
-                surfaces[name] = faces
-            else:
-                warns.append(f"node set {name!r} covers no boundary face; {fmt} has no node sets, dropped")
-    if fmt == "abaqus":
-        cell_sets = {n: v for n, v in mf.cell_sets.items()
-                     if not (n.isdigit() and any(k != n and np.array_equal(v, w) for k, w in mf.cell_sets.items()))}
-        mesh = meshio.Mesh(mf.points, [(tet, mf.cells)], cell_sets={n: [v] for n, v in cell_sets.items()},
-                           point_sets=dict(mf.node_sets))
-        surf_kept = {n: v for n, v in surfaces.items()
-                     if not (n.isdigit() and any(k != n and np.array_equal(v, w) for k, w in surfaces.items()))}
-        with atomic_path(path) as tmp:
-            meshio.write(tmp, mesh, file_format="abaqus")
-            text = Path(tmp).read_text()    # meshio 7.0 names tetra10 C3D10MH (hybrid); the plain element is C3D10
-            Path(tmp).write_text(text.replace("*ELEMENT, TYPE=C3D10MH\n", "*ELEMENT, TYPE=C3D10\n"))
-            with open(tmp, "a") as f:
-                for name, pairs in surf_kept.items():
-                    f.write(f"*SURFACE, NAME={name}, TYPE=ELEMENT\n")
-                    for c, face in pairs:
-                        f.write(f"{c + 1}, S{face + 1}\n")
-        return warns
-    cell_sets, dropped = _partition(mf.cell_sets, int)
-    warns += [f"element set {n!r} overlaps another set; {fmt} gives each element one number, dropped" for n in dropped]
-    surf_sets, dropped = _partition(surfaces, lambda r: (int(r[0]), int(r[1])))
-    warns += [f"surface {n!r} overlaps another surface; {fmt} gives each face one number, dropped" for n in dropped]
-    cell_no = _numbers(list(cell_sets), 1, set())
-    surf_no = _numbers(list(surf_sets), max(cell_no.values(), default=0) + 1, set(cell_no.values()))
-    cell_ids = np.zeros(len(mf.cells), dtype=np.int64)
-    for n, idx in cell_sets.items():
-        cell_ids[idx] = cell_no[n]
-    tris = [_facet_nodes(mf.cells[c], f) for n in surf_sets for c, f in surf_sets[n]]
-    tri_ids = np.concatenate([np.full(len(surf_sets[n]), surf_no[n]) for n in surf_sets] or [np.zeros(0, np.int64)])
-    blocks = [(tet, mf.cells)] + ([(tri, np.asarray(tris))] if tris else [])
-    ids = [cell_ids] + ([tri_ids.astype(np.int64)] if tris else [])
-    names = {**{n: (cell_no[n], 3) for n in cell_sets}, **{n: (surf_no[n], 2) for n in surf_sets}}
-    if fmt == "gmsh":
-        mesh = meshio.Mesh(mf.points, blocks, cell_data={"gmsh:physical": ids, "gmsh:geometrical": ids},
-                           field_data={n: np.array([t, d]) for n, (t, d) in names.items() if not n.isdigit()})
-        with atomic_path(path) as tmp:
-            meshio.write(tmp, mesh, file_format="gmsh22", binary=False)   # 4.1 needs entities
-    elif fmt == "nastran":
-        import meshio.nastran._nastran as nastran
-
-        mesh = meshio.Mesh(mf.points, blocks, cell_data={"nastran:ref": ids})
-        original = nastran._float_to_nastran_string
-        nastran._float_to_nastran_string = _nastran_float    # meshio 7.0's fails on negative numbers
-        try:
-            with atomic_path(path) as tmp:
-                meshio.write(tmp, mesh, file_format="nastran")
-                text = Path(tmp).read_text()
-                head = "".join(f'$HMNAME COMP {t:>16d}"{n}"\n' for n, (t, _) in names.items() if not n.isdigit())
-                Path(tmp).write_text(text.replace("BEGIN BULK\n", "BEGIN BULK\n" + head, 1))
-        finally:
-            nastran._float_to_nastran_string = original
-    else:
-        mesh = meshio.Mesh(mf.points, blocks, cell_data={"set_id": ids})
-        with atomic_path(path) as tmp:
-            meshio.write(tmp, mesh, file_format=fmt)
-            if fmt == "vtu":    # meshio 7.0 reads VTU field data but does not write it
-                _vtu_field_data(tmp, {n: v for n, v in names.items() if not n.isdigit()})
-    return warns
-
-
-def _nastran_float(value: float, length: int = 16) -> str:
-    """A large-field real (``GRID*``): the most digits that fit in ``length`` characters."""
-    for precision in range(length - 5, 0, -1):
-        out = np.format_float_scientific(value, exp_digits=1, precision=precision).replace("e", "E")
-        if len(out) <= length:
-            return out
-    raise ValueError(f"cannot write {value} in {length} characters")
-
-
-def _vtu_field_data(path: Path, names: dict[str, tuple[int, int]]) -> None:
-    """Add ``<FieldData>`` with the set names (name -> [number, dim], as gmsh) to a VTU file."""
-    from xml.sax.saxutils import quoteattr
-
-    arrays = "".join(f'<DataArray type="Int64" Name={quoteattr(n)} NumberOfTuples="2" format="ascii">{t} {d}'
-                     "</DataArray>\n" for n, (t, d) in names.items())
-    text = Path(path).read_text()
-    i = text.index(">", text.index("<UnstructuredGrid")) + 1
-    Path(path).write_text(text[:i] + "\n<FieldData>\n" + arrays + "</FieldData>" + text[i:])
-
-
-def convert(src: str | Path, dst: str | Path, *, scale: float = 1.0, fmt_in: str = "", fmt_out: str = "",
-            id_field: str = "") -> tuple[MeshFile, list[str]]:
-    """Read ``src`` and write ``dst`` with the same sets, coordinates multiplied by ``scale``."""
-    mf = read_mesh_file(src, fmt_in, id_field)
-    mf.points = mf.points * scale
-    return mf, write_mesh_file(mf, dst, fmt_out)

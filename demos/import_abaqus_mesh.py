@@ -68,8 +68,8 @@ for part, v in exact.items():
     if abs(vol / v - 1) > 5e-4:
         failures.append(f"{part}: volume {vol:.6e} m³ against the exact {v:.6e} m³")
 
-native_scene = load_scene(args.root / "scenes" / "brake_corner_cea.toml",
-                          ["geometry.mesh_size=0.016", *[s for s in args.overrides if not s.startswith("geometry.")]])
+physics = [s for s in args.overrides if not s.startswith("geometry.")]
+native_scene = load_scene(args.root / "scenes" / "brake_corner_cea.toml", ["geometry.mesh_size=0.016", *physics])
 native = run_scene(native_scene, args.outdir / "native", comm, write_fields=False, report=False)
 lam = np.array([complex(m["real_part"], 2 * np.pi * m["freq_hz"]) for m in modes])
 ref = np.array([complex(m["real_part"], 2 * np.pi * m["freq_hz"]) for m in native["complex_modes"]])

@@ -196,8 +196,8 @@ def vtu_mesh(comm, W) -> tuple[np.ndarray, np.ndarray, str] | None:
 
 
 def field_rows(V, vectors, scalar: bool = False):
-    """Interpolate PETSc vectors (or Functions, or arrays of owned values) on V into the coordinate space W; yields W and then
-    the owned rows (n_owned, 3 or 1) of each."""
+    """Interpolate PETSc vectors (or Functions, or arrays of owned values) on V into the coordinate
+    space W; yields W, then the owned rows (n_owned, 3 or 1) of each."""
     from dolfinx import fem
 
     W = _coordinate_space(V, scalar)

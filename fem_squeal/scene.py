@@ -197,6 +197,8 @@ def _check_mesh_file(geo: dict) -> None:
             raise SceneError(f"geometry.{key}: must be [x, y, z] (got {v!r})")
     if math.hypot(*geo["axis"]) == 0:
         raise SceneError("geometry.axis: must not be zero")
+    if len(geo["parts"]) > 100:
+        raise SceneError(f"geometry.parts: at most 100 parts (got {len(geo['parts'])})")
     geo["parts"] = _set_lists(geo["parts"], "parts")
     geo["faces"] = _set_lists(geo["faces"], "faces")
     clash = sorted(set(geo["parts"]) & set(geo["faces"]))

@@ -30,6 +30,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from fem_squeal.parallel import on_root
 from fem_squeal.reduced.eigensolve import TWO_PI
 
 
@@ -123,8 +124,8 @@ def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
     a = ctx.scene["analyses"]["transient"]
     band = tuple(ctx.scene["analyses"]["reduced"]["band_hz"])
     comm, say = ctx.comm, ctx.say
-    out: dict[str, Any] | None = None
-    if comm.rank == 0:
+
+    def compute() -> dict[str, Any]:
         t0 = time.perf_counter()
         dm, integ, qs, lam, Y, unstable, i, y = brake_start(ctx.reduced_model(), a, band)
         closure = static_closure(dm, qs)
@@ -176,8 +177,9 @@ def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
                "friction_work": float(res.energy["W_friction"][-1])}
         say(f"[fem_squeal] transient: {st['steps']} steps in {wall:.1f} s ({out['ms_per_step']:.3f} ms/step, "
             f"{out['iterations_per_step']:.2f} Newton iterations/step), energy balance {leak:.1e}")
-    out = comm.bcast(out, root=0)
-    return {"transient": out}
+        return out
+
+    return {"transient": on_root(comm, compute)}
 
 
 def write_transient_snapshots(ctx, work: Path, a: dict, res, qs: np.ndarray) -> None:
@@ -221,8 +223,8 @@ def _stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
     ta = ctx.scene["analyses"]["transient"]
     band = tuple(ctx.scene["analyses"]["reduced"]["band_hz"])
     comm = ctx.comm
-    out: dict[str, Any] | None = None
-    if comm.rank == 0:
+
+    def compute() -> dict[str, Any]:
         t0 = time.perf_counter()
         rm = ctx.reduced_model()
         dm, integ, qs, lam, Y, unstable, i, y = brake_start(rm, ta, band)
@@ -285,8 +287,9 @@ def _stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
         ctx.say(f"[fem_squeal] limit cycle: saturated {lc.saturated}, {lc.frequency_hz:.0f} Hz, amplitude "
                 f"{lc.amplitude * 1e6:.3g} µm; SVD shape 1 lies {100 * best[0]['plane_share']:.0f} % in the plane "
                 f"of the {best[0]['freq_hz']:.0f} Hz mode (MAC {best[0]['mac']:.2f})")
-    out = comm.bcast(out, root=0)
-    return {"limit_cycle": out}
+        return out
+
+    return {"limit_cycle": on_root(comm, compute)}
 
 
 def pad_parameters(a: dict):

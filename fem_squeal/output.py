@@ -276,7 +276,7 @@ def write_basis_field(comm, path: Path, V, Phi: np.ndarray) -> None:
 
 def write_snapshots(path: Path, basis_field: dict, times: np.ndarray, q: np.ndarray, q_ref: np.ndarray) -> None:
     """Displacement snapshots u_k = Φ (q_k − q_ref) as ``<path>.vtu`` (point data u_<k>, times in the
-    field data) and an XDMF time series ``<path>.xdmf``/``.h5`` (meshio, one process, atomic)."""
+    field data) and an XDMF time series ``<path>.xdmf`` (meshio, data inline; one process, atomic)."""
     import meshio
 
     phi = basis_field["phi"]
@@ -286,14 +286,9 @@ def write_snapshots(path: Path, basis_field: dict, times: np.ndarray, q: np.ndar
         mesh = meshio.Mesh(basis_field["points"], cells, point_data={f"u_{k}": uk for k, uk in enumerate(u)})
         meshio.write(tmp, mesh, file_format="vtu")
         add_vtu_field_data(tmp, {"time": times})
-    tmpdir = Path(tempfile.mkdtemp(prefix=".snapshots.", dir=path.parent))
-    try:
-        xdmf = tmpdir / path.with_suffix(".xdmf").name
-        with meshio.xdmf.TimeSeriesWriter(xdmf) as w:
+    # inline XML data: meshio 7.0's HDF5 variant needs h5py and writes the .h5 into the working folder
+    with atomic_path(path.with_suffix(".xdmf")) as tmp:
+        with meshio.xdmf.TimeSeriesWriter(tmp, data_format="XML") as w:
             w.write_points_cells(basis_field["points"], cells)
             for t, uk in zip(times, u):
                 w.write_data(float(t), point_data={"u": uk})
-        for p in tmpdir.iterdir():
-            os.replace(p, path.parent / p.name)
-    finally:
-        shutil.rmtree(tmpdir, ignore_errors=True)

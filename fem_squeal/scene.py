@@ -53,7 +53,8 @@ analyses.transient   omega [rad/s], t_end, dt [s], alpha (HHT), rtol, tangent, a
                      ("constant" | "stribeck" | "coulomb") with mu_s, mu_d, v_s, v_d, k_t, c_t;
                      cubic_share, contact_damping, patches, attachments (as masa), f_cut_hz,
                      zeta_cut, amplitude (initial push [× static closure]), record_every,
-                     checkpoint_every: nonlinear transient of the reduced brake (seed 002; pulls in
+                     checkpoint_every, snapshots, snapshot_window (displacement fields as VTU and
+                     XDMF): nonlinear transient of the reduced brake (seed 002; pulls in
                      analyses.reduced)
 analyses.limit_cycle cycles, svd_shapes, stability_samples, mode_cycle_amplitudes,
                      mode_cycle_samples: post-processing of the transient (seed 002 §3-4)
@@ -207,8 +208,8 @@ def _check_mesh_file(geo: dict) -> None:
     from geometry.mesh_file import MeshImportError, file_format
 
     if not Path(geo["file"]).is_file():
-        raise SceneError(f"geometry.file: {geo['file']} does not exist (a relative path is taken from the "
-                         "scene file's folder)")
+        raise SceneError(f"geometry.file: {geo['file']} does not exist (a relative path in a scene file is "
+                         "taken from its folder, in --set from the current folder)")
     try:
         file_format(Path(geo["file"]), geo["format"])
     except MeshImportError as e:

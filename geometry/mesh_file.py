@@ -90,18 +90,22 @@ def file_format(path: Path, fmt: str = "") -> str:
 def read_mesh_file(path: str | Path, fmt: str = "", id_field: str = "") -> MeshFile:
     """Read a tetrahedral mesh and its sets; ``id_field`` names the integer cell data that holds set
     numbers (default: ``nastran:ref`` or ``gmsh:physical``, else the only integer cell data)."""
-    import meshio
-
     path = Path(path)
     if not path.is_file():
         raise MeshImportError(f"geometry.file: {path} does not exist")
     fmt = file_format(path, fmt)
     if fmt == "abaqus":
         _check_abaqus(path)
+    # meshio.read prints and calls sys.exit on a ReadError; its format readers raise
+    from meshio._helpers import reader_map
+
+    if fmt not in reader_map:
+        raise MeshImportError(f"geometry.format: unknown meshio format {fmt!r}; "
+                              f"e.g. {sorted(set(FORMATS.values()))}")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            m = meshio.read(path, file_format=fmt)
+            m = reader_map[fmt](str(path))
     except Exception as e:  # meshio raises ReadError, KeyError, ValueError, AssertionError ...
         raise MeshImportError(f"geometry.file: cannot read {path.name} as {fmt}: "
                               f"{type(e).__name__}: {e}") from None

@@ -233,3 +233,18 @@ def test_report_renders_in_headless_chromium(tmp_path):
     body = p.stdout[p.stdout.find("<body"):].split(">", 1)[0]
     assert 'data-images-total="2"' in body, p.stdout[:500] + p.stderr[-2000:]
     assert 'data-images-loaded="2"' in body
+
+
+@pytest.mark.mpi
+def test_a_rank0_failure_raises_on_every_rank(mpirun):
+    """on_root: an exception in rank 0's section reaches the other ranks instead of leaving them
+    in the next collective (which hung the transient stage when its snapshot writer failed)."""
+    code = ("from mpi4py import MPI\nfrom fem_squeal.parallel import on_root\n"
+            "comm = MPI.COMM_WORLD\nassert on_root(comm, lambda: comm.rank + 7) == 7\n"
+            "def bad():\n    raise KeyError('analyses.x')\n"
+            "try:\n    on_root(comm, bad)\nexcept KeyError as e:\n    print('rank', comm.rank, 'raised', e)\n"
+            "comm.barrier()\n")
+    p = subprocess.run(mpirun + [sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                       env=clean_env())
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert sorted(p.stdout.split("\n"))[-2:] == ["rank 0 raised 'analyses.x'", "rank 1 raised 'analyses.x'"]

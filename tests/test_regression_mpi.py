@@ -94,7 +94,7 @@ def test_scene_with_real_modes_and_damping_writes_all_outputs(tmp_path):
     assert np.allclose(shift, -1.0, atol=1e-3)
     assert sorted(p.name for p in (tmp_path / "u").iterdir()) == ["report.html", "results.json"]
     shutil.rmtree(tmp_path / "u")
-    assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "complex_modes.h5", "complex_modes.xdmf", "real_modes.h5", "real_modes.xdmf", "report.html",
-        "results.json"]
-    assert sorted(res["files"]) == ["complex_modes.h5", "complex_modes.xdmf", "real_modes.h5", "real_modes.xdmf"]
+    fields = ["complex_modes.h5", "complex_modes.vtu", "complex_modes.xdmf", "real_modes.h5", "real_modes.vtu",
+              "real_modes.xdmf"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*fields, "report.html", "results.json"])
+    assert sorted(res["files"]) == fields

@@ -86,6 +86,30 @@ def test_changing_a_limit_cycle_option_reruns_that_stage_only(results):
 
 
 @pytest.mark.mpi
+def test_fields_add_the_snapshots_without_a_new_reduced_model(results):
+    """With fields on, the transient reruns (its files change) and writes the scene's 20 snapshots
+    over the last 0.4 ms; the reduced model, which kept Φ on the nodes for them, is reused."""
+    base, mpirun, first = results
+    out = base / "out_fields"
+    sets = [a for s in COARSE for a in ("--set", s)]
+    cli = [sys.executable, "-m", "fem_squeal.cli", "--cache-dir", str(base / "cache")]
+    p = subprocess.run(mpirun + cli + ["run", str(SCENE), "-o", str(out), "--no-report", *sets],
+                       capture_output=True, text=True, timeout=900, env=clean_env())
+    assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
+    r = json.loads((out / "results.json").read_text())
+    status = {s["stage"]: s["status"] for s in r["stages"]}
+    assert status["reduced"] == "cached" and status["transient"] == "run"
+    assert r["transient"]["energy_leak"] == first["transient"]["energy_leak"]     # the same run
+    import meshio
+
+    snap = meshio.read(out / "transient_snapshots.vtu")
+    t = snap.field_data["time"]
+    assert len(t) == 20 and t[-1] == pytest.approx(0.003) and t[0] == pytest.approx(0.0026, abs=3e-6)
+    assert snap.cells[0].type == "tetra10" and snap.point_data["u_19"].shape == (len(snap.points), 3)
+    assert (out / "transient_snapshots.xdmf").exists()
+
+
+@pytest.mark.mpi
 def test_exponential_law_carries_the_preload(results):
     """Seed 002's exponential law on the same patches (λ = k_n/p̄, p₀ = p̄/e): at steady sliding
     each pad's normal force balances the brake load as in the full-order preload.  The piston

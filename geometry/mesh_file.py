@@ -218,17 +218,24 @@ class _FaceIndex:
         unique = np.ones(len(k), bool)
         unique[1:] &= ~same_next
         unique[:-1] &= ~same_next
-        self.interior = {tuple(r) for r in k[~unique]}
-        self.boundary = {tuple(r): divmod(int(i), 4) for r, i in zip(k[unique], order[unique])}
+        self._interior = k[~unique][::2]            # each interior face twice: keep one (sorted rows)
+        self.boundary = {tuple(r): divmod(int(i), 4) for r, i in zip(k[unique].tolist(), order[unique])}
+
+    def _is_interior(self, t: tuple) -> bool:
+        rows = [("a", self._interior.dtype), ("b", self._interior.dtype), ("c", self._interior.dtype)]
+        keys = np.ascontiguousarray(self._interior).view(rows).ravel()
+        i = int(np.searchsorted(keys, np.array([t], dtype=self._interior.dtype).view(rows).ravel())[0])
+        return i < len(keys) and tuple(self._interior[i].tolist()) == t
 
     def locate(self, triangles: np.ndarray, name: str) -> np.ndarray:
         """(cell, face) of each triangle given by its corner nodes."""
         out, missing, interior = [], 0, 0
-        for t in np.sort(np.asarray(triangles)[:, :3], axis=1):
+        for t in np.sort(np.asarray(triangles)[:, :3], axis=1).tolist():
             hit = self.boundary.get(tuple(t))
             if hit is None:
-                interior += tuple(t) in self.interior
-                missing += tuple(t) not in self.interior
+                inside = self._is_interior(tuple(t))
+                interior += inside
+                missing += not inside
                 continue
             out.append(hit)
         if interior:

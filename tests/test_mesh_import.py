@@ -378,3 +378,19 @@ def test_vtu_fields_and_snapshots_are_the_functions_at_the_nodes(tmp_path):
             r.read_points_cells()
             t, pd, _ = r.read_data(1)
         assert t == 0.2 and np.allclose(pd["u"][:, 1], 4 * y[:, 1] * y[:, 2], atol=1e-6 * np.abs(want).max())
+
+
+def test_skin_triangles_must_be_boundary_faces(ring):
+    from geometry.mesh_file import TET_FACES, _FaceIndex
+
+    _, mf = ring
+    index = _FaceIndex(mf.cells)
+    faces = mf.cells[:, :4][:, TET_FACES].reshape(-1, 3)
+    boundary = {tuple(sorted(f)) for f in index.boundary}
+    inner = next(f for f in faces if tuple(sorted(f)) not in boundary)
+    outer = next(f for f in faces if tuple(sorted(f)) in boundary)
+    assert index.locate(np.array([outer]), "s").shape == (1, 2)
+    with pytest.raises(MeshImportError, match="surface 's': 1 triangles lie between two tetrahedra"):
+        index.locate(np.array([outer, inner]), "s")
+    with pytest.raises(MeshImportError, match="surface 's': 1 triangles are not faces of any tetrahedron"):
+        index.locate(np.array([[0, 1, len(mf.points) - 1]]), "s")

@@ -134,7 +134,9 @@ def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
             f"elements; {int(unstable.sum())} unstable at steady sliding, the fastest: "
             + (", ".join(f"{z.imag / TWO_PI:.0f} Hz ({z.real:.1f}/s)" for z in top) or "none"))
         k, j = probe(dm, y)
-        push = a["amplitude"] * closure / np.abs(dm.contacts[k].D[j] @ y)
+        d = dm.contacts[k].D[j] @ y
+        y = y * (np.conj(d) / abs(d))       # the eigenvector's phase is arbitrary (round-off picks it): fix
+        push = a["amplitude"] * closure / abs(d)   # it so that the probe element starts at its largest closure
         lam_y = lam[i] if i >= 0 else lam[int(np.argmax(lam.real))]   # the eigenvalue of y
         q0, v0 = qs + (push * y).real, (push * lam_y * y).real
         run_dir = ctx.cache.root / f".run-transient-{ctx.keys['transient']}"

@@ -86,9 +86,10 @@ def test_changing_a_limit_cycle_option_reruns_that_stage_only(results):
 
 
 @pytest.mark.mpi
-def test_fields_add_the_snapshots_without_a_new_reduced_model(results):
-    """With fields on, the transient reruns (its files change) and writes the scene's 20 snapshots
-    over the last 0.4 ms; the reduced model, which kept Φ on the nodes for them, is reused."""
+def test_fields_add_the_transient_snapshots(results):
+    """With fields on (a new key from the preload on, which writes fields too), the transient writes
+    the scene's 20 snapshots over the last 0.4 ms from the reduced stage's Φ on the nodes, and its
+    run is the same as without fields."""
     base, mpirun, first = results
     out = base / "out_fields"
     sets = [a for s in COARSE for a in ("--set", s)]
@@ -97,9 +98,9 @@ def test_fields_add_the_snapshots_without_a_new_reduced_model(results):
                        capture_output=True, text=True, timeout=900, env=clean_env())
     assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
     r = json.loads((out / "results.json").read_text())
-    status = {s["stage"]: s["status"] for s in r["stages"]}
-    assert status["reduced"] == "cached" and status["transient"] == "run"
-    assert r["transient"]["energy_leak"] == first["transient"]["energy_leak"]     # the same run
+    assert {s["stage"]: s["status"] for s in r["stages"]}["transient"] == "run"
+    assert r["transient"]["peak_closure_change"] == pytest.approx(first["transient"]["peak_closure_change"],
+                                                                  rel=1e-9)
     import meshio
 
     snap = meshio.read(out / "transient_snapshots.vtu")

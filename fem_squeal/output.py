@@ -142,19 +142,9 @@ def write_fields_xdmf(comm, path: Path, fields: dict[str, object]) -> None:
 
 
 def save_figure_atomic(fig, path: Path, dpi: int = 120) -> None:
-    """Save a matplotlib figure through a temporary file and ``os.replace`` (rank 0 only)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
+    """Save a matplotlib figure through :func:`atomic_path` (rank 0 only)."""
+    with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _owned_values(W, f) -> np.ndarray:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from geometry.mesh_file import MeshFile, _FaceIndex, _facet_nodes, file_format, read_mesh_file
+from geometry.mesh_file import MeshFile, _facet_nodes, file_format, read_mesh_file
 
 
 def _partition(sets: dict[str, np.ndarray], key) -> tuple[dict[str, np.ndarray], list[str]]:
@@ -31,6 +31,12 @@ def _partition(sets: dict[str, np.ndarray], key) -> tuple[dict[str, np.ndarray],
         kept[name] = sets[name]
         used |= members
     return kept, dropped
+
+
+def _without_number_aliases(sets: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Drop the numbered sets that repeat a named one (a gmsh physical number, a Nastran PID)."""
+    return {n: v for n, v in sets.items()
+            if not (n.isdigit() and any(k != n and np.array_equal(v, w) for k, w in sets.items()))}
 
 
 def _numbers(names: list[str], start: int, taken: set[int]) -> dict[str, int]:
@@ -63,7 +69,7 @@ def write_mesh_file(mf: MeshFile, path: str | Path, fmt: str = "") -> list[str]:
     warns: list[str] = []
     surfaces = dict(mf.surfaces)
     if fmt != "abaqus":
-        index = _FaceIndex(mf.cells)
+        index = mf.face_index
         for name, nodes in mf.node_sets.items():
             if name in surfaces:
                 continue
@@ -73,13 +79,10 @@ def write_mesh_file(mf: MeshFile, path: str | Path, fmt: str = "") -> list[str]:
             else:
                 warns.append(f"node set {name!r} covers no boundary face; {fmt} has no node sets, dropped")
     if fmt == "abaqus":
-        cell_sets = {n: v for n, v in mf.cell_sets.items()
-                     if not (n.isdigit() and any(k != n and np.array_equal(v, w)
-                                                 for k, w in mf.cell_sets.items()))}
+        cell_sets = _without_number_aliases(mf.cell_sets)
         mesh = meshio.Mesh(mf.points, [(tet, mf.cells)], cell_sets={n: [v] for n, v in cell_sets.items()},
                            point_sets=dict(mf.node_sets))
-        surf_kept = {n: v for n, v in surfaces.items()
-                     if not (n.isdigit() and any(k != n and np.array_equal(v, w) for k, w in surfaces.items()))}
+        surf_kept = _without_number_aliases(surfaces)
         with atomic_path(path) as tmp:
             meshio.write(tmp, mesh, file_format="abaqus")
             text = Path(tmp).read_text()    # meshio 7.0 names tetra10 C3D10MH (hybrid); the plain element is C3D10

@@ -17,10 +17,12 @@ exactly as ``gmshio.model_to_mesh`` does with a gmsh-built mesh.  Every failure 
 """
 from __future__ import annotations
 
+import functools
 import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from mpi4py import MPI
@@ -62,6 +64,11 @@ class MeshFile:
     def degree(self) -> int:
         return 2 if self.cells.shape[1] == 10 else 1
 
+    @functools.cached_property
+    def face_index(self) -> _FaceIndex:
+        """The boundary faces of ``cells`` (built once: reading, mapping and writing all need it)."""
+        return _FaceIndex(self.cells)
+
 
 @dataclass
 class MappedMesh:
@@ -94,8 +101,7 @@ def read_mesh_file(path: str | Path, fmt: str = "", id_field: str = "") -> MeshF
     if not path.is_file():
         raise MeshImportError(f"geometry.file: {path} does not exist")
     fmt = file_format(path, fmt)
-    if fmt == "abaqus":
-        _check_abaqus(path)
+    scan = _scan_abaqus(path) if fmt == "abaqus" else None
     # meshio.read prints and calls sys.exit on a ReadError; its format readers raise
     from meshio._helpers import reader_map
 
@@ -138,7 +144,7 @@ def read_mesh_file(path: str | Path, fmt: str = "", id_field: str = "") -> MeshF
         return np.concatenate([np.asarray(per_block[i], dtype=np.int64) + offsets[k]
                                for k, i in enumerate(volume_blocks)] or [np.zeros(0, np.int64)])
 
-    faces = _FaceIndex(cells)
+    faces = out.face_index
     triangle_blocks = [i for i, b in enumerate(m.cells) if b.type in TRIANGLES]
 
     def surface_of(per_block, name) -> np.ndarray:
@@ -184,7 +190,7 @@ def read_mesh_file(path: str | Path, fmt: str = "", id_field: str = "") -> MeshF
                 if pid in table and name not in table:
                     table[name] = table[pid]
     if fmt == "abaqus":
-        out.cell_ids, surfaces = _abaqus_surfaces(path, out)
+        out.cell_ids, surfaces = _abaqus_surfaces(path, scan, out)
         out.surfaces.update(surfaces)
     return out
 
@@ -277,22 +283,23 @@ def _abaqus_keywords(path: Path):
         yield block
 
 
-def _check_abaqus(path: Path) -> None:
-    """meshio reads one *NODE block and ignores assemblies; refuse what it would read wrongly."""
-    nodes = sum(1 for kw, _, _ in _abaqus_keywords(path) if kw == "NODE")
-    instances = sum(1 for kw, _, _ in _abaqus_keywords(path) if kw == "INSTANCE")
-    if nodes > 1 or instances:
-        raise MeshImportError(f"geometry.file: {path.name} is an Abaqus assembly ({nodes} *NODE blocks, "
-                              f"{instances} *INSTANCE); write a flat input file (one *NODE block, "
-                              "no parts/instances)")
+class _AbaqusScan(NamedTuple):
+    ids: list[int]                                  # element numbers of the tetrahedra, in file order
+    elsets: dict[str, list[int]]                    # upper-case name -> element numbers
+    surfaces: dict[str, list[tuple[str, str]]]      # name -> (element or ELSET, face label)
 
 
-def _abaqus_surfaces(path: Path, mf: MeshFile) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Element numbers of the volume elements, and ``*SURFACE, TYPE=ELEMENT`` surfaces as (cell, face)."""
+def _scan_abaqus(path: Path) -> _AbaqusScan:
+    """One pass over an .inp for what meshio does not keep: element numbers, element sets and
+    ``*SURFACE, TYPE=ELEMENT``.  meshio reads one *NODE block and ignores assemblies, so those are
+    refused here, before it reads them wrongly."""
     ids: list[int] = []
     elsets: dict[str, list[int]] = {}
     surfaces: dict[str, list[tuple[str, str]]] = {}
+    nodes = instances = 0
     for kw, params, lines in _abaqus_keywords(path):
+        nodes += kw == "NODE"
+        instances += kw == "INSTANCE"
         if kw == "ELEMENT":
             etype = params.get("TYPE", "").upper()
             if not etype.startswith("C3D4") and not etype.startswith("C3D10"):
@@ -317,13 +324,23 @@ def _abaqus_surfaces(path: Path, mf: MeshFile) -> tuple[np.ndarray, dict[str, np
                 raise MeshImportError(f"geometry.file: *SURFACE {name}: TYPE={params['TYPE']} is not supported; "
                                       "use an element-based surface or a node set")
             surfaces[name] = [tuple(v.strip() for v in ln.split(",")[:2]) for ln in lines]
-    cell_ids = np.asarray(ids, dtype=np.int64)
+    if nodes > 1 or instances:
+        raise MeshImportError(f"geometry.file: {path.name} is an Abaqus assembly ({nodes} *NODE blocks, "
+                              f"{instances} *INSTANCE); write a flat input file (one *NODE block, "
+                              "no parts/instances)")
+    return _AbaqusScan(ids, elsets, surfaces)
+
+
+def _abaqus_surfaces(path: Path, scan: _AbaqusScan, mf: MeshFile) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Element numbers of the volume elements, and the scanned surfaces as (cell, face)."""
+    elsets = scan.elsets
+    cell_ids = np.asarray(scan.ids, dtype=np.int64)
     if len(cell_ids) != len(mf.cells):
         raise MeshImportError(f"geometry.file: {path.name}: read {len(cell_ids)} element numbers for "
                               f"{len(mf.cells)} tetrahedra")
     index = {int(e): i for i, e in enumerate(cell_ids)}
     out = {}
-    for name, rows in surfaces.items():
+    for name, rows in scan.surfaces.items():
         pairs = []
         for ref, label in rows:
             lab = label.upper()
@@ -391,7 +408,7 @@ def map_sets(mf: MeshFile, parts: dict[str, list], faces: dict[str, list]) -> Ma
                               f"{mf.cell_ids[loose[:5]].tolist()}, in sets {holders}); map them, available: "
                               f"{avail_cells}")
 
-    index = _FaceIndex(mf.cells)
+    index = mf.face_index
     avail_faces = sorted(set(mf.surfaces) | set(mf.node_sets))
     facet_owner: dict[tuple[int, int], str] = {}
     facets, values = [], []

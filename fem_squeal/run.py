@@ -58,6 +58,7 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
+from fem_squeal.parallel import on_root
 from fem_squeal.scene import model_spec
 from fem_squeal.tags import COMPONENT_GROUPS
 
@@ -366,14 +367,15 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
             results.update(entry["results"])
             results["stages"].append({"stage": item.stage, "key": item.key, "status": item.status,
                                       "seconds": entry["seconds"]})
-        files = None
-        if rank0:
+        def publish_all() -> list[str]:
             outdir.mkdir(parents=True, exist_ok=True)
             files = []
             for item in plan:
                 files += publish(store.entry(item.stage, item.key), outdir)
             remove_stale_outputs(outdir, files)
-        results["files"] = comm.bcast(files, root=0)
+            return files
+
+        results["files"] = on_root(comm, publish_all)
         results["timings_s"] = timings
         if "model" in results:
             results["model"]["ranks"] = comm.size

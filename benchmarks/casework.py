@@ -30,10 +30,26 @@ def save(name: str, lines: list[str], rows: list[dict], ranks: int, quick: bool)
     """Print the table and write benchmarks/out/<name>_<ranks>ranks[_quick].md and .json."""
     from pathlib import Path
 
+    from fem_squeal.output import atomic_path
+
     text = "\n".join(lines)
     print(text)
-    out = Path(__file__).resolve().parent / "out"
+    for ext, body in (("md", text + "\n"), ("json", json.dumps(rows, indent=1))):
+        with atomic_path(out_path(name, ranks, quick, ext)) as tmp:
+            Path(tmp).write_text(body)
+
+
+def out_path(name: str, ranks: int, quick: bool, ext: str):
+    """benchmarks/out (or $FEM_SQUEAL_BENCH_OUT)/<name>_<ranks>ranks[_quick].<ext> (the directory is created)."""
+    from pathlib import Path
+
+    out = Path(os.environ.get("FEM_SQUEAL_BENCH_OUT", Path(__file__).resolve().parent / "out"))
     out.mkdir(parents=True, exist_ok=True)
-    suffix = f"_{ranks}ranks" + ("_quick" if quick else "")
-    (out / f"{name}{suffix}.md").write_text(text + "\n")
-    (out / f"{name}{suffix}.json").write_text(json.dumps(rows, indent=1))
+    return out / f"{name}_{ranks}ranks{'_quick' if quick else ''}.{ext}"
+
+
+def save_plot(fig, name: str, ranks: int, quick: bool) -> None:
+    """Write a matplotlib figure to benchmarks/out/<name>_<ranks>ranks[_quick].png (atomically)."""
+    from fem_squeal.output import save_figure_atomic
+
+    save_figure_atomic(fig, out_path(name, ranks, quick, "png"))

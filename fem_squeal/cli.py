@@ -73,7 +73,22 @@ def _parser() -> argparse.ArgumentParser:
     _scene_args(m)
     m.add_argument("output", type=Path)
     m.add_argument("--scale", type=float, default=1.0, help="multiply the coordinates (1000: m -> mm)")
+    sub.add_parser("bench", add_help=False,
+                   help="run the benchmark suite (benchmarks/suite.py: --quick, --only NAME ..., --list, --help)")
     return p
+
+
+def _bench(bench_args: list[str]) -> int:
+    """Run benchmarks/suite.py of the source tree in a plain process (it launches mpirun itself)."""
+    import subprocess
+    import sys
+
+    suite = Path(__file__).resolve().parents[1] / "benchmarks" / "suite.py"
+    if not suite.exists():
+        print(f"fem-squeal bench: {suite} not found; the benchmarks live in the source tree "
+              "(install with pip install -e)", file=sys.stderr)
+        return 2
+    return subprocess.call([sys.executable, str(suite), *bench_args])
 
 
 def _convert(args, comm, say) -> None:
@@ -102,7 +117,11 @@ def _load(args):
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    args, extra = _parser().parse_known_args(argv)
+    if args.command == "bench":
+        return _bench(extra)
+    if extra:
+        _parser().error(f"unrecognized arguments: {' '.join(extra)}")
     from mpi4py import MPI
 
     from fem_squeal.pipeline import Cache, PipelineError, format_plan, make_plan

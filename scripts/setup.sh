@@ -3,14 +3,24 @@
 #   - Debian packages: the FEniCSx 0.5.2 stack, MPI, OpenBLAS (2.3-3x faster shift-invert solves).
 #   - A venv at $FEM_SQUEAL_VENV (default: <repo>/.venv) that sees the Debian packages,
 #     with fem_squeal installed editable. numpy/mpi4py/petsc4py/slepc4py are never pip-installed.
-# Usage: scripts/setup.sh   (prints the venv python path on its last line)
+# Usage: scripts/setup.sh [--bench]   (prints the venv python path on its last line)
+#   --bench: also the peers of the benchmark suite: CalculiX (Debian calculix-ccx) and scikit-fem
+#            (pure Python, pip-installed into the venv without dependencies: numpy/scipy stay Debian's).
 set -euo pipefail
+bench=0
+for a in "$@"; do
+  case "$a" in
+    --bench) bench=1 ;;
+    *) echo "setup.sh: unknown option $a (known: --bench)" >&2; exit 2 ;;
+  esac
+done
 repo=$(cd "$(dirname "$0")/.." && pwd)
 venv=${FEM_SQUEAL_VENV:-$repo/.venv}
 
 pkgs=(python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh python3-meshio
       python3-venv python3-setuptools python3-pip python3-pytest python3-matplotlib python3-scipy
       python3-hypothesis openmpi-bin libopenblas0-pthread chromium)
+[ "$bench" -eq 1 ] && pkgs+=(calculix-ccx)
 
 missing=()
 for p in "${pkgs[@]}"; do
@@ -45,5 +55,9 @@ if [ ! -f "$stamp" ] || [ "$repo/pyproject.toml" -nt "$stamp" ] || \
   echo "[setup] installing fem_squeal (editable) into $venv" >&2
   "$venv/bin/python" -m pip install -q --no-deps --no-build-isolation -e "$repo" >&2
   touch "$stamp"
+fi
+if [ "$bench" -eq 1 ] && ! "$venv/bin/python" -c "import skfem" >/dev/null 2>&1; then
+  echo "[setup] installing scikit-fem (benchmark peer) into $venv" >&2
+  "$venv/bin/python" -m pip install -q --no-deps "scikit-fem==12.0.2" >&2
 fi
 echo "$venv/bin/python"

@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -181,6 +182,7 @@ def stage_mesh(ctx: Context, work: Path, timings: dict) -> dict:
 def stage_operators(ctx: Context, work: Path, timings: dict) -> dict:
     from fem_squeal.assembly import assemble_operators
     from fem_squeal.descriptors import CircumferentialBasis
+    from fem_squeal.penalty import penalty_ratios, penalty_warnings
 
     scene, spec, md = ctx.scene, ctx.spec, ctx.products["mesh"]
     ana = scene["analyses"]
@@ -197,10 +199,15 @@ def stage_operators(ctx: Context, work: Path, timings: dict) -> dict:
     ncells = md.mesh.topology.index_map(3).size_global
     ctx.say(f"[fem_squeal] {ncells} cells, {ndofs} DOFs (P{spec.degree}) on {ctx.comm.size} rank(s); "
             f"assembly {timings['assembly']:.2f} s")
+    ratios = penalty_ratios(md, spec)
+    for w in penalty_warnings(ratios):
+        warnings.warn(w, stacklevel=2)
+        ctx.say(f"[fem_squeal] warning: {w}")
     Md, Mzd = ops.M_parts[part] if part else (ops.M, ops.M_axial)
     ctx.products["operators"] = ops
     ctx.products["basis"] = CircumferentialBasis(ops.V, Md, Mzd)
-    return {"model": {"dofs": ndofs, "cells": ncells, "ranks": ctx.comm.size, "degree": spec.degree}}
+    return {"model": {"dofs": ndofs, "cells": ncells, "ranks": ctx.comm.size, "degree": spec.degree,
+                      "penalty": [r.as_dict() for r in ratios]}}
 
 
 def stage_preload(ctx: Context, work: Path, timings: dict) -> dict:

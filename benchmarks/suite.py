@@ -110,8 +110,8 @@ def _machine() -> str:
         blas = os.path.realpath(f"/etc/alternatives/libblas.so.3-{platform.machine()}-linux-gnu")
     except OSError:
         blas = "?"
-    return f"{platform.node()}: {os.cpu_count()} cores, {platform.machine()}, Python {platform.python_version()}, " \
-           f"BLAS {blas}"
+    return (f"{platform.node()}: {os.cpu_count()} cores, {platform.machine()}, "
+            f"Python {platform.python_version()}, BLAS {blas}")
 
 
 def run_suite(names: list[str] | None, quick: bool) -> int:
@@ -146,7 +146,8 @@ def run_suite(names: list[str] | None, quick: bool) -> int:
                     break
         dt = time.perf_counter() - t0
         failed += status != "ok"
-        tables = sorted(p for p in out.glob(f"{b.name}_*ranks{suffix}.md") if p.stat().st_mtime >= time.time() - dt - 1)
+        fresh = time.time() - dt - 1
+        tables = sorted(p for p in out.glob(f"{b.name}_*ranks{suffix}.md") if p.stat().st_mtime >= fresh)
         print(f"[bench] {b.name}: {status} in {dt:.0f} s", flush=True)
         rows.append((b, status, dt, tables))
     _summary(out / f"SUMMARY{suffix}.md", rows, quick)
@@ -164,7 +165,7 @@ def _summary(path: Path, rows, quick: bool) -> None:
              f"{'-quick' if quick else ''}`)", "",
              "| benchmark | what | status | wall [s] |", "|---|---|---|---:|"]
     lines += [f"| {b.name} | {b.what} | {st} | {dt:.0f} |" for b, st, dt, _ in rows]
-    for b, _, _, tables in rows:
+    for _, _, _, tables in rows:
         for t in tables:
             lines += ["", f"## {t.stem}", "", t.read_text().rstrip()]
             png = t.with_suffix(".png")

@@ -61,3 +61,35 @@ def unstable(lam: np.ndarray, growth_tol: float = 1e-6) -> np.ndarray:
     The default 1e-6 sits well above the round-off of a dense eigen-solve (~1e-12 relative for
     the bases used here) and well below any growth an NVH engineer acts on (ζ ~ −1e-3)."""
     return lam.real > growth_tol * np.abs(lam)
+
+
+def condition_numbers(K: np.ndarray, C: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues λ (as :func:`quadratic_eigs`: m of them, sorted) of λ²I + λC + K and their
+    condition numbers (Tisseur 2000, Theorem 5; 2-norms, relative perturbations of K, C, I)
+
+        κ(λ) = (|λ|² + |λ|‖C‖ + ‖K‖) ‖x‖ ‖y‖ / (|λ| |yᴴ(2λI + C)x|)
+
+    with x, y the right and left eigenvectors, taken from the companion form A = [[0, I], [−K, −C]]:
+    its right vector is [x; λx] and its left vector [(λI + C)ᴴy; y].  κ is ~1 for a well-separated
+    eigenvalue of a normal problem and grows as |μ − μ_c|^(−1/2) towards an exceptional point
+    (two eigenvalues and their eigenvectors coalesce, yᴴ(2λI + C)x → 0); there the eigenvalue
+    error of a backward-stable solve is ~κ ε."""
+    from scipy.linalg import eig
+
+    K = np.asarray(K, float)
+    m = K.shape[0]
+    Cm = np.zeros_like(K) if C is None else np.asarray(C, float)
+    A = np.zeros((2 * m, 2 * m))
+    A[:m, m:] = np.eye(m)
+    A[m:, :m] = -K
+    A[m:, m:] = -Cm
+    mu, WL, WR = eig(A, left=True, right=True)
+    keep = np.argsort(-mu.imag - 1e-9 * mu.real, kind="stable")[:m]
+    lam, X, Y = mu[keep], WR[:m, keep], WL[m:, keep]
+    nK, nC = np.linalg.norm(K, 2), np.linalg.norm(Cm, 2)
+    al = np.abs(lam)
+    den = al * np.abs(np.einsum("ij,ij->j", Y.conj(), 2 * lam * X + Cm @ X))
+    num = (al ** 2 + al * nC + nK) * np.linalg.norm(X, axis=0) * np.linalg.norm(Y, axis=0)
+    kappa = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.inf)
+    order = np.lexsort((lam.real, np.round(lam.imag, 9)))
+    return lam[order], kappa[order]

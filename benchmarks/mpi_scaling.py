@@ -1,0 +1,88 @@
+"""MPI: 1 against 2 ranks on a brake CEA of at least 300k DOFs, and the largest model in memory.
+
+1. Speed-up: ``scenes/brake_corner_cea.toml`` (preload + non-symmetric EPS of every mode in
+   0–10 kHz) at a mesh size giving ≥ 300k P2 DOFs, on 1 and on 2 ranks, each in a fresh process
+   (``brake_cea.run_case``).  Target: ≥ 1.6× on the 2-core machine.
+2. Largest model: peak memory (the sum of the ranks' peak RSS) is fitted as a power of the DOFs
+   over the 2-rank runs, the mesh size that fills ``--budget-gib`` (default 21 of the machine's 24,
+   leaving the OS and page cache their share) is predicted from DOFs ∝ h^(−p) fitted the same way,
+   and that model is run to confirm it fits; its DOFs, times and peak memory are the answer.
+
+    .venv/bin/python benchmarks/mpi_scaling.py [--quick] [--budget-gib 21]
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import brake_cea  # noqa: E402
+import casework  # noqa: E402
+
+SPEEDUP_SIZE = "0.0056"          # ≈ 330k DOFs
+LADDER = ["0.008", "0.0056"]     # 2-rank memory points for the fit (with the speed-up run)
+
+
+def _row(r: dict) -> dict:
+    t = r["timings"]
+    total = sum(t[k] for k in ("mesh", "assembly", "preload", "cea"))
+    return {"mesh_size": r["mesh_size"], "ranks": r["ranks"], "dofs": r["dofs"], "mesh": t["mesh"],
+            "assembly": t["assembly"], "preload": t["preload"], "cea": t["cea"], "total": total,
+            "peak_rss_mb_per_rank": r["peak_rss_mb_per_rank"],
+            "peak_total_gib": r["peak_rss_mb_per_rank"] * r["ranks"] / 1024, "n_modes": r["n_modes"],
+            "unstable": len(r["unstable"]), "unstable_modes": r["unstable"]}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true", help="78k DOFs, no largest-model search")
+    ap.add_argument("--ranks", type=int, default=2, help="recorded only: runs 1 and 2 ranks")
+    ap.add_argument("--budget-gib", type=float, default=21.0)
+    a = ap.parse_args()
+    size = "0.012" if a.quick else SPEEDUP_SIZE
+    one, two = (_row(brake_cea.spawn(size, False, n)) for n in (1, 2))
+    ev = lambda r: np.array([complex(u[1], u[0]) for u in r["unstable_modes"]])  # noqa: E731
+    same = len(one["unstable_modes"]) == len(two["unstable_modes"])
+    diff = float(np.max(np.abs(ev(one) - ev(two)) / np.abs(ev(one)))) if same and one["unstable"] else float("nan")
+    L = [f"Brake corner CEA (scenes/brake_corner_cea.toml), mesh size {size} m: 1 against 2 ranks "
+         "(2-core machine, OpenBLAS, fresh process each).", "",
+         "| ranks | DOFs | mesh [s] | assembly [s] | preload [s] | eigensolve [s] | total [s] | speed-up | "
+         "peak RSS, all ranks [GiB] | modes | unstable |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in (one, two):
+        L.append(f"| {r['ranks']} | {r['dofs']} | {r['mesh']:.1f} | {r['assembly']:.1f} | {r['preload']:.1f} | "
+                 f"{r['cea']:.1f} | {r['total']:.1f} | {one['total'] / r['total']:.2f}× | "
+                 f"{r['peak_total_gib']:.2f} | "
+                 f"{r['n_modes']} | {r['unstable']} |")
+    solver_speedup = (one["total"] - one["mesh"]) / (two["total"] - two["mesh"])
+    L += ["", f"Speed-up of the solver stages (assembly + preload + eigensolve): "
+          f"{solver_speedup:.2f}×; unstable eigenvalues 1 vs 2 ranks: "
+          f"largest relative difference {diff:.1e}."]
+    rows = [one, two]
+    if not a.quick:
+        ladder = [_row(brake_cea.spawn(h, False, 2)) for h in LADDER if h != size] + [two]
+        n = np.array([r["dofs"] for r in ladder], float)
+        mem = np.array([r["peak_total_gib"] for r in ladder])
+        hs = np.array([r["mesh_size"] for r in ladder])
+        bm, am = np.polyfit(np.log(n), np.log(mem), 1)
+        bh, ah = np.polyfit(np.log(hs), np.log(n), 1)
+        n_max = float(np.exp((np.log(a.budget_gib) - am) / bm))
+        h_max = float(np.exp((np.log(n_max) - ah) / bh))
+        big = _row(brake_cea.spawn(f"{h_max:.5f}", False, 2))
+        rows += ladder[:-1] + [big]
+        L += ["", f"Largest model: peak memory ∝ DOFs^{bm:.2f} and DOFs ∝ h^{bh:.2f} over the 2-rank runs "
+              f"{[int(x) for x in n]}; the {a.budget_gib:g} GiB budget predicts {n_max / 1e3:.0f}k DOFs at "
+              f"h = {h_max:.5f} m. Run:", "",
+              "| mesh size [m] | DOFs | preload [s] | eigensolve [s] | total [s] | peak RSS, all ranks [GiB] | "
+              "modes | unstable |", "|---|---|---|---|---|---|---|---|"]
+        for r in ladder[:-1] + [two, big]:
+            L.append(f"| {r['mesh_size']:g} | {r['dofs']} | {r['preload']:.1f} | {r['cea']:.1f} | "
+                     f"{r['total']:.1f} | "
+                     f"{r['peak_total_gib']:.2f} | {r['n_modes']} | {r['unstable']} |")
+    casework.save("mpi_scaling", L, rows, 2, a.quick)
+
+
+if __name__ == "__main__":
+    main()

@@ -7,8 +7,9 @@ The Hoffmann two-DOF model of :mod:`fem_squeal.reduced.two_dof` has the linearis
 whose discriminant is linear in μ: (k₁₁ − k₂₂ − k_t)² + 4k₁₂(k₁₂ + μk_t) = 4k₁₂k_t(μ − μ_c).  So
 past μ_c, with δ = μ − μ_c given exactly, θ = tr/2 ± √(k₁₂k_t δ) (k₁₂ < 0: complex for δ > 0)
 and Re λ = ∓Im√θ are known to round-off for any δ: an independent reference however close to
-the exceptional point.  The pair is embedded in an m = 200 reduced model (an orthogonal similarity with 198 well-separated modes),
-the size of a brake basis, and solved as the sweeps solve it (:func:`quadratic_eigs`).
+the exceptional point.  The pair is embedded in an m = 200 reduced model (an orthogonal
+similarity with 198 well-separated modes), the size of a brake basis, and solved as the sweeps
+solve it (:func:`quadratic_eigs`).
 
 Tables: (1) for δ/μ_c = 1e-1 … 1e-14 on both sides of μ_c: the computed Re λ against the exact
 one, the eigenvalue condition number κ(λ) from the left and right eigenvectors

@@ -149,6 +149,30 @@ def linearise(ops: Operators, active: dict[str, np.ndarray] | None = None,
     return ops._replace(K=K, Kf=Kf)
 
 
+#: ν above which displacement tetrahedra of each degree are warned about (benchmarks/stress_extremes.py,
+#: ring growth rates against theory: P1 is 12–20 % low at ν = 0.3 already (bending locking), 15–30 % at
+#: 0.45, and loses the flutter pairs k ≥ 3–4 from 0.49; P2 stays within 0.3 % up to 0.499, the last ν tested)
+LOCKING_NU = {1: 0.45, 2: 0.499}
+
+
+def locking_warnings(spec: ModelSpec) -> list[str]:
+    """Volumetric-locking warnings: parts with ν ≥ LOCKING_NU[1] for P1, ν > LOCKING_NU[2] for P2 (bulk/shear
+    K/G = 2(1+ν)/(3(1−2ν)): 9.7 at ν = 0.45, 25 at 0.49, 250 at 0.499)."""
+    out = []
+    for part, m in spec.materials.items():
+        nus = [m.nu] + ([m.nu_axial] if m.nu_axial is not None else [])
+        nu = max(nus)
+        limit = LOCKING_NU.get(spec.degree, 1.0)
+        if nu > limit or (spec.degree == 1 and nu >= limit):
+            ratio = 2 * (1 + nu) / (3 * (1 - 2 * nu))
+            out.append(f"materials.{part}: nu = {nu:g} with P{spec.degree} tetrahedra: nearly incompressible "
+                       f"(bulk/shear modulus {ratio:.3g}); displacement elements lock volumetrically and "
+                       + ("over-predict stiffness — use degree 2" if spec.degree == 1 else
+                          f"may over-predict stiffness (P2 verified up to nu = {limit})")
+                       + " (benchmarks/stress_extremes.py)")
+    return out
+
+
 def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
                        describe_part: str | None = None, timings: dict | None = None) -> Operators:
     """Build V = [P_degree]³ on the mesh and assemble K, K_f, M, C, M_axial, loads and interfaces.
@@ -166,6 +190,8 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
                       stacklevel=2)
     elif spec.degree != 2:
         raise ValueError(f"discretisation.degree: must be 1 or 2 (got {spec.degree})")
+    for w in locking_warnings(spec):
+        warnings.warn(w, stacklevel=2)
     V = fem.VectorFunctionSpace(mesh, ("Lagrange", spec.degree))
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     dx = ufl.Measure("dx", domain=mesh, subdomain_data=cell_tags)

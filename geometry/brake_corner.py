@@ -40,14 +40,14 @@ from dataclasses import dataclass
 from mpi4py import MPI
 
 from fem_squeal.tags import BRAKE_CORNER_FACES, BRAKE_CORNER_VOLUMES
-from geometry.gmsh_io import GmshModel, MeshData, to_dolfinx
+from geometry.gmsh_io import MIN_SICN as _MIN_SICN
+from geometry.gmsh_io import GmshModel, MeshData, mesh_with, min_sicn, to_dolfinx
 
 _IDENTITY = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
 _CIRCLE_SEGMENTS = 12      # guide holes: at least this many elements round the circumference
 _BORE_SIZE = 0.5           # size at the hat's centre bore, x flange_thickness (graded out over 2 x)
 # meshing attempts (Mesh.Algorithm3D, Mesh.RandomSeed): Delaunay is reproducible, HXT (10) is not
 _ATTEMPTS = ((1, 1), (1, 2), (1, 3), (10, 1))
-_MIN_SICN = 0.1            # accepted worst quality of the curved second-order tetrahedra
 _MESH_SIZES = ("disc_mesh_size", "pad_mesh_size", "caliper_mesh_size")
 
 
@@ -457,49 +457,14 @@ def build_brake_corner(model, p: BrakeCornerParams) -> None:
     gmsh.option.setNumber("Mesh.RandomSeed", _ATTEMPTS[0][1])
 
 
-def min_sicn(model) -> float:
-    """Smallest signed inverse condition number over the current 3D mesh (curved elements: min over each).
-
-    gmsh 4.8 has no ``getElementQualities``; this runs ``Plugin(AnalyseMeshQuality)`` and removes its view.
-    """
-    import gmsh
-
-    before = set(gmsh.view.getTags())
-    for name, value in (("ICNMeasure", 1), ("JacobianDeterminant", 0), ("IGEMeasure", 0), ("CreateView", 1),
-                        ("Recompute", 1), ("DimensionOfElements", 3)):
-        gmsh.plugin.setNumber("AnalyseMeshQuality", name, value)
-    gmsh.plugin.run("AnalyseMeshQuality")
-    worst = math.inf
-    for v in set(gmsh.view.getTags()) - before:
-        _, _, data, _, _ = gmsh.view.getModelData(v, 0)
-        worst = min([worst] + [min(d) for d in data])
-        gmsh.view.remove(v)
-    return worst
-
-
-def _mesh_with(model, attempt: tuple[int, int]) -> bool:
-    """Mesh afresh with ``(Mesh.Algorithm3D, Mesh.RandomSeed) = attempt``; True if every entity got elements."""
-    import gmsh
-
-    model.mesh.clear()
-    for name, value in (("Mesh.Algorithm3D", attempt[0]), ("Mesh.RandomSeed", attempt[1]),
-                        ("Mesh.MaxNumThreads3D", 1), ("Mesh.Optimize", 1), ("Mesh.MeshOnlyEmpty", 0)):
-        gmsh.option.setNumber(name, value)
-    model.mesh.generate(3)
-    if not all(len(model.mesh.getElements(d, t)[1]) for d in (2, 3) for _, t in model.getEntities(d)):
-        return False
-    gmsh.option.setNumber("Mesh.MeshOnlyEmpty", 1)   # a repeated generate(3) keeps this mesh ...
-    gmsh.option.setNumber("Mesh.Optimize", 0)        # ... and does not re-optimise it
-    return True
-
-
 def _generate(model, order: int) -> None:
     """Mesh with the first of ``_ATTEMPTS`` that meshes everything and, for ``order=2``, gives curved
     tetrahedra with min SICN >= ``_MIN_SICN``; otherwise warn and keep the best attempt.
 
     gmsh 4.8 stays locked after an error raised as an exception, so the attempts run with
     ``General.AbortOnError = 0`` and are judged by their elements.  The mesh is left at order 1:
-    :func:`geometry.gmsh_io.to_dolfinx` then calls ``generate(3)`` (a no-op, see :func:`_mesh_with`)
+    :func:`geometry.gmsh_io.to_dolfinx` then calls ``generate(3)`` (a no-op, see
+    :func:`geometry.gmsh_io.mesh_with`)
     and ``setOrder(2)``, which reproduces the checked second-order mesh.
     """
     import warnings
@@ -511,7 +476,7 @@ def _generate(model, order: int) -> None:
     quality: dict[tuple[int, int], float] = {}
     try:
         for attempt in _ATTEMPTS:
-            if not _mesh_with(model, attempt):
+            if not mesh_with(model, attempt):
                 continue
             if order == 1:
                 return
@@ -524,7 +489,7 @@ def _generate(model, order: int) -> None:
             raise RuntimeError(f"brake corner: meshing failed with every (Algorithm3D, RandomSeed) in {_ATTEMPTS}")
         best = max(quality, key=quality.get)
         if best != attempt:
-            _mesh_with(model, best)
+            mesh_with(model, best)
     finally:
         gmsh.option.setNumber("General.AbortOnError", abort)
     warnings.warn(f"brake corner: curved mesh has min SICN {quality[best]:.3g} < {_MIN_SICN} (best of "

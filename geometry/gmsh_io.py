@@ -1,12 +1,18 @@
 """Build a gmsh model on rank 0 and distribute it as a dolfinx mesh with cell and facet tags."""
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import NamedTuple
 
 from mpi4py import MPI
+
+#: accepted worst signed inverse condition number (SICN) of the curved second-order tetrahedra
+MIN_SICN = 0.1
+#: (Mesh.Algorithm3D, Mesh.RandomSeed) tried in turn when the default mesh has a worse element
+RETRY = ((10, 1), (1, 2), (1, 3))
 
 
 class MeshData(NamedTuple):
@@ -30,6 +36,78 @@ class GmshModel(NamedTuple):
     faces: dict[str, int]
 
 
+def min_sicn(model) -> float:
+    """Smallest signed inverse condition number over the current 3D mesh (curved elements: min over each).
+
+    gmsh 4.8 has no ``getElementQualities``; this runs ``Plugin(AnalyseMeshQuality)`` and removes its view.
+    """
+    import gmsh
+
+    before = set(gmsh.view.getTags())
+    for name, value in (("ICNMeasure", 1), ("JacobianDeterminant", 0), ("IGEMeasure", 0), ("CreateView", 1),
+                        ("Recompute", 1), ("DimensionOfElements", 3)):
+        gmsh.plugin.setNumber("AnalyseMeshQuality", name, value)
+    gmsh.plugin.run("AnalyseMeshQuality")
+    worst = math.inf
+    for v in set(gmsh.view.getTags()) - before:
+        _, _, data, _, _ = gmsh.view.getModelData(v, 0)
+        worst = min([worst] + [min(d) for d in data])
+        gmsh.view.remove(v)
+    return worst
+
+
+def mesh_with(model, attempt: tuple[int, int]) -> bool:
+    """Mesh afresh with ``(Mesh.Algorithm3D, Mesh.RandomSeed) = attempt``; True if every entity got elements."""
+    import gmsh
+
+    model.mesh.clear()
+    for name, value in (("Mesh.Algorithm3D", attempt[0]), ("Mesh.RandomSeed", attempt[1]),
+                        ("Mesh.MaxNumThreads3D", 1), ("Mesh.Optimize", 1), ("Mesh.MeshOnlyEmpty", 0)):
+        gmsh.option.setNumber(name, value)
+    model.mesh.generate(3)
+    if not all(len(model.mesh.getElements(d, t)[1]) for d in (2, 3) for _, t in model.getEntities(d)):
+        return False
+    gmsh.option.setNumber("Mesh.MeshOnlyEmpty", 1)   # a repeated generate(3) keeps this mesh ...
+    gmsh.option.setNumber("Mesh.Optimize", 0)        # ... and does not re-optimise it
+    return True
+
+
+def _generate_checked(model, order: int) -> str | None:
+    """Mesh (3D, elevated to ``order``) a model whose builder did not mesh it, and check the worst
+    element: an element with SICN < :data:`MIN_SICN` (a sliver, or one inverted by curving its
+    boundary nodes onto the CAD surface) is re-meshed with the alternatives of :data:`RETRY`; the
+    best is kept, with a warning (returned) if none reaches MIN_SICN."""
+    import gmsh
+
+    default = (int(gmsh.option.getNumber("Mesh.Algorithm3D")), int(gmsh.option.getNumber("Mesh.RandomSeed")))
+    model.mesh.generate(3)
+    if order == 2:
+        model.mesh.setOrder(2)
+    first = min_sicn(model)
+    if first >= MIN_SICN:
+        return None
+    quality = {default: first}
+    abort = gmsh.option.getNumber("General.AbortOnError")
+    gmsh.option.setNumber("General.AbortOnError", 0)
+    try:
+        for attempt in (a for a in RETRY if a != default):
+            if not mesh_with(model, attempt):
+                continue
+            if order == 2:
+                model.mesh.setOrder(2)
+            quality[attempt] = min_sicn(model)
+            if quality[attempt] >= MIN_SICN:
+                return None
+        best = max(quality, key=quality.get)
+        mesh_with(model, best)
+        if order == 2:
+            model.mesh.setOrder(2)
+    finally:
+        gmsh.option.setNumber("General.AbortOnError", abort)
+    return (f"mesh: worst element has SICN {quality[best]:.3g} < {MIN_SICN} with every (Algorithm3D, RandomSeed) "
+            f"tried ({quality}); results may be inaccurate; try a slightly different mesh_size")
+
+
 @contextmanager
 def _built(comm: MPI.Comm, model: GmshModel, verbose: bool) -> Iterator[None]:
     """gmsh initialised, the model built and meshed on rank 0 (3D, elevated to ``order``: curved P2
@@ -42,13 +120,16 @@ def _built(comm: MPI.Comm, model: GmshModel, verbose: bool) -> Iterator[None]:
     try:
         gmsh.option.setNumber("General.Terminal", 1 if verbose else 0)
         gmsh.model.add("fem_squeal")
-        error = None
+        error = warning = None
         if comm.rank == 0:
             try:
                 model.build(gmsh.model)
-                gmsh.model.mesh.generate(3)
-                if model.order == 2:
-                    gmsh.model.mesh.setOrder(2)
+                if any(len(gmsh.model.mesh.getElements(3, tag)[1]) for _, tag in gmsh.model.getEntities(3)):
+                    gmsh.model.mesh.generate(3)          # meshed (and checked) by the builder: a no-op
+                    if model.order == 2:
+                        gmsh.model.mesh.setOrder(2)
+                else:
+                    warning = _generate_checked(gmsh.model, model.order)
                 groups = {(d, t) for d, t in gmsh.model.getPhysicalGroups()}
                 missing = [f"volume {n}={t}" for n, t in model.volumes.items() if (3, t) not in groups]
                 missing += [f"face {n}={t}" for n, t in model.faces.items() if (2, t) not in groups]
@@ -56,9 +137,13 @@ def _built(comm: MPI.Comm, model: GmshModel, verbose: bool) -> Iterator[None]:
                     error = f"gmsh model lacks physical groups: {', '.join(missing)}"
             except Exception as e:  # broadcast, or the other ranks would wait forever
                 error = f"geometry: {e}"
-        error = comm.bcast(error, root=0)
+        error, warning = comm.bcast((error, warning), root=0)
         if error:
             raise ValueError(error)
+        if warning:
+            import warnings
+
+            warnings.warn(warning, RuntimeWarning, stacklevel=3)
         yield
     finally:
         gmsh.finalize()

@@ -10,8 +10,8 @@ from conftest import ROOT, clean_env
 
 def test_bench_quick_smoke(tmp_path):
     env = dict(clean_env(), FEM_SQUEAL_BENCH_OUT=str(tmp_path))
-    out = subprocess.run([sys.executable, "-m", "fem_squeal.cli", "bench", "--quick", "--only", "stress_coalescence"],
-                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    cmd = [sys.executable, "-m", "fem_squeal.cli", "bench", "--quick", "--only", "stress_coalescence"]
+    out = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stdout + out.stderr
     table = (tmp_path / "stress_coalescence_1ranks_quick.md").read_text()
     assert "| δ/μ_c |" in table and "Tracker" in table

@@ -61,6 +61,9 @@ class ContactSet:
             raise MasaError(f"{self.name}.d0: shape {self.d0.shape}, expected ({n},)")
         if not np.isfinite(self.mu):  # signed: sign(v)μ, < 0 for backward sliding
             raise MasaError(f"{self.name}.mu: must be finite (got {self.mu})")
+        if not isinstance(self.law, UnilateralLaw):
+            raise MasaError(f"{self.name}.law: MASA's AFT needs the cubic UnilateralLaw (its remainder and "
+                            f"k_l, k_nl, c_max); got {type(self.law).__name__}")
         for a in ("k_l", "k_nl", "c_max"):
             v = np.asarray(getattr(self.law, a))
             if v.ndim and v.shape != (n,):

@@ -30,6 +30,7 @@ import hashlib
 import json
 import os
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -186,6 +187,32 @@ def _steady_mu(law, speed: np.ndarray) -> np.ndarray:
     return law.coefficient(speed)[0]
 
 
+#: ω_t Δt above which an elastic stick spring is not resolved by the step: the belt stick–slip of
+#: benchmarks/transient_order.py is right at ω_t Δt = 20 and silently turns into pure sliding at 50.
+STICK_RESOLUTION = 10.0
+
+
+def stick_resolution_warnings(model: DynamicModel, dt: float) -> list[str]:
+    """Warn when the stick springs k_t of ElasticCoulomb elements ring faster than the step resolves:
+    ω_t = √(k_t / m_t), m_t = 1/(t M⁻¹ tᵀ) the mass the element's tangential row t sees."""
+    from fem_squeal.reduced.friction import ElasticCoulomb
+
+    out = []
+    Minv = np.linalg.inv(model.mass())
+    for cs in model.contacts:
+        if not isinstance(cs.friction, ElasticCoulomb):
+            continue
+        inv_m = np.einsum("dnm,mk,dnk->n", cs.T, Minv, cs.T) / cs.n_dir
+        kt = np.broadcast_to(np.asarray(cs.friction.k_t, float), inv_m.shape)
+        wdt = float(np.max(np.sqrt(kt * np.maximum(inv_m, 0.0)))) * dt
+        if wdt > STICK_RESOLUTION:
+            out.append(f"{cs.name}: the stick springs (k_t) ring at ω_t Δt = {wdt:.3g} > {STICK_RESOLUTION:g}: "
+                       "the step does not resolve sticking, and stick–slip may silently become pure sliding "
+                       f"(dt <= {STICK_RESOLUTION / wdt * dt:.3g} s resolves it; or a smaller k_t, a damper c_t, "
+                       "or adaptive halving with alpha = 0)")
+    return out
+
+
 class NewmarkHHT:
     """The HHT-α/Newmark integrator of the module docstring, owning the factorised tangent."""
 
@@ -214,7 +241,11 @@ class NewmarkHHT:
         # one stacked row matrix per interface: [D; T_1; (T_2)]
         self.rows = [np.vstack([cs.D, *cs.T]) for cs in model.contacts]
         self._lus: dict[float, tuple] = {}     # factorised tangent per step size (adaptive halving)
-        self.stats = {"steps": 0, "iterations": 0, "factorisations": 0, "halvings": 0, "events": 0}
+        self.stats = {"steps": 0, "iterations": 0, "factorisations": 0, "halvings": 0, "events": 0,
+                      "stalled": 0}
+        self.warnings = stick_resolution_warnings(model, self.dt)
+        for w in self.warnings:
+            warnings.warn(w, RuntimeWarning, stacklevel=2)
 
     # ---------------------------------------------------------------- forces
     def forces(self, q: np.ndarray, v: np.ndarray, q0: np.ndarray | None, dt: float,
@@ -419,6 +450,7 @@ class NewmarkHHT:
             if (rn <= max(1e2 * self.rtol, 1e-6) and len(history) >= 3 and history[-1] > 0.5 * history[-2]
                     and history[-2] > 0.5 * history[-3]):
                 stalled = True      # round-off floor: the residual no longer decreases
+                self.stats["stalled"] += 1
                 break
             dq = sla.lu_solve(self._lus[dt], -r, check_finite=False)
             theta = 1.0
@@ -529,8 +561,11 @@ def run_transient(model: DynamicModel, q0: np.ndarray, v0: np.ndarray | None, t_
         raise TransientError(f"t_end: must be > 0 (got {t_end})")
     if record_every < 1:
         raise TransientError(f"record_every: must be >= 1 (got {record_every})")
-    integ = NewmarkHHT(model, dt, **options)
     n_steps = int(round(t_end / dt))
+    if n_steps < 1 or abs(t_end / dt - n_steps) > 1e-6:
+        raise TransientError(f"t_end: {t_end:g} s is not a whole number of steps dt = {dt:g} s "
+                             f"(t_end/dt = {t_end / dt:.6g})")
+    integ = NewmarkHHT(model, dt, **options)
     folder = Path(folder) if folder is not None else None
     meta = {"model": model.digest(), "dt": dt, "record_every": record_every,
             "options": {k: options[k] for k in sorted(options)}}

@@ -177,7 +177,10 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     ``progress``: draw converged/requested pairs on rank 0's stderr."""
     if nev < 1:
         raise ValueError(f"n_modes: must be >= 1 (got {nev})")
-    set_options(prefix, options, DIRECT_SOLVER_OPTIONS)
+    # K and M are symmetric (GHEP): MUMPS LDLᵀ factorises K − σM in ~60 % of the LU time and memory
+    for A in (K, M):
+        A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    set_options(prefix, options, {**DIRECT_SOLVER_OPTIONS, "st_pc_type": "cholesky"})
     eps = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GHEP, nev, (TWO_PI * target_hz) ** 2, tol, prefix)
     try:
         eps.setFromOptions()

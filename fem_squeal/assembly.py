@@ -57,8 +57,12 @@ class Operators(NamedTuple):
 
 
 def _compile(a, quadrature_degree):
-    params = {} if quadrature_degree is None else {"quadrature_degree": quadrature_degree}
-    return fem.form(a, form_compiler_params=params, jit_params=JIT_PARAMS)
+    """JIT-compile ``a``; ``quadrature_degree`` (``discretisation.quadrature_degree``) goes into each
+    integral's metadata: FFCx 0.5 ignores it as a form-compiler parameter (it was silently unused)."""
+    if quadrature_degree is not None:
+        a = ufl.Form([itg.reconstruct(metadata={"quadrature_degree": quadrature_degree, **itg.metadata()})
+                      for itg in a.integrals()])
+    return fem.form(a, form_compiler_params={}, jit_params=JIT_PARAMS)
 
 
 def _assemble(form, pattern: fem.FormMetaClass, bcs, diagonal: float) -> PETSc.Mat:

@@ -144,3 +144,19 @@ def test_transversely_isotropic_stiffness():
         assert 0.5 * x.dot(y) == pytest.approx(0.5 * c * 1e-6 * MPI.COMM_WORLD.allreduce(vol), rel=1e-10)
     with pytest.raises(ValueError, match="nu_axial"):
         Material(8e9, 0.3, 2500.0, E_axial=3e9, nu_axial=0.9, G_axial=1.5e9)
+
+
+def test_quadrature_degree_is_honoured():
+    """discretisation.quadrature_degree reaches FFCx (it was silently ignored as a form-compiler
+    parameter): the P2 mass on curved P2 cells is a degree-7 polynomial, so degree 7 and the
+    default integrate it alike, while the 4-point rule (degree 2) under-integrates it (ccx's C3D10)."""
+    from fem_squeal.assembly import assemble_operators
+    from fem_squeal.model import Material, ModelSpec
+
+    md = ring_mesh(mesh_size=0.004)
+    norms = {}
+    for qd in (None, 7, 2):
+        ops = assemble_operators(md, ModelSpec({"disc": Material(3e9, 0.4, 1400.0)}, quadrature_degree=qd))
+        norms[qd] = ops.M.norm(PETSc.NormType.FROBENIUS)
+    assert norms[7] == pytest.approx(norms[None], rel=1e-12)
+    assert abs(norms[2] / norms[None] - 1) > 1e-4

@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import argparse
+import subprocess
 import sys
 from pathlib import Path
 
@@ -70,14 +71,18 @@ def main() -> None:
         bh, ah = np.polyfit(np.log(hs), np.log(n), 1)
         n_max = float(np.exp((np.log(a.budget_gib) - am) / bm))
         h_max = float(np.exp((np.log(n_max) - ah) / bh))
-        big = _row(brake_cea.spawn(f"{h_max:.5f}", False, 2))
-        rows += ladder[:-1] + [big]
+        try:
+            big = _row(brake_cea.spawn(f"{h_max:.5f}", False, 2))
+        except subprocess.CalledProcessError as e:      # e.g. killed out of memory: keep the other rows
+            big = None
+            L += ["", f"The run at h = {h_max:.5f} m failed (exit {e.returncode}; out of memory?)."]
+        rows += ladder[:-1] + ([big] if big else [])
         L += ["", f"Largest model: peak memory ∝ DOFs^{bm:.2f} and DOFs ∝ h^{bh:.2f} over the 2-rank runs "
               f"{[int(x) for x in n]}; the {a.budget_gib:g} GiB budget predicts {n_max / 1e3:.0f}k DOFs at "
               f"h = {h_max:.5f} m. Run:", "",
               "| mesh size [m] | DOFs | preload [s] | eigensolve [s] | total [s] | peak RSS, all ranks [GiB] | "
               "modes | unstable |", "|---|---|---|---|---|---|---|---|"]
-        for r in ladder[:-1] + [two, big]:
+        for r in ladder[:-1] + [two] + ([big] if big else []):
             L.append(f"| {r['mesh_size']:g} | {r['dofs']} | {r['preload']:.1f} | {r['cea']:.1f} | "
                      f"{r['total']:.1f} | "
                      f"{r['peak_total_gib']:.2f} | {r['n_modes']} | {r['unstable']} |")

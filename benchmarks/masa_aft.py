@@ -244,10 +244,9 @@ def outcome(Ns, N_ref: int = 8192, m: int = 100, n: int = 200) -> tuple[list[dic
 
 # ------------------------------------------------------------------ main
 def plot(acc, cost_N, ranks, quick):
-    import matplotlib
+    from fem_squeal.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.2))
     N = np.array([r["N"] for r in acc], float)

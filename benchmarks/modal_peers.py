@@ -482,10 +482,9 @@ def frequency_table(mesh: dict, rs: list[dict], ref: dict, ref_mesh: dict) -> li
 
 
 def plot(meshes: list[dict], runs: dict, ranks: int, quick: bool, n_par: int) -> None:
-    import matplotlib
+    from fem_squeal.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(figsize=(7, 5))
     styles = {"fem_squeal": ("C0", "o"), "CalculiX": ("C3", "s"), "scikit-fem": ("C2", "^")}

@@ -106,10 +106,9 @@ def main() -> None:
 
 
 def _plot(rows: list[dict], ref: dict, ranks: int, quick: bool) -> None:
-    import matplotlib
+    from fem_squeal.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(1, 2, figsize=(10, 4))
     for (deg, order), mark in (((2, 2), "o-"), ((2, 1), "s--"), ((1, 1), "^:")):

@@ -134,10 +134,9 @@ def main() -> None:
         lines.append(f"| {t['grid']} | {t['events']} | {t['coalescences']} | {mu} | {err} | {f} | {t['solves']} | "
                      f"{t['ambiguous_steps']} | {t['seconds']:.2f} |")
     casework.save("stress_coalescence", lines, {"points": rows, "tracker": trk}, a.ranks, a.quick)
-    import matplotlib
+    from fem_squeal.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     up = [r for r in rows if r["side"] > 0]
     d = [r["rel_delta"] for r in up]

@@ -143,10 +143,9 @@ def main() -> None:
                      f"{sorted(p)} | {k2} | {dl} | {r['t_eig']:.2f} |")
         prev = p
     casework.save("stress_penalty", lines, rows, a.ranks, a.quick)
-    import matplotlib
+    from fem_squeal.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(1, 2, figsize=(10, 4))
     kn = [r["kn"] for r in rows]

@@ -321,10 +321,9 @@ def fmt(v, f=".2e"):
 
 
 def plot(order_rows, curves, big_rows, ranks, quick):
-    import matplotlib
+    from fem_squeal.plots import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axs = plt.subplots(1, 3, figsize=(15, 4.3))
     ax = axs[0]

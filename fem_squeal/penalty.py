@@ -39,34 +39,31 @@ class PenaltyRatio(NamedTuple):
         return self._asdict()
 
 
-def _face_cells(mesh_data, face: str) -> tuple[np.ndarray, np.ndarray]:
-    """Local cells with a facet on ``face`` and the facets themselves (owned facets only)."""
+def _face_cells(mesh_data, face: str) -> np.ndarray:
+    """The local cell under each owned facet of ``face``."""
     mesh, ft = mesh_data.mesh, mesh_data.facet_tags
     tdim = mesh.topology.dim
     mesh.topology.create_connectivity(tdim - 1, tdim)
     f2c = mesh.topology.connectivity(tdim - 1, tdim)
     n_owned = mesh.topology.index_map(tdim - 1).size_local
     facets = ft.indices[(ft.values == mesh_data.faces[face]) & (ft.indices < n_owned)]
-    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
-    return facets, cells
+    return np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
 
 
 def cell_size(mesh, cells: np.ndarray) -> np.ndarray:
     """Longest edge of each tetrahedron (its corner nodes: the first four geometry nodes, also
     for a curved P2 geometry).  ``dolfinx.cpp.mesh.h`` does not accept the Python mesh in 0.5.2."""
-    x = mesh.geometry.x
+    from geometry.quality import longest_edge
+
     dm = mesh.geometry.dofmap
     corners = np.array([dm.links(c)[:4] for c in cells], dtype=np.int64).reshape(-1, 4)
-    p = x[corners]
-    edges = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
-    return np.max([np.linalg.norm(p[:, a] - p[:, b], axis=1) for a, b in edges], axis=0) if len(cells) \
-        else np.zeros(0)
+    return longest_edge(mesh.geometry.x[corners])
 
 
 def face_stiffness(mesh_data, spec, face: str) -> tuple[float, float]:
     """(median over the face of C₁₁/h of the cell under each facet, median h), over all ranks."""
     mesh = mesh_data.mesh
-    _, cells = _face_cells(mesh_data, face)
+    cells = _face_cells(mesh_data, face)
     modulus = {mesh_data.volumes[p]: float(np.max(np.diag(m.voigt_stiffness())[:3]))
                for p, m in spec.materials.items()}
     ct = mesh_data.cell_tags

@@ -8,7 +8,8 @@ import numpy as np
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
 
 
-def _pyplot():
+def pyplot():
+    """matplotlib.pyplot on the non-interactive Agg backend (plots, reports and benchmarks)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -22,7 +23,7 @@ def contact_pressure(path: Path, data: dict[str, tuple[np.ndarray, np.ndarray]],
     seen along the axis (x, y in mm), interpolated on their Delaunay triangulation."""
     from fem_squeal.output import save_figure_atomic
 
-    plt = _pyplot()
+    plt = pyplot()
     n = max(len(data), 1)
     fig, axes = plt.subplots(1, n, figsize=(5.0 * n, 4.2), squeeze=False)
     vmax = max((float(p.max()) for _, p in data.values() if len(p)), default=1.0) / 1e6 or 1.0
@@ -48,7 +49,7 @@ def root_locus(path: Path, values: np.ndarray, lam: np.ndarray, unstable: np.nda
     Figs. 3-4, 8): stable points grey, unstable points red; branches inside ``band_hz`` only."""
     from fem_squeal.output import save_figure_atomic
 
-    plt = _pyplot()
+    plt = pyplot()
     f = lam.imag / TWO_PI
     keep = np.flatnonzero(np.any((f >= band_hz[0]) & (f <= band_hz[1]), axis=0))
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 8), sharex=True)
@@ -79,7 +80,7 @@ def complex_plane(path: Path, lam: np.ndarray, band_hz: tuple[float, float], gro
     """All eigenvalues of a sweep in the complex plane (seed 001 Figs. 2, 9): Re λ against frequency."""
     from fem_squeal.output import save_figure_atomic
 
-    plt = _pyplot()
+    plt = pyplot()
     lam = np.ravel(lam)
     f = lam.imag / TWO_PI
     sel = (f >= band_hz[0]) & (f <= band_hz[1])
@@ -104,7 +105,7 @@ def stability_maps(path: Path, mu: np.ndarray, E: np.ndarray, counts: np.ndarray
     total (seed 001 Figs. 17-19); counts[b] has shape (n_E, n_mu)."""
     from fem_squeal.output import save_figure_atomic
 
-    plt = _pyplot()
+    plt = pyplot()
     n = len(bands_hz) + 1
     cols = min(n, 4)
     rows = -(-n // cols)
@@ -132,7 +133,7 @@ def masa(path: Path, res, title: str = "", amplitude_label: str = "modal amplitu
     instability's own real part with its stationary amplitudes."""
     from fem_squeal.output import save_figure_atomic
 
-    plt = _pyplot()
+    plt = pyplot()
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.5, 7.0), sharex=True, gridspec_kw={"height_ratios": [2, 1]},
                                  layout="constrained")
     p = np.repeat(res.amplitudes[:, None], res.eigenvalues.shape[1], axis=1)
@@ -160,7 +161,7 @@ def contact_status(path: Path, res, title: str = "", amplitude_label: str = "mod
     no contact, a dot for permanent contact, a red circle for impacts."""
     from fem_squeal.output import save_figure_atomic
 
-    plt = _pyplot()
+    plt = pyplot()
     n_el = res.status.shape[1]
     fig, ax = plt.subplots(figsize=(7.5, max(3.0, min(9.0, 0.02 * n_el + 2))))
     P, E = np.meshgrid(res.amplitudes, np.arange(n_el), indexing="ij")
@@ -182,7 +183,7 @@ def transient(path: Path, t: np.ndarray, x: np.ndarray, v: np.ndarray, extra: di
 
     from fem_squeal.output import save_figure_atomic
 
-    plt = _pyplot()
+    plt = pyplot()
     extra = extra or {}
     fig, ax = plt.subplots(2, 2, figsize=(11, 7.5))
     ax[0, 0].plot(t * 1e3, x * scale, lw=0.4)
@@ -211,7 +212,7 @@ def dynamic_stability(path: Path, t: np.ndarray, lam: np.ndarray, band_hz, title
     """Seed 002 Fig. 10: tangent-CEA frequencies and real parts against time along a cycle."""
     from fem_squeal.output import save_figure_atomic
 
-    plt = _pyplot()
+    plt = pyplot()
     f = lam.imag / TWO_PI
     sel = (f >= band_hz[0]) & (f <= band_hz[1])
     tt = np.broadcast_to(t[:, None], lam.shape)
@@ -236,7 +237,7 @@ def limit_cycle(path: Path, t: np.ndarray, x: np.ndarray, lc, svd_energy, best_m
     cycle against α (§4.3)."""
     from fem_squeal.output import save_figure_atomic
 
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(2, 2, figsize=(11, 7.5))
     ax[0, 0].plot(t * 1e3, (x - np.mean(x)) * 1e6, lw=0.3, color="0.5")
     ax[0, 0].plot(t * 1e3, lc.envelope * 1e6, color="C3", lw=1, label="envelope")
@@ -272,7 +273,7 @@ def pad_portraits(path: Path, runs: list[dict], pad, title: str = "") -> None:
     sliding-speed history, one column per run, with the regime of each."""
     from fem_squeal.output import save_figure_atomic
 
-    plt = _pyplot()
+    plt = pyplot()
     n = len(runs)
     fig, ax = plt.subplots(2, n, figsize=(max(3.0 * n, 6), 6), squeeze=False)
     for c, r in enumerate(runs):

@@ -46,14 +46,22 @@ def _tet10_gradients(xi: np.ndarray) -> np.ndarray:
     return g
 
 
+_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
+
+
+def longest_edge(corners: np.ndarray) -> np.ndarray:
+    """h_max of each tetrahedron from its corner coordinates ``corners`` (m, 4, 3)."""
+    edges = np.stack([corners[:, b] - corners[:, a] for a, b in _EDGES], axis=1)
+    return np.linalg.norm(edges, axis=2).max(axis=1)
+
+
 def tet_quality(points: np.ndarray, cells: np.ndarray, max_aspect_ratio: float = 10.0) -> Quality:
     """Quality of tetrahedra (4 or 10 nodes, VTK order) with coordinates ``points``."""
     x = points[cells]                                   # (m, n, 3)
     c = x[:, :4]
     e1, e2, e3 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0], c[:, 3] - c[:, 0]
     six_v = np.einsum("ij,ij->i", np.cross(e1, e2), e3)
-    edges = np.stack([c[:, b] - c[:, a] for a, b in ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))], axis=1)
-    h_max = np.linalg.norm(edges, axis=2).max(axis=1)
+    h_max = longest_edge(c)
     area = sum(0.5 * np.linalg.norm(np.cross(c[:, j] - c[:, i], c[:, k] - c[:, i]), axis=1)
                for i, j, k in ((0, 1, 2), (0, 3, 1), (1, 3, 2), (2, 3, 0)))
     vol = np.abs(six_v) / 6.0

@@ -25,6 +25,8 @@ from petsc4py import PETSc
 from fem_squeal.assembly import Operators, _add, _owned_global_rows, contact_matrices
 from fem_squeal.eigen import set_options
 
+SUBSET = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
+
 
 class PreloadError(RuntimeError):
     """The static contact problem did not converge (the message gives the history)."""
@@ -82,6 +84,8 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     prev = None
     history: list[tuple[int, float]] = []
     gaps: dict[str, np.ndarray] = {}
+    J: PETSc.Mat | None = None
+    ksp: PETSc.KSP | None = None
     for k in range(max_iterations + 1):
         # gaps, tractions and residual at u
         ops.K.mult(u, R)
@@ -117,23 +121,31 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
             raise PreloadError(f"preload: no convergence in {max_iterations} Newton iterations; "
                                f"(closed points, ‖R‖/‖f‖) per iteration: {history}")
         prev = closed
-        # Jacobian and Newton step
-        J = ops.K.copy()
+        # Jacobian and Newton step.  The contact matrices keep their sparsity whatever the closed
+        # points (open ones carry explicit zeros), so J is built once and refilled: the LU then
+        # reuses its symbolic analysis (ordering) and only refactorises numerically.
+        if J is None:
+            J = ops.K.copy()
+        else:
+            J.zeroEntries()
+            J.axpy(1.0, ops.K, structure=SUBSET)
         for A in contact_matrices(ops, tangents, friction):
             if A is not None:
-                _add(J, A)
+                _add(J, A) if k == 0 else J.axpy(1.0, A, structure=SUBSET)
                 A.destroy()
-        ksp = _lu(J, options, prefix)
+        if ksp is None:
+            ksp = _lu(J, options, prefix)
+        else:
+            ksp.setOperators(J)
         R.scale(-1.0)
         ksp.solve(R, du)
         if ksp.getConvergedReason() < 0:
             raise PreloadError(f"preload: linear solve failed (reason {ksp.getConvergedReason()}) "
                                f"at Newton iteration {k}")
-        ksp.destroy()
-        J.destroy()
         u.axpy(1.0, du)
-    for v in (R, du, t):
-        v.destroy()
+    for obj in (R, du, t, ksp, J):
+        if obj is not None:
+            obj.destroy()
     pressure, normal, fric, area = {}, {}, {}, {}
     for it, op in ops.contacts:
         pressure[it.name] = p = 0.0 - _traction(gaps[it.name], it.kn, k3)[0]  # no "-0.0"

@@ -51,8 +51,9 @@ def run_case(mesh_size: str, matching: bool, degree: int = 2, order: int = 2) ->
             "preload": {k: v["normal_force"] for k, v in res["preload"]["interfaces"].items()}}
 
 
-def spawn(mesh_size: str, matching: bool, ranks: int, degree: int = 2, order: int = 2) -> dict:
-    return casework.spawn(__file__, [mesh_size, str(int(matching)), str(degree), str(order)], ranks)
+def spawn(mesh_size: str, matching: bool, ranks: int, degree: int = 2, order: int = 2,
+          env: dict[str, str] | None = None) -> dict:
+    return casework.spawn(__file__, [mesh_size, str(int(matching)), str(degree), str(order)], ranks, env)
 
 
 def main() -> None:

@@ -8,12 +8,13 @@ import subprocess
 import sys
 
 
-def spawn(script: str, args: list[str], ranks: int) -> dict:
-    """Run ``script --case *args`` on ``ranks`` MPI ranks and return the JSON it prints last."""
+def spawn(script: str, args: list[str], ranks: int, env: dict[str, str] | None = None) -> dict:
+    """Run ``script --case *args`` on ``ranks`` MPI ranks (``env``: extra environment variables)
+    and return the JSON it prints last."""
     cmd = [sys.executable, script, "--case", *args]
     if ranks > 1:
         cmd = ["mpirun", "-n", str(ranks), "--oversubscribe"] + cmd
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", **(env or {}))
     out = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 

@@ -2,7 +2,9 @@
 
 1. Speed-up: ``scenes/brake_corner_cea.toml`` (preload + non-symmetric EPS of every mode in
    0–10 kHz) at a mesh size giving ≥ 300k P2 DOFs, on 1 and on 2 ranks, each in a fresh process
-   (``brake_cea.run_case``).  Target: ≥ 1.6× on the 2-core machine.
+   (``brake_cea.run_case``).  Target: ≥ 1.6× on the 2-core machine.  A single rank already uses
+   both cores in OpenBLAS (``fem_squeal.blas``: one BLAS thread per core and rank), so a third run,
+   1 rank with OPENBLAS_NUM_THREADS=1, separates the MPI speed-up from the threads'.
 2. Largest model: peak memory (the sum of the ranks' peak RSS) is fitted as a power of the DOFs
    over the 2-rank runs, the mesh size that fills ``--budget-gib`` (default 21 of the machine's 24,
    leaving the OS and page cache their share) is predicted from DOFs ∝ h^(−p) fitted the same way,
@@ -45,6 +47,7 @@ def main() -> None:
     a = ap.parse_args()
     size = "0.012" if a.quick else SPEEDUP_SIZE
     one, two = (_row(brake_cea.spawn(size, False, n)) for n in (1, 2))
+    single = _row(brake_cea.spawn(size, False, 1, env={"OPENBLAS_NUM_THREADS": "1"}))
     ev = lambda r: np.array([complex(u[1], u[0]) for u in r["unstable_modes"]])  # noqa: E731
     same = len(one["unstable_modes"]) == len(two["unstable_modes"])
     diff = float(np.max(np.abs(ev(one) - ev(two)) / np.abs(ev(one)))) if same and one["unstable"] else float("nan")
@@ -52,16 +55,20 @@ def main() -> None:
          "(2-core machine, OpenBLAS, fresh process each).", "",
          "| ranks | DOFs | mesh [s] | assembly [s] | preload [s] | eigensolve [s] | total [s] | speed-up | "
          "peak RSS, all ranks [GiB] | modes | unstable |", "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in (one, two):
-        L.append(f"| {r['ranks']} | {r['dofs']} | {r['mesh']:.1f} | {r['assembly']:.1f} | {r['preload']:.1f} | "
+    for r, name in ((single, "1, 1 BLAS thread"), (one, "1"), (two, "2")):
+        L.append(f"| {name} | {r['dofs']} | {r['mesh']:.1f} | {r['assembly']:.1f} | {r['preload']:.1f} | "
                  f"{r['cea']:.1f} | {r['total']:.1f} | {one['total'] / r['total']:.2f}× | "
                  f"{r['peak_total_gib']:.2f} | "
                  f"{r['n_modes']} | {r['unstable']} |")
     solver_speedup = (one["total"] - one["mesh"]) / (two["total"] - two["mesh"])
     L += ["", f"Speed-up of the solver stages (assembly + preload + eigensolve): "
           f"{solver_speedup:.2f}×; unstable eigenvalues 1 vs 2 ranks: "
-          f"largest relative difference {diff:.1e}."]
-    rows = [one, two]
+          f"largest relative difference {diff:.1e}.",
+          f"Against 1 rank with one BLAS thread, 2 ranks are {single['total'] / two['total']:.2f}× faster "
+          f"(solver stages {(single['total'] - single['mesh']) / (two['total'] - two['mesh']):.2f}×, "
+          f"eigensolve {single['cea'] / two['cea']:.2f}×, preload {single['preload'] / two['preload']:.2f}×)."]
+    single["blas_threads"] = 1
+    rows = [single, one, two]
     if not a.quick:
         ladder = [_row(brake_cea.spawn(h, False, 2)) for h in LADDER if h != size] + [two]
         n = np.array([r["dofs"] for r in ladder], float)

@@ -41,7 +41,7 @@ from mpi4py import MPI
 
 from fem_squeal.tags import BRAKE_CORNER_FACES, BRAKE_CORNER_VOLUMES
 from geometry.gmsh_io import MIN_SICN as _MIN_SICN
-from geometry.gmsh_io import GmshModel, MeshData, mesh_with, min_sicn, to_dolfinx
+from geometry.gmsh_io import GmshModel, MeshData, search_meshes, to_dolfinx
 
 _IDENTITY = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
 _CIRCLE_SEGMENTS = 12      # guide holes: at least this many elements round the circumference
@@ -459,40 +459,20 @@ def build_brake_corner(model, p: BrakeCornerParams) -> None:
 
 def _generate(model, order: int) -> None:
     """Mesh with the first of ``_ATTEMPTS`` that meshes everything and, for ``order=2``, gives curved
-    tetrahedra with min SICN >= ``_MIN_SICN``; otherwise warn and keep the best attempt.
+    tetrahedra with min SICN >= ``_MIN_SICN``; otherwise warn and keep the best attempt
+    (:func:`geometry.gmsh_io.search_meshes`).
 
-    gmsh 4.8 stays locked after an error raised as an exception, so the attempts run with
-    ``General.AbortOnError = 0`` and are judged by their elements.  The mesh is left at order 1:
-    :func:`geometry.gmsh_io.to_dolfinx` then calls ``generate(3)`` (a no-op, see
-    :func:`geometry.gmsh_io.mesh_with`)
-    and ``setOrder(2)``, which reproduces the checked second-order mesh.
-    """
+    The mesh is left at order 1: :func:`geometry.gmsh_io.to_dolfinx` then calls ``generate(3)``
+    (a no-op, see :func:`geometry.gmsh_io.mesh_with`) and ``setOrder(2)``, which reproduces the
+    checked second-order mesh."""
     import warnings
 
-    import gmsh
-
-    abort = gmsh.option.getNumber("General.AbortOnError")
-    gmsh.option.setNumber("General.AbortOnError", 0)
-    quality: dict[tuple[int, int], float] = {}
-    try:
-        for attempt in _ATTEMPTS:
-            if not mesh_with(model, attempt):
-                continue
-            if order == 1:
-                return
-            model.mesh.setOrder(order)
-            quality[attempt] = min_sicn(model)
-            model.mesh.setOrder(1)
-            if quality[attempt] >= _MIN_SICN:
-                return
-        if not quality:
-            raise RuntimeError(f"brake corner: meshing failed with every (Algorithm3D, RandomSeed) in {_ATTEMPTS}")
-        best = max(quality, key=quality.get)
-        if best != attempt:
-            mesh_with(model, best)
-    finally:
-        gmsh.option.setNumber("General.AbortOnError", abort)
-    warnings.warn(f"brake corner: curved mesh has min SICN {quality[best]:.3g} < {_MIN_SICN} (best of "
+    accepted, quality = search_meshes(model, _ATTEMPTS, order, judge=order == 2)
+    if accepted is not None:
+        return
+    if not quality:
+        raise RuntimeError(f"brake corner: meshing failed with every (Algorithm3D, RandomSeed) in {_ATTEMPTS}")
+    warnings.warn(f"brake corner: curved mesh has min SICN {max(quality.values()):.3g} < {_MIN_SICN} (best of "
                   f"(Algorithm3D, RandomSeed) -> SICN {quality}); try a slightly different mesh size",
                   RuntimeWarning, stacklevel=2)
 

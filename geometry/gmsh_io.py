@@ -72,6 +72,45 @@ def mesh_with(model, attempt: tuple[int, int]) -> bool:
     return True
 
 
+def search_meshes(model, attempts, order: int, quality: dict | None = None,
+                  judge: bool = True) -> tuple[tuple[int, int] | None, dict[tuple[int, int], float]]:
+    """Mesh with each ``(Mesh.Algorithm3D, Mesh.RandomSeed)`` of ``attempts`` in turn until one
+    meshes every entity and, elevated to ``order``, has a worst element with SICN >= :data:`MIN_SICN`
+    (``judge=False``: until one meshes every entity), and return it.  If none passes, the best is
+    re-meshed and None returned.  The mesh is left at order 1 (``setOrder(order)`` reproduces the
+    judged one).  ``quality`` maps each attempt judged (and any passed in, judged before) to its SICN.
+
+    gmsh 4.8 stays locked after an error raised as an exception, so the attempts run with
+    ``General.AbortOnError = 0`` and are judged by their elements."""
+    import gmsh
+
+    quality = dict(quality or {})
+    abort = gmsh.option.getNumber("General.AbortOnError")
+    gmsh.option.setNumber("General.AbortOnError", 0)
+    current = None                       # the attempt whose mesh the model holds
+    try:
+        for attempt in attempts:
+            if attempt in quality:
+                continue
+            current = attempt if mesh_with(model, attempt) else None
+            if current is None:
+                continue
+            if not judge:
+                return attempt, quality
+            if order == 2:
+                model.mesh.setOrder(2)
+            quality[attempt] = min_sicn(model)
+            if order == 2:
+                model.mesh.setOrder(1)
+            if quality[attempt] >= MIN_SICN:
+                return attempt, quality
+        if quality and current != (best := max(quality, key=quality.get)):
+            mesh_with(model, best)
+    finally:
+        gmsh.option.setNumber("General.AbortOnError", abort)
+    return None, quality
+
+
 def _generate_checked(model, order: int) -> str | None:
     """Mesh (3D, elevated to ``order``) a model whose builder did not mesh it, and check the worst
     element: an element with SICN < :data:`MIN_SICN` (a sliver, or one inverted by curving its
@@ -86,26 +125,14 @@ def _generate_checked(model, order: int) -> str | None:
     first = min_sicn(model)
     if first >= MIN_SICN:
         return None
-    quality = {default: first}
-    abort = gmsh.option.getNumber("General.AbortOnError")
-    gmsh.option.setNumber("General.AbortOnError", 0)
-    try:
-        for attempt in (a for a in RETRY if a != default):
-            if not mesh_with(model, attempt):
-                continue
-            if order == 2:
-                model.mesh.setOrder(2)
-            quality[attempt] = min_sicn(model)
-            if quality[attempt] >= MIN_SICN:
-                return None
-        best = max(quality, key=quality.get)
-        mesh_with(model, best)
-        if order == 2:
-            model.mesh.setOrder(2)
-    finally:
-        gmsh.option.setNumber("General.AbortOnError", abort)
-    return (f"mesh: worst element has SICN {quality[best]:.3g} < {MIN_SICN} with every (Algorithm3D, RandomSeed) "
-            f"tried ({quality}); results may be inaccurate; try a slightly different mesh_size")
+    accepted, quality = search_meshes(model, RETRY, order, {default: first})
+    if order == 2:
+        model.mesh.setOrder(2)
+    if accepted is not None:
+        return None
+    return (f"mesh: worst element has SICN {max(quality.values()):.3g} < {MIN_SICN} with every "
+            f"(Algorithm3D, RandomSeed) tried ({quality}); results may be inaccurate; try a slightly different "
+            "mesh_size")
 
 
 @contextmanager

@@ -3,6 +3,9 @@ order 2 on a linear oscillator, the energy balance over a long run with contact 
 bounded response and HHT damping of the high mode at Δt ≫ its period."""
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -10,6 +13,9 @@ from fem_squeal.reduced.eigensolve import quadratic_eigs
 from fem_squeal.reduced.masa import linearise, static_equilibrium
 from fem_squeal.reduced.transient import DynamicModel, from_masa, run_transient
 from fem_squeal.reduced.two_dof import two_dof_model
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import transient_order  # noqa: E402  (the belt of its section 3c: stick spring ω_t = 1e5 rad/s)
 
 
 @pytest.mark.parametrize("zeta,alpha", [(0.0, 0.0), (0.0, -0.1), (0.02, 0.0), (0.02, -1 / 3)])
@@ -107,19 +113,6 @@ def test_bounded_at_hundred_times_the_shortest_period(alpha):
     assert abs(El[-1] / El[0] - 1) < 1e-4
 
 
-def _belt(dt):
-    """The belt of tests/test_transient.py (stick spring ω_t = 1e5 rad/s)."""
-    from fem_squeal.reduced.contact_law import UnilateralLaw
-    from fem_squeal.reduced.friction import ElasticCoulomb
-    from fem_squeal.reduced.transient import DynamicModel, FrictionContact
-
-    kt = 1e10
-    cs = FrictionContact(D=np.array([[0.0, -1.0]]), T=np.array([[1.0, 0.0]]), d0=np.zeros(1),
-                         normal=UnilateralLaw(k_l=1e10), friction=ElasticCoulomb(0.6, 0.3, kt, 2 * np.sqrt(kt)),
-                         V=np.array([[0.1]]), name="belt")
-    return DynamicModel(K=np.diag([1e4, 0.0]), contacts=[cs], M=np.eye(2), f=np.array([0.0, -100.0]))
-
-
 def test_unresolved_stick_spring_warns():
     """ω_t Δt = 50 silently turned the belt's stick–slip into pure sliding (benchmarks/transient_order.py
     4c); ω_t Δt = 2 (the closed-form test's step) is resolved and must not warn."""
@@ -127,17 +120,19 @@ def test_unresolved_stick_spring_warns():
 
     from fem_squeal.reduced.transient import NewmarkHHT
 
+    model, _ = transient_order.belt()
     with pytest.warns(RuntimeWarning, match="stick springs"):
-        NewmarkHHT(_belt(5e-4), 5e-4)
+        NewmarkHHT(model, 5e-4)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        NewmarkHHT(_belt(2e-5), 2e-5)
+        NewmarkHHT(model, 2e-5)
 
 
 def test_t_end_must_be_whole_steps():
     from fem_squeal.reduced.transient import TransientError, run_transient
 
+    model, q0 = transient_order.belt()
     with pytest.raises(TransientError, match="t_end"):
-        run_transient(_belt(1e-4), np.array([0.0, -1e-8]), None, 2.5e-4, 1e-4)
+        run_transient(model, q0, None, 2.5e-4, 1e-4)
     with pytest.raises(TransientError, match="t_end"):
-        run_transient(_belt(1e-4), np.array([0.0, -1e-8]), None, 0.4e-4, 1e-4)
+        run_transient(model, q0, None, 0.4e-4, 1e-4)

@@ -22,10 +22,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fem_squeal.assembly import Operators, _add, _owned_global_rows, contact_matrices
+from fem_squeal.assembly import Operators, _owned_global_rows, contact_matrices
 from fem_squeal.eigen import set_options
-
-SUBSET = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
 
 
 class PreloadError(RuntimeError):
@@ -124,19 +122,19 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         # Jacobian and Newton step.  The contact matrices keep their sparsity whatever the closed
         # points (open ones carry explicit zeros), so J is built once and refilled: the LU then
         # reuses its symbolic analysis (ordering) and only refactorises numerically.
-        if J is None:
+        if J is None:                      # first step: J takes the union of the sparsity patterns
             J = ops.K.copy()
+            pattern = PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN
         else:
             J.zeroEntries()
-            J.axpy(1.0, ops.K, structure=SUBSET)
+            pattern = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
+            J.axpy(1.0, ops.K, structure=pattern)
         for A in contact_matrices(ops, tangents, friction):
             if A is not None:
-                _add(J, A) if k == 0 else J.axpy(1.0, A, structure=SUBSET)
+                J.axpy(1.0, A, structure=pattern)
                 A.destroy()
-        if ksp is None:
+        if ksp is None:                    # later steps: PETSc sees J's new values and refactorises
             ksp = _lu(J, options, prefix)
-        else:
-            ksp.setOperators(J)
         R.scale(-1.0)
         ksp.solve(R, du)
         if ksp.getConvergedReason() < 0:

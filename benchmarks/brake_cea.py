@@ -31,8 +31,8 @@ QUICK = [("0.016", False, 2, 2), ("0.012", False, 2, 2), ("0.012", False, 1, 1)]
 def run_case(mesh_size: str, matching: bool, degree: int = 2, order: int = 2) -> dict:
     from mpi4py import MPI
 
-    from fem_squeal.run import run_scene
-    from fem_squeal.scene import load_scene
+    from fem_squeal.app.run import run_scene
+    from fem_squeal.app.scene import load_scene
 
     comm = MPI.COMM_WORLD
     scene = load_scene(ROOT / "scenes" / "brake_corner_cea.toml",

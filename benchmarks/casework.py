@@ -31,7 +31,7 @@ def save(name: str, lines: list[str], rows: list[dict], ranks: int, quick: bool)
     """Print the table and write benchmarks/out/<name>_<ranks>ranks[_quick].md and .json."""
     from pathlib import Path
 
-    from fem_squeal.output import atomic_path
+    from fem_squeal.util.atomic import atomic_path
 
     text = "\n".join(lines)
     print(text)
@@ -51,6 +51,6 @@ def out_path(name: str, ranks: int, quick: bool, ext: str):
 
 def save_plot(fig, name: str, ranks: int, quick: bool) -> None:
     """Write a matplotlib figure to benchmarks/out/<name>_<ranks>ranks[_quick].png (atomically)."""
-    from fem_squeal.output import save_figure_atomic
+    from fem_squeal.util.atomic import save_figure_atomic
 
     save_figure_atomic(fig, out_path(name, ranks, quick, "png"))

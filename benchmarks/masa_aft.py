@@ -48,7 +48,7 @@ import casework  # noqa: E402
 
 from fem_squeal.reduced import masa as masa_mod  # noqa: E402
 from fem_squeal.reduced.aft import cubic_remainder_stiffness, first_harmonic  # noqa: E402
-from fem_squeal.reduced.contact_law import ExponentialLaw, UnilateralLaw, exponential_like, tune_cubic  # noqa: E402
+from fem_squeal.reduced.laws.contact import ExponentialLaw, UnilateralLaw, exponential_like, tune_cubic  # noqa: E402
 
 OMEGA = 2 * np.pi * 3000.0
 DEFAULT_N = 64          # MasaProblem / first_harmonic / scene analyses.masa.n_samples default
@@ -244,7 +244,7 @@ def outcome(Ns, N_ref: int = 8192, m: int = 100, n: int = 200) -> tuple[list[dic
 
 # ------------------------------------------------------------------ main
 def plot(acc, cost_N, ranks, quick):
-    from fem_squeal.plots import pyplot
+    from fem_squeal.app.plots import pyplot
 
     plt = pyplot()
 

@@ -52,9 +52,9 @@ def _targets(rm, patches):
 def case(path: str, patches: str, brk: str) -> None:
     from mpi4py import MPI
 
-    from fem_squeal.blas import limit_threads_for
     from fem_squeal.reduced.masa import run_masa
     from fem_squeal.reduced.model import ReducedModel
+    from fem_squeal.util.blas import limit_threads_for
 
     comm = MPI.COMM_WORLD
     limit_threads_for(comm)
@@ -78,8 +78,8 @@ def case(path: str, patches: str, brk: str) -> None:
 
 
 def eig_cost(m: int, reps: int = 20) -> float:
-    from fem_squeal.blas import limit_threads
     from fem_squeal.reduced.eigensolve import quadratic_eigs
+    from fem_squeal.util.blas import limit_threads
 
     limit_threads(1)
     rng = np.random.default_rng(0)

@@ -5,7 +5,7 @@ all displacements fixed on the inner cylinder r = 0.06; the lowest 20 modes; qua
 
 Same mesh: each mesh is generated ONCE by gmsh (``geometry.annular_disc``, curved second-order
 tetrahedra) and saved as ``.msh``.  fem_squeal (``builder = "mesh_file"``) and scikit-fem (meshio ->
-``MeshTet2``) read that file; CalculiX reads the Abaqus deck that ``geometry.mesh_convert`` writes
+``MeshTet2``) read that file; CalculiX reads the Abaqus deck that ``fem_squeal.app.convert`` writes
 from it (C3D10, the same node and element numbers; coordinates re-printed in 20 characters because
 ccx reads at most 20 per field: fixed-point with 17 decimals, i.e. to 1e-17 m).  The clamp is the
 mesh's ``inner`` surface in all three: fem_squeal clamps its facets, scikit-fem the DOFs of the same
@@ -138,9 +138,9 @@ def make_mesh(h: float, folder: str, n_modes: int) -> dict:
     """gmsh -> <stem>.msh; Abaqus deck <stem>.inp (C3D10) from it; the ccx decks; sizes."""
     from mpi4py import MPI
 
+    from fem_squeal.app.convert import write_mesh_file
     from geometry.annular_disc import annular_disc_model
     from geometry.gmsh_io import write_msh
-    from geometry.mesh_convert import write_mesh_file
     from geometry.mesh_file import _facet_nodes, read_mesh_file
 
     d, s = Path(folder), stem(h)
@@ -193,10 +193,10 @@ def run_fem(scene_file: str) -> dict:
 
     from mpi4py import MPI
 
-    from fem_squeal.assembly import assemble_operators
-    from fem_squeal.eigen import solve_real_modes
-    from fem_squeal.run import build_mesh
-    from fem_squeal.scene import load_scene, model_spec
+    from fem_squeal.app.analyses.mesh import build_mesh
+    from fem_squeal.app.scene import load_scene, model_spec
+    from fem_squeal.fe.assembly import assemble_operators
+    from fem_squeal.fe.eigen import solve_real_modes
 
     comm = MPI.COMM_WORLD
     scene = load_scene(scene_file)
@@ -482,7 +482,7 @@ def frequency_table(mesh: dict, rs: list[dict], ref: dict, ref_mesh: dict) -> li
 
 
 def plot(meshes: list[dict], runs: dict, ranks: int, quick: bool, n_par: int) -> None:
-    from fem_squeal.plots import pyplot
+    from fem_squeal.app.plots import pyplot
 
     plt = pyplot()
 

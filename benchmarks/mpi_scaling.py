@@ -3,7 +3,7 @@
 1. Speed-up: ``scenes/brake_corner_cea.toml`` (preload + non-symmetric EPS of every mode in
    0–10 kHz) at a mesh size giving ≥ 300k P2 DOFs, on 1 and on 2 ranks, each in a fresh process
    (``brake_cea.run_case``).  Target: ≥ 1.6× on the 2-core machine.  A single rank already uses
-   both cores in OpenBLAS (``fem_squeal.blas``: one BLAS thread per core and rank), so a third run,
+   both cores in OpenBLAS (``fem_squeal.util.blas``: one BLAS thread per core and rank), so a third run,
    1 rank with OPENBLAS_NUM_THREADS=1, separates the MPI speed-up from the threads'.  Each of the
    three runs ``--repeat`` times (default 2, interleaved) and the fastest is reported.
 2. Largest model: peak memory (the sum of the ranks' peak RSS) is fitted as a power of the DOFs

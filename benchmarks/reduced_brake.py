@@ -32,17 +32,17 @@ def main() -> None:
     args = ap.parse_args()
     from mpi4py import MPI
 
-    from fem_squeal.assembly import assemble_operators, linearise
-    from fem_squeal.blas import limit_threads_for
-    from fem_squeal.preload import solve_preload
+    from fem_squeal.app.analyses.mesh import build_mesh
+    from fem_squeal.app.analyses.reduced import full_cea
+    from fem_squeal.app.scene import load_scene, model_spec
+    from fem_squeal.fe.assembly import assemble_operators, linearise
+    from fem_squeal.fe.preload import solve_preload
+    from fem_squeal.fe.projection import ParametricOperators, build_basis, common_mu, reduce, relative_change
     from fem_squeal.reduced.eigensolve import unstable
     from fem_squeal.reduced.model import MU
     from fem_squeal.reduced.stability_map import equal_bands, stability_map
     from fem_squeal.reduced.sweep import Grid, evaluate, signed_mu_axis, solve_points
-    from fem_squeal.reduction import ParametricOperators, build_basis, common_mu, reduce, relative_change
-    from fem_squeal.run import build_mesh
-    from fem_squeal.scene import load_scene, model_spec
-    from fem_squeal.studies import full_cea
+    from fem_squeal.util.blas import limit_threads_for
 
     comm = MPI.COMM_WORLD
     limit_threads_for(comm)

@@ -30,11 +30,11 @@ REF = (2, 0.0008)
 def run_case(degree: int, mesh_size: float, order: int | None = None) -> dict:
     from mpi4py import MPI
 
-    from fem_squeal.assembly import assemble_operators
-    from fem_squeal.descriptors import CircumferentialBasis
-    from fem_squeal.eigen import solve_complex_modes
-    from fem_squeal.run import build_mesh
-    from fem_squeal.scene import load_scene, model_spec
+    from fem_squeal.app.analyses.mesh import build_mesh
+    from fem_squeal.app.scene import load_scene, model_spec
+    from fem_squeal.fe.assembly import assemble_operators
+    from fem_squeal.fe.descriptors import CircumferentialBasis
+    from fem_squeal.fe.eigen import solve_complex_modes
 
     comm = MPI.COMM_WORLD
     order = degree if order is None else order
@@ -106,7 +106,7 @@ def main() -> None:
 
 
 def _plot(rows: list[dict], ref: dict, ranks: int, quick: bool) -> None:
-    from fem_squeal.plots import pyplot
+    from fem_squeal.app.plots import pyplot
 
     plt = pyplot()
 

@@ -134,7 +134,7 @@ def main() -> None:
         lines.append(f"| {t['grid']} | {t['events']} | {t['coalescences']} | {mu} | {err} | {f} | {t['solves']} | "
                      f"{t['ambiguous_steps']} | {t['seconds']:.2f} |")
     casework.save("stress_coalescence", lines, {"points": rows, "tracker": trk}, a.ranks, a.quick)
-    from fem_squeal.plots import pyplot
+    from fem_squeal.app.plots import pyplot
 
     plt = pyplot()
 

@@ -1,6 +1,6 @@
 """Stress tests at the extremes, on the ring of seed 003 against its analytic growth rates.
 
-The corrected ring theory (:mod:`fem_squeal.ring_theory`, verified to 0.5 % at μ = 0.3) gives
+The corrected ring theory (:mod:`fem_squeal.theory.ring_theory`, verified to 0.5 % at μ = 0.3) gives
 Re λ of the in-plane flutter pairs k = 2..6 for any μ, ν and thickness h, so each extreme has an
 independent reference.  Each case runs the CEA (24 modes nearest 2.5 kHz) in a fresh process:
 
@@ -8,7 +8,7 @@ independent reference.  Each case runs the CEA (24 modes nearest 2.5 kHz) in a f
   (coupling to other modes) is O(g²).
 * **ν up to 0.499** (the ring is the lining-like polymer pressed between plates): P1 and P2 against
   the theory and against P2 on a finer mesh; volumetric locking shows as P1 errors that grow as
-  ν → ½.  The run warns (``fem_squeal.assembly``) for P1 with ν ≥ 0.45 and P2 with ν ≥ 0.499.
+  ν → ½.  The run warns (``fem_squeal.fe.assembly``) for P1 with ν ≥ 0.45 and P2 with ν ≥ 0.499.
 * **thin and thick parts**: h from 0.5 mm (h/b = 0.1, one element through the thickness) to
   16 mm (h/b = 3.2), at the default 2 mm mesh size, with the mesh quality of each.
 * **distorted meshes**: interior nodes moved at random by a share of the mean edge length (boundary
@@ -45,12 +45,12 @@ def ring_cea(overrides: list[str], scene_path: Path = SCENE, comm=None) -> dict:
 
     from mpi4py import MPI
 
-    from fem_squeal import ring_theory as rt
-    from fem_squeal.assembly import assemble_operators
-    from fem_squeal.descriptors import CircumferentialBasis
-    from fem_squeal.eigen import solve_complex_modes
-    from fem_squeal.run import build_mesh
-    from fem_squeal.scene import load_scene, model_spec
+    from fem_squeal.app.analyses.mesh import build_mesh
+    from fem_squeal.app.scene import load_scene, model_spec
+    from fem_squeal.fe.assembly import assemble_operators
+    from fem_squeal.fe.descriptors import CircumferentialBasis
+    from fem_squeal.fe.eigen import solve_complex_modes
+    from fem_squeal.theory import ring_theory as rt
     from geometry.quality import tet_quality
 
     comm = comm or MPI.COMM_WORLD
@@ -108,9 +108,9 @@ def distorted_ring(amplitude: float, folder: Path, seed: int = 0) -> Path:
     (uniform in a ball), as a scene reading it; returns the scene path."""
     from mpi4py import MPI
 
-    from fem_squeal.scene import load_scene
+    from fem_squeal.app.convert import write_mesh_file
+    from fem_squeal.app.scene import load_scene
     from geometry import MODELS, write_msh
-    from geometry.mesh_convert import write_mesh_file
     from geometry.mesh_file import read_mesh_file
 
     g = dict(load_scene(SCENE)["geometry"])

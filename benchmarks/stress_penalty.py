@@ -1,9 +1,9 @@
 """Stress test: the contact penalty k_n over 9 decades on the ring (seed 003), 1e8 … 1e16 N/m³.
 
 For each k_n, in a fresh process: the penalty ratio r = k_n h / C₁₁ and whether the run warns
-(:mod:`fem_squeal.penalty`, warning above r = 1e3); the CEA (every mode in 100–5000 Hz) with its
+(:mod:`fem_squeal.fe.penalty`, warning above r = 1e3); the CEA (every mode in 100–5000 Hz) with its
 largest relative residual (40 modes nearest 2.5 kHz, all of the band); the condition number of
-the shift-inverted operator K − σM (κ₁ by Hager's estimator, :func:`fem_squeal.penalty.condition_number_1`)
+the shift-inverted operator K − σM (κ₁ by Hager's estimator, :func:`fem_squeal.fe.penalty.condition_number_1`)
 and ‖K‖₁;
 the number of *penalty modes* in the band (modes whose strain energy is more than half in the
 penalty layer: the ring bouncing on the plates' springs, physical for a soft layer but not
@@ -12,7 +12,7 @@ rate of k = 2) and the largest change of their eigenvalues from the previous dec
 
     .venv/bin/python benchmarks/stress_penalty.py [--quick] [--ranks 2]
 
-Expected (module docstring of fem_squeal.penalty): the eigenvalues saturate once r ≫ 1 (changes
+Expected (module docstring of fem_squeal.fe.penalty): the eigenvalues saturate once r ≫ 1 (changes
 O(1/r) per decade) while the condition number keeps growing ∝ k_n.
 """
 from __future__ import annotations
@@ -39,12 +39,12 @@ def run_case(kn: float, mesh_size: float) -> dict:
     from mpi4py import MPI
     from petsc4py import PETSc
 
-    from fem_squeal.assembly import assemble_operators
-    from fem_squeal.descriptors import CircumferentialBasis
-    from fem_squeal.eigen import solve_complex_modes
-    from fem_squeal.penalty import condition_number_1, penalty_ratios, penalty_warnings
-    from fem_squeal.run import build_mesh
-    from fem_squeal.scene import load_scene, model_spec
+    from fem_squeal.app.analyses.mesh import build_mesh
+    from fem_squeal.app.scene import load_scene, model_spec
+    from fem_squeal.fe.assembly import assemble_operators
+    from fem_squeal.fe.descriptors import CircumferentialBasis
+    from fem_squeal.fe.eigen import solve_complex_modes
+    from fem_squeal.fe.penalty import condition_number_1, penalty_ratios, penalty_warnings
 
     comm = MPI.COMM_WORLD
     scene = load_scene(ROOT / "scenes" / "ryzhik_ring.toml",
@@ -143,7 +143,7 @@ def main() -> None:
                      f"{sorted(p)} | {k2} | {dl} | {r['t_eig']:.2f} |")
         prev = p
     casework.save("stress_penalty", lines, rows, a.ranks, a.quick)
-    from fem_squeal.plots import pyplot
+    from fem_squeal.app.plots import pyplot
 
     plt = pyplot()
 

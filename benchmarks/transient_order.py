@@ -43,9 +43,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import casework  # noqa: E402
 
 from fem_squeal.reduced import transient as tr  # noqa: E402
-from fem_squeal.reduced.contact_law import UnilateralLaw  # noqa: E402
 from fem_squeal.reduced.eigensolve import quadratic_eigs  # noqa: E402
-from fem_squeal.reduced.friction import ElasticCoulomb  # noqa: E402
+from fem_squeal.reduced.laws.contact import UnilateralLaw  # noqa: E402
+from fem_squeal.reduced.laws.friction import ElasticCoulomb  # noqa: E402
 from fem_squeal.reduced.masa import linearise, static_equilibrium  # noqa: E402
 from fem_squeal.reduced.two_dof import two_dof_model  # noqa: E402
 
@@ -321,7 +321,7 @@ def fmt(v, f=".2e"):
 
 
 def plot(order_rows, curves, big_rows, ranks, quick):
-    from fem_squeal.plots import pyplot
+    from fem_squeal.app.plots import pyplot
 
     plt = pyplot()
 

@@ -15,19 +15,15 @@ from __future__ import annotations
 
 import math
 import sys
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal.run import run_scene
-from fem_squeal.scene import load_scene
+from fem_squeal.app.cli import demo_arguments
+from fem_squeal.app.run import run_scene
+from fem_squeal.app.scene import load_scene
 
-root = Path(__file__).resolve().parents[1]
-args = sys.argv[1:]
-sets = [args[i + 1] for i, a in enumerate(args) if a == "--set"]
-positional = [a for i, a in enumerate(args) if a != "--set" and (i == 0 or args[i - 1] != "--set")]
-outdir = Path(positional[0]) if positional else root / "out" / "brake_corner_cea"
+root, outdir, sets = demo_arguments(__file__)
 scene = load_scene(root / "scenes" / "brake_corner_cea.toml", sets)
 comm = MPI.COMM_WORLD
 res = run_scene(scene, outdir, comm)

@@ -27,9 +27,10 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from fem_squeal.cli import demo_arguments
-from fem_squeal.run import build_mesh, run_scene
-from fem_squeal.scene import load_scene
+from fem_squeal.app.analyses.mesh import build_mesh
+from fem_squeal.app.cli import demo_arguments
+from fem_squeal.app.run import run_scene
+from fem_squeal.app.scene import load_scene
 from geometry.brake_corner import BrakeCornerParams
 from geometry.mesh_file import prepare
 

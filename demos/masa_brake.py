@@ -29,11 +29,11 @@ import sys
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal.cli import demo_arguments
+from fem_squeal.app.cli import demo_arguments
+from fem_squeal.app.run import run_scene
+from fem_squeal.app.scene import load_scene
 from fem_squeal.reduced.masa import MasaProblem, from_reduced, static_equilibrium
 from fem_squeal.reduced.model import ReducedModel
-from fem_squeal.run import run_scene
-from fem_squeal.scene import load_scene
 
 root, outdir, overrides = demo_arguments(__file__)
 comm = MPI.COMM_WORLD

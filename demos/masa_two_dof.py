@@ -20,19 +20,18 @@ there.  Outputs in out/masa_two_dof/: masa.png, contact_status.png, masa.json.
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal import plots
-from fem_squeal.output import write_json_atomic
+from fem_squeal.app import plots
+from fem_squeal.app.cli import demo_arguments
 from fem_squeal.reduced.eigensolve import quadratic_eigs
 from fem_squeal.reduced.masa import MasaProblem, run_masa, static_equilibrium
 from fem_squeal.reduced.two_dof import two_dof_model
+from fem_squeal.util.atomic import write_json_atomic
 
-root = Path(__file__).resolve().parents[1]
-outdir = Path(sys.argv[1]) if len(sys.argv) > 1 else root / "out" / "masa_two_dof"
+root, outdir, _ = demo_arguments(__file__)
 comm = MPI.COMM_WORLD
 say = print if comm.rank == 0 else (lambda *a, **k: None)
 failures: list[str] = []

@@ -12,8 +12,8 @@ A-F) and in total.
 Checks: reduced = full CEA within tol at every check point (including the unstable count), and
 the map's count at the nominal point equals the full CEA of the scene.  Outputs under
 out/mu_E_stability_map/: stability_map.png/.npz, root_locus.png, results.json, report.html.
-The scene is ``scenes/brake_mu_E_map.toml``; stages are cached in ``.fem_squeal_cache`` (a second
-run recomputes nothing).  Run with ``mpirun -n 2`` (``scripts/demo.sh``).
+The scene is ``scenes/brake_mu_E_map.toml``; stages are cached in ``$XDG_CACHE_HOME/fem_squeal``
+(or ``$FEM_SQUEAL_CACHE``), so a second run recomputes nothing.  Run with ``mpirun -n 2`` (``scripts/demo.sh``).
 """
 from __future__ import annotations
 
@@ -22,16 +22,16 @@ import sys
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal.cli import demo_arguments
-from fem_squeal.pipeline import default_cache_dir
-from fem_squeal.run import run_scene
-from fem_squeal.scene import load_scene
-from fem_squeal.studies import verification_failures
+from fem_squeal.app.analyses.reduced import verification_failures
+from fem_squeal.app.cli import demo_arguments
+from fem_squeal.app.pipeline import default_cache_dir
+from fem_squeal.app.run import run_scene
+from fem_squeal.app.scene import load_scene
 
 root, outdir, overrides = demo_arguments(__file__)
 comm = MPI.COMM_WORLD
 scene = load_scene(root / "scenes" / "brake_mu_E_map.toml", overrides)
-res = run_scene(scene, outdir, comm, write_fields=False, cache=default_cache_dir(root))
+res = run_scene(scene, outdir, comm, write_fields=False, cache=default_cache_dir())
 
 red, smap = res["reduced"], res["map"]
 failures = verification_failures(red)

@@ -23,10 +23,10 @@ import sys
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal.cli import demo_arguments
-from fem_squeal.run import run_scene
-from fem_squeal.scene import load_scene
-from fem_squeal.studies import verification_failures
+from fem_squeal.app.analyses.reduced import verification_failures
+from fem_squeal.app.cli import demo_arguments
+from fem_squeal.app.run import run_scene
+from fem_squeal.app.scene import load_scene
 
 root, outdir, _ = demo_arguments(__file__)
 comm = MPI.COMM_WORLD

@@ -7,22 +7,21 @@ degenerate pair with k nodal diameters becomes a flutter quadruple ±σ ± iω.
 
 This script runs ``scenes/ryzhik_ring.toml`` (serial or ``mpirun -n 2``), prints the unstable
 pair of every k beside Ryzhik's eq. 11 and beside the corrected thin-ring formula of
-``fem_squeal.ring_theory`` (ring extension, spring restraint, shear), and checks itself.
+``fem_squeal.theory.ring_theory`` (ring extension, spring restraint, shear), and checks itself.
 """
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 from mpi4py import MPI
 
-from fem_squeal import ring_theory as rt
-from fem_squeal.run import run_scene
-from fem_squeal.scene import load_scene
+from fem_squeal.app.cli import demo_arguments
+from fem_squeal.app.run import run_scene
+from fem_squeal.app.scene import load_scene
+from fem_squeal.theory import ring_theory as rt
 
-root = Path(__file__).resolve().parents[1]
-outdir = Path(sys.argv[1]) if len(sys.argv) > 1 else root / "out" / "ryzhik_ring"
-scene = load_scene(root / "scenes" / "ryzhik_ring.toml")
+root, outdir, sets = demo_arguments(__file__)
+scene = load_scene(root / "scenes" / "ryzhik_ring.toml", sets)
 comm = MPI.COMM_WORLD
 res = run_scene(scene, outdir, comm)
 

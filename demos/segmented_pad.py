@@ -22,16 +22,16 @@ import sys
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal.cli import demo_arguments
-from fem_squeal.dynamics import pad_parameters
-from fem_squeal.pipeline import default_cache_dir
-from fem_squeal.run import run_scene
-from fem_squeal.scene import load_scene
+from fem_squeal.app.analyses.segmented_pad import pad_parameters
+from fem_squeal.app.cli import demo_arguments
+from fem_squeal.app.pipeline import default_cache_dir
+from fem_squeal.app.run import run_scene
+from fem_squeal.app.scene import load_scene
 
 root, outdir, overrides = demo_arguments(__file__)
 comm = MPI.COMM_WORLD
 scene = load_scene(root / "scenes" / "segmented_pad.toml", overrides)
-res = run_scene(scene, outdir, comm, cache=default_cache_dir(root))
+res = run_scene(scene, outdir, comm, cache=default_cache_dir())
 runs = res["segmented_pad"]["runs"]
 by_speed = [r for r in runs if r["kind"] == "speed"]
 pairs = [r for r in runs if r["kind"] == "velocities"]

@@ -6,7 +6,7 @@
    from steady sliding plus a push along the most unstable tangent-CEA mode; then the limit
    cycle, space–time SVD and its MAC with the CEA modes, the dynamic stability diagram,
    component strain-energy shares and the complex-mode cycles.  Stages are cached
-   (``.fem_squeal_cache``): a second run only re-checks.
+   (``$XDG_CACHE_HOME/fem_squeal``, or ``$FEM_SQUEAL_CACHE``): a second run only re-checks.
 2. Independent check of the integrator on this model: at 1e-5 of the static closure no contact
    element switches, so the unstable mode must grow at the tangent CEA's Re λ (projection on its
    left eigenvector isolates it; 1 %).  The pipeline's discrete energy balance must close to 1e-6.
@@ -22,14 +22,14 @@ import sys
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal.cli import demo_arguments
-from fem_squeal.dynamics import brake_start, integrator_options, static_closure
-from fem_squeal.pipeline import default_cache_dir
+from fem_squeal.app.analyses.transient import brake_start, integrator_options, static_closure
+from fem_squeal.app.cli import demo_arguments
+from fem_squeal.app.pipeline import default_cache_dir
+from fem_squeal.app.run import run_scene
+from fem_squeal.app.scene import load_scene
 from fem_squeal.reduced.eigensolve import TWO_PI
 from fem_squeal.reduced.model import ReducedModel
 from fem_squeal.reduced.transient import run_transient
-from fem_squeal.run import run_scene
-from fem_squeal.scene import load_scene
 
 root, outdir, overrides = demo_arguments(__file__)
 comm = MPI.COMM_WORLD
@@ -37,7 +37,7 @@ say = print if comm.rank == 0 else (lambda *a, **k: None)
 
 # --- 1. the scene ------------------------------------------------------------------------------
 scene = load_scene(root / "scenes" / "brake_transient.toml", overrides)
-res = run_scene(scene, outdir, comm, write_fields=False, cache=default_cache_dir(root))
+res = run_scene(scene, outdir, comm, write_fields=False, cache=default_cache_dir())
 tr, lc = res["transient"], res["limit_cycle"]
 failures = []
 if comm.rank == 0:

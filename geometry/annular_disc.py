@@ -9,8 +9,8 @@ import math
 
 from mpi4py import MPI
 
-from fem_squeal.tags import ANNULAR_DISC_FACES, ANNULAR_DISC_VOLUMES
 from geometry.gmsh_io import GmshModel, MeshData, to_dolfinx
+from geometry.tags import ANNULAR_DISC_FACES, ANNULAR_DISC_VOLUMES
 
 
 def _face_radius(model, tag: int) -> float:
@@ -55,7 +55,7 @@ def build_annular_disc(model, inner_radius: float, outer_radius: float, thicknes
         model.setPhysicalName(2, ANNULAR_DISC_FACES[name], name)
     model.addPhysicalGroup(3, [vol[1]], ANNULAR_DISC_VOLUMES["disc"])
     model.setPhysicalName(3, ANNULAR_DISC_VOLUMES["disc"], "disc")
-    import gmsh
+    import gmsh  # heavy: gmsh (not needed to read mesh files)
     gmsh.option.setNumber("Mesh.MeshSizeMax", mesh_size)
     gmsh.option.setNumber("Mesh.MeshSizeMin", 0.25 * mesh_size)
     gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 1)

@@ -3,7 +3,7 @@
 SI units (metres), axis z, disc mid-plane z = 0; the pads are centred on the +x axis (θ = 0), the
 inboard side (piston, caliper housing) is z < 0 and the hat rises towards z > 0 (outboard).
 
-Parts (cell tags of :data:`fem_squeal.tags.BRAKE_CORNER_VOLUMES`); a part may hold several OCC
+Parts (cell tags of :data:`geometry.tags.BRAKE_CORNER_VOLUMES`); a part may hold several OCC
 volumes, all in its physical group:
 
 * ``disc``: friction ring ``r_i <= r <= r_o``, ``|z| <= h/2``; hat wall ``r_i - t_w <= r <= r_i`` from
@@ -21,7 +21,7 @@ are separate coincident surfaces meshed independently, so their nodes are distin
 ``matching=True`` the lining footprint is imprinted on the disc friction faces and each lining
 contact face receives a copy of the disc patch mesh (``setPeriodic``, identity): coincident nodes.
 
-Face tags (:data:`fem_squeal.tags.BRAKE_CORNER_FACES`): ``disc_bolt_face`` is the *outboard* face
+Face tags (:data:`geometry.tags.BRAKE_CORNER_FACES`): ``disc_bolt_face`` is the *outboard* face
 ``z = z_top`` of the inner flange annulus ``r_f <= r <= bolt_face_outer_radius`` (the hub/wheel
 clamps the flange there); ``disc_friction_inner``/``outer`` are the whole ring faces ``z = -/+ h/2``.
 
@@ -35,13 +35,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass
 
 from mpi4py import MPI
 
-from fem_squeal.tags import BRAKE_CORNER_FACES, BRAKE_CORNER_VOLUMES
 from geometry.gmsh_io import MIN_SICN as _MIN_SICN
 from geometry.gmsh_io import GmshModel, MeshData, search_meshes, to_dolfinx
+from geometry.tags import BRAKE_CORNER_FACES, BRAKE_CORNER_VOLUMES
 
 _IDENTITY = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
 _CIRCLE_SEGMENTS = 12      # guide holes: at least this many elements round the circumference
@@ -307,7 +308,7 @@ def build_brake_corner(model, p: BrakeCornerParams) -> None:
     Flat faces are identified by the centre of mass, cylindrical faces by the distance of a point
     on them from their axis; each face is looked up only among the faces of its own part.
     """
-    import gmsh
+    import gmsh  # heavy: gmsh (not needed to read mesh files)
 
     occ = model.occ
     h = p.disc_thickness
@@ -465,7 +466,6 @@ def _generate(model, order: int) -> None:
     The mesh is left at order 1: :func:`geometry.gmsh_io.to_dolfinx` then calls ``generate(3)``
     (a no-op, see :func:`geometry.gmsh_io.mesh_with`) and ``setOrder(2)``, which reproduces the
     checked second-order mesh."""
-    import warnings
 
     accepted, quality = search_meshes(model, _ATTEMPTS, order, judge=order == 2)
     if accepted is not None:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -41,7 +42,7 @@ def min_sicn(model) -> float:
 
     gmsh 4.8 has no ``getElementQualities``; this runs ``Plugin(AnalyseMeshQuality)`` and removes its view.
     """
-    import gmsh
+    import gmsh  # heavy: gmsh (not needed to read mesh files)
 
     before = set(gmsh.view.getTags())
     for name, value in (("ICNMeasure", 1), ("JacobianDeterminant", 0), ("IGEMeasure", 0), ("CreateView", 1),
@@ -58,7 +59,7 @@ def min_sicn(model) -> float:
 
 def mesh_with(model, attempt: tuple[int, int]) -> bool:
     """Mesh afresh with ``(Mesh.Algorithm3D, Mesh.RandomSeed) = attempt``; True if every entity got elements."""
-    import gmsh
+    import gmsh  # heavy: gmsh (not needed to read mesh files)
 
     model.mesh.clear()
     for name, value in (("Mesh.Algorithm3D", attempt[0]), ("Mesh.RandomSeed", attempt[1]),
@@ -82,7 +83,7 @@ def search_meshes(model, attempts, order: int, quality: dict | None = None,
 
     gmsh 4.8 stays locked after an error raised as an exception, so the attempts run with
     ``General.AbortOnError = 0`` and are judged by their elements."""
-    import gmsh
+    import gmsh  # heavy: gmsh (not needed to read mesh files)
 
     quality = dict(quality or {})
     abort = gmsh.option.getNumber("General.AbortOnError")
@@ -116,7 +117,7 @@ def _generate_checked(model, order: int) -> str | None:
     element: an element with SICN < :data:`MIN_SICN` (a sliver, or one inverted by curving its
     boundary nodes onto the CAD surface) is re-meshed with the alternatives of :data:`RETRY`; the
     best is kept, with a warning (returned) if none reaches MIN_SICN."""
-    import gmsh
+    import gmsh  # heavy: gmsh (not needed to read mesh files)
 
     default = (int(gmsh.option.getNumber("Mesh.Algorithm3D")), int(gmsh.option.getNumber("Mesh.RandomSeed")))
     model.mesh.generate(3)
@@ -139,7 +140,7 @@ def _generate_checked(model, order: int) -> str | None:
 def _built(comm: MPI.Comm, model: GmshModel, verbose: bool) -> Iterator[None]:
     """gmsh initialised, the model built and meshed on rank 0 (3D, elevated to ``order``: curved P2
     geometry for ``order=2``) and every requested tag checked; ``ValueError`` names missing tags."""
-    import gmsh
+    import gmsh  # heavy: gmsh (not needed to read mesh files)
 
     if model.order not in (1, 2):
         raise ValueError(f"order: must be 1 or 2 (got {model.order})")
@@ -168,7 +169,6 @@ def _built(comm: MPI.Comm, model: GmshModel, verbose: bool) -> Iterator[None]:
         if error:
             raise ValueError(error)
         if warning:
-            import warnings
 
             warnings.warn(warning, RuntimeWarning, stacklevel=3)
         yield
@@ -178,10 +178,10 @@ def _built(comm: MPI.Comm, model: GmshModel, verbose: bool) -> Iterator[None]:
 
 def to_dolfinx(comm: MPI.Comm, model: GmshModel, verbose: bool = False) -> MeshData:
     """Build ``model`` on rank 0 and distribute it with ``gmshio.model_to_mesh``."""
-    from dolfinx.io import gmshio
+    from dolfinx.io import gmshio  # heavy: FE stack
 
     with _built(comm, model, verbose):
-        import gmsh
+        import gmsh  # heavy: gmsh (not needed to read mesh files)
 
         mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=3)
     mesh.name = "mesh"
@@ -191,7 +191,7 @@ def to_dolfinx(comm: MPI.Comm, model: GmshModel, verbose: bool = False) -> MeshD
 def write_msh(comm: MPI.Comm, model: GmshModel, path: Path, verbose: bool = False) -> None:
     """Build ``model`` on rank 0 and save it as a gmsh ``.msh`` (physical groups named, tagged elements
     only); ``fem-squeal convert`` takes it on to Abaqus, Nastran or VTU."""
-    import gmsh
+    import gmsh  # heavy: gmsh (not needed to read mesh files)
 
     with _built(comm, model, verbose):
         if comm.rank == 0:

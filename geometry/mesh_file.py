@@ -22,19 +22,27 @@ import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
+from meshio import _mesh
+from meshio._helpers import reader_map
 from mpi4py import MPI
 
+from geometry.abaqus import AbaqusError, AbaqusSyntaxError, read_deck
 from geometry.gmsh_io import MeshData
+from geometry.quality import tet_quality
+from geometry.split import ELEMENTS, FACES, SplitError, split_mesh
+from geometry.tags import mesh_file_tags
 
-#: meshio cell types that are read as volumes, and what each is called in the files.
+#: meshio cell types that are read as volumes (split into tetrahedra by :mod:`geometry.split`).
 TETRA = {"tetra": 4, "tetra4": 4, "tetra10": 10}
-SUPPORTED = "linear and quadratic tetrahedra (Abaqus C3D4/C3D10*, Nastran CTETRA 4/10, gmsh 4/11, VTK 10/24)"
-OTHER_VOLUMES = ("hexahedron", "hexahedron20", "hexahedron24", "hexahedron27", "wedge", "wedge12", "wedge15",
-                 "wedge18", "pyramid", "pyramid13", "pyramid14", "tetra14", "polyhedron")
+VOLUMES = ELEMENTS
+SUPPORTED = ("linear and quadratic tetrahedra, hexahedra, wedges and pyramids (Abaqus C3D4/C3D10, C3D8/C3D20/"
+             "C3D27, C3D6/C3D15, C3D5/C3D13; Nastran CTETRA, CHEXA, CPENTA, CPYRAM 4-20 nodes; gmsh; VTK)")
+OTHER_VOLUMES = ("hexahedron24", "wedge12", "wedge18", "pyramid14", "tetra14", "polyhedron")
 TRIANGLES = {"triangle": 3, "triangle6": 6, "triangle7": 7}
+#: Skin elements that name faces: triangles and quadrilaterals (corners first).
+SKINS = {**TRIANGLES, "quad": 4, "quad8": 8, "quad9": 9}
 FORMATS = {".msh": "gmsh", ".inp": "abaqus", ".bdf": "nastran", ".nas": "nastran", ".fem": "nastran",
            ".vtu": "vtu"}
 
@@ -59,6 +67,8 @@ class MeshFile:
     surfaces: dict[str, np.ndarray] = field(default_factory=dict)      # name -> (k, 2) [cell, face 0..3]
     node_sets: dict[str, np.ndarray] = field(default_factory=dict)     # name -> node indices
     format: str = ""
+    origin: np.ndarray | None = None        # (m,) index of the file's element each tetrahedron comes from
+    split: dict = field(default_factory=dict)   # element counts by the file's type and the split
 
     @property
     def degree(self) -> int:
@@ -94,20 +104,39 @@ def file_format(path: Path, fmt: str = "") -> str:
                               f"{sorted(FORMATS)} (or set geometry.format to a meshio format name)") from None
 
 
+@dataclass
+class _Raw:
+    """What a file holds before the split: element blocks and sets on the file's elements."""
+
+    points: np.ndarray
+    blocks: list                                    # (meshio type, connectivity (k, n) node indices)
+    ids: np.ndarray                                 # element numbers of the concatenated blocks
+    cell_sets: dict = field(default_factory=dict)   # name -> element indices
+    faces: dict = field(default_factory=dict)       # name -> [(element index, face 0.., where)]
+    skins: dict = field(default_factory=dict)       # name -> [(k, 3|4) corner nodes]
+    node_sets: dict = field(default_factory=dict)   # name -> node indices
+
+
 def read_mesh_file(path: str | Path, fmt: str = "", id_field: str = "") -> MeshFile:
-    """Read a tetrahedral mesh and its sets; ``id_field`` names the integer cell data that holds set
-    numbers (default: ``nastran:ref`` or ``gmsh:physical``, else the only integer cell data)."""
+    """Read a mesh and its sets, its hexahedra, wedges and pyramids split into tetrahedra
+    (:mod:`geometry.split`); ``id_field`` names the integer cell data that holds set numbers
+    (default: ``nastran:ref`` or ``gmsh:physical``, else the only integer cell data)."""
     path = Path(path)
     if not path.is_file():
         raise MeshImportError(f"geometry.file: {path} does not exist")
     fmt = file_format(path, fmt)
-    scan = _scan_abaqus(path) if fmt == "abaqus" else None
+    raw = _read_abaqus(path) if fmt == "abaqus" else _read_meshio(path, fmt, id_field)
+    return _split(path, fmt, raw)
+
+
+def _read_meshio(path: Path, fmt: str, id_field: str) -> _Raw:
     # meshio.read prints and calls sys.exit on a ReadError; its format readers raise
-    from meshio._helpers import reader_map
 
     if fmt not in reader_map:
         raise MeshImportError(f"geometry.format: unknown meshio format {fmt!r}; "
                               f"e.g. {sorted(set(FORMATS.values()))}")
+    nastran = _scan_nastran(path) if fmt == "nastran" else None
+    _teach_meshio()
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -116,7 +145,7 @@ def read_mesh_file(path: str | Path, fmt: str = "", id_field: str = "") -> MeshF
         raise MeshImportError(f"geometry.file: cannot read {path.name} as {fmt}: "
                               f"{type(e).__name__}: {e}") from None
 
-    volume_blocks = [i for i, b in enumerate(m.cells) if b.type in TETRA]
+    volume_blocks = [i for i, b in enumerate(m.cells) if b.type in VOLUMES]
     other = sorted({b.type for b in m.cells if b.type in OTHER_VOLUMES or b.type.startswith("polyhedron")})
     if other:
         counts = ", ".join(f"{t} ({sum(len(b.data) for b in m.cells if b.type == t)} elements)" for t in other)
@@ -124,74 +153,176 @@ def read_mesh_file(path: str | Path, fmt: str = "", id_field: str = "") -> MeshF
                               f"supported: {SUPPORTED}")
     if not volume_blocks:
         raise MeshImportError(f"geometry.file: {path.name} has no volume elements; supported: {SUPPORTED}")
-    sizes = {TETRA[m.cells[i].type] for i in volume_blocks}
-    if len(sizes) > 1:
-        raise MeshImportError(f"geometry.file: {path.name} mixes linear and quadratic tetrahedra; use one order")
     if fmt == "nastran" and "nastran:ref" in m.point_data and np.any(m.point_data["nastran:ref"] != 0):
         bad = np.flatnonzero(m.point_data["nastran:ref"])[:5]
         raise MeshImportError(f"geometry.file: GRID points {[int(m.points_id[i]) for i in bad]} use a coordinate "
                               "system (CP field); only the basic system is supported")
 
     offsets = np.cumsum([0] + [len(m.cells[i].data) for i in volume_blocks])
-    cells = np.concatenate([m.cells[i].data for i in volume_blocks]).astype(np.int64)
+    blocks = [(m.cells[i].type, np.asarray(m.cells[i].data, dtype=np.int64)) for i in volume_blocks]
     if getattr(m, "cells_id", None) is not None:           # Nastran element numbers
         cell_ids = np.concatenate([np.asarray(m.cells_id[i]) for i in volume_blocks])
     else:
-        cell_ids = np.arange(1, len(cells) + 1)
-    out = MeshFile(np.asarray(m.points, dtype=float)[:, :3], cells, cell_ids.astype(np.int64), format=fmt)
+        cell_ids = np.arange(1, offsets[-1] + 1)
+    raw = _Raw(np.asarray(m.points, dtype=float)[:, :3], blocks, cell_ids.astype(np.int64))
 
     def volume_indices(per_block) -> np.ndarray:
         return np.concatenate([np.asarray(per_block[i], dtype=np.int64) + offsets[k]
                                for k, i in enumerate(volume_blocks)] or [np.zeros(0, np.int64)])
 
-    faces = out.face_index
-    triangle_blocks = [i for i, b in enumerate(m.cells) if b.type in TRIANGLES]
+    skin_blocks = [i for i, b in enumerate(m.cells) if b.type in SKINS]
 
-    def surface_of(per_block, name) -> np.ndarray:
-        tris = [m.cells[i].data[np.asarray(per_block[i], dtype=np.int64)] for i in triangle_blocks]
-        tris = [t[:, :3] for t in tris if len(t)]
-        return faces.locate(np.concatenate(tris), name) if tris else np.zeros((0, 2), np.int64)
+    def skins_of(rows_of) -> list[np.ndarray]:
+        out = []
+        for i in skin_blocks:
+            rows = np.asarray(m.cells[i].data)[rows_of(i)]
+            if len(rows):
+                out.append(rows[:, :4 if m.cells[i].type.startswith("quad") else 3].astype(np.int64))
+        return out
 
-    # named sets: Abaqus ELSET, gmsh physical names (meshio keeps them as cell_sets)
+    # named sets: gmsh physical names, VTU (meshio keeps them as cell_sets)
     for name, per_block in m.cell_sets.items():
-        if name.startswith("gmsh:"):
-            continue
-        if len(per_block) != len(m.cells):
+        if name.startswith("gmsh:") or len(per_block) != len(m.cells):
             continue
         cs = volume_indices(per_block)
         if len(cs):
-            out.cell_sets[name] = cs
-        surf = surface_of(per_block, name)
-        if len(surf):
-            out.surfaces[name] = surf
+            raw.cell_sets[name] = cs
+        skins = skins_of(lambda i: np.asarray(per_block[i], dtype=np.int64))  # noqa: B023
+        if skins:
+            raw.skins[name] = skins
     # numbered sets: integer cell data (Nastran PIDs, gmsh physical numbers, VTU arrays)
     key = _id_field(m, id_field, path)
     if key:
         data = m.cell_data[key]
         ids = np.concatenate([np.asarray(data[i]).reshape(len(m.cells[i].data), -1)[:, 0] for i in volume_blocks])
         for v in np.unique(ids):
-            out.cell_sets.setdefault(str(int(v)), np.flatnonzero(ids == v))
-        for i in triangle_blocks:
-            vals = np.asarray(data[i]).reshape(len(m.cells[i].data), -1)[:, 0]
-            for v in np.unique(vals):
-                name = str(int(v))
-                surf = faces.locate(m.cells[i].data[vals == v][:, :3], name)
-                out.surfaces[name] = np.concatenate([out.surfaces[name], surf]) if name in out.surfaces else surf
+            raw.cell_sets.setdefault(str(int(v)), np.flatnonzero(ids == v))
+        vals = {i: np.asarray(data[i]).reshape(len(m.cells[i].data), -1)[:, 0] for i in skin_blocks}
+        for v in np.unique(np.concatenate(list(vals.values()) or [np.zeros(0, int)])):
+            raw.skins.setdefault(str(int(v)), []).extend(skins_of(lambda i: vals[i] == v))  # noqa: B023
     for name, nodes in m.point_sets.items():
-        out.node_sets[name] = np.asarray(nodes, dtype=np.int64)
+        raw.node_sets[name] = np.asarray(nodes, dtype=np.int64)
+    if nastran is not None:
+        index = {int(g): i for i, g in enumerate(np.asarray(m.points_id))}
+        for name, (grids, where) in nastran.items():
+            missing = [g for g in grids if g not in index]
+            if missing:
+                raise MeshImportError(f"geometry.file: {path.name} {where}: SET1 {name}: GRID {missing[0]} "
+                                      "is not defined")
+            raw.node_sets[name] = np.asarray([index[g] for g in grids], dtype=np.int64)
     names = {}
     if fmt == "nastran":
         names = _hypermesh_names(path)
     else:   # gmsh-style field data {name: [number, dim]} (gmsh files, and VTU written by fem-squeal convert)
         names = {str(int(v[0])): k for k, v in m.field_data.items() if np.asarray(v).size == 2}
-    if names:
-        for pid, name in names.items():
-            for table in (out.cell_sets, out.surfaces):
-                if pid in table and name not in table:
-                    table[name] = table[pid]
-    if fmt == "abaqus":
-        out.cell_ids, surfaces = _abaqus_surfaces(path, scan, out)
-        out.surfaces.update(surfaces)
+    for pid, name in names.items():
+        for table in (raw.cell_sets, raw.skins):
+            if pid in table and name not in table:
+                table[name] = table[pid]
+    return raw
+
+
+def _teach_meshio() -> None:
+    """meshio 5.0 (Debian bookworm) lists wedge15 and pyramid13 in its readers but not in the table
+    of cell dimensions that every cell block looks up: add them."""
+
+    for t in ("wedge15", "pyramid13"):
+        _mesh.topological_dimension.setdefault(t, 3)
+
+
+def _read_abaqus(path: Path) -> _Raw:
+    """A flat Abaqus deck (:mod:`geometry.abaqus`): volume blocks, element sets (volume members),
+    surface elements in sets as skins, ``*SURFACE`` faces, node sets and node surfaces."""
+
+    try:
+        deck = read_deck(path)
+    except AbaqusSyntaxError as e:
+        raise MeshImportError(f"geometry.file: cannot read {path.name} as abaqus: {e}") from None
+    except AbaqusError as e:
+        raise MeshImportError(f"geometry.file: {e}") from None
+    vol = [(t, c, ids) for t, c, ids in deck.blocks if t in VOLUMES]
+    skin = [(t, c, ids) for t, c, ids in deck.blocks if t in SKINS]
+    if not vol:
+        raise MeshImportError(f"geometry.file: {path.name} has no volume elements; supported: {SUPPORTED}")
+    ids = np.concatenate([b[2] for b in vol])
+    raw = _Raw(deck.points, [(t, c) for t, c, _ in vol], ids.astype(np.int64))
+    vindex = {int(e): i for i, e in enumerate(ids)}
+    sindex = {int(e): (k, i) for k, (_, _, sid) in enumerate(skin) for i, e in enumerate(sid)}
+    for key, members in deck.elsets.items():
+        name = deck.names[key]
+        v = [vindex[e] for e in members if e in vindex]
+        s = [sindex[e] for e in members if e in sindex]
+        unknown = [e for e in members if e not in vindex and e not in sindex]
+        if unknown:
+            raise MeshImportError(f"geometry.file: {path.name}: *ELSET {name}: element {unknown[0]} "
+                                  "is not defined")
+        if v:
+            raw.cell_sets[name] = np.asarray(v, dtype=np.int64)
+        if s:
+            raw.skins[name] = [skin[k][1][[i for kk, i in s if kk == k]][:, :4 if skin[k][0].startswith("quad")
+                                                                             else 3]
+                               for k in sorted({k for k, _ in s})]
+    for key, nodes in deck.nsets.items():
+        raw.node_sets[deck.names[key]] = nodes
+    for key, nodes in deck.node_surfaces.items():
+        raw.node_sets[deck.names[key]] = nodes
+    for key, rows in deck.surfaces.items():
+        name = deck.names[key]
+        out = []
+        for e, label, where in rows:
+            if e not in vindex:
+                raise MeshImportError(f"geometry.file: {where}: *SURFACE {name}: element {e} is not a volume "
+                                      "element")
+            out.append((vindex[e], label, where))
+        raw.faces[name] = out
+    return raw
+
+
+def _split(path: Path, fmt: str, raw: _Raw) -> MeshFile:
+    """The tetrahedra of ``raw`` with its sets; errors name the file's element numbers."""
+    sizes = [len(c) for _, c in raw.blocks]
+    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    types = np.repeat(np.arange(len(raw.blocks)), sizes)
+    try:
+        sp = split_mesh(raw.points, raw.blocks)
+    except SplitError as e:
+        elems = raw.ids[np.asarray(e.elements[:10], dtype=np.int64)].tolist()
+        raise MeshImportError(f"geometry.file: {path.name}: {e}: elements {elems}") from None
+    out = MeshFile(sp.points, sp.cells, raw.ids[sp.origin], format=fmt, origin=sp.origin)
+    counts: dict[str, int] = {}
+    for t, c in raw.blocks:
+        counts[t] = counts.get(t, 0) + len(c)
+    out.split = {"file_elements": counts, "tetrahedra": int(len(sp.cells)),
+                 "tetrahedra_per_element": {t: v["tetrahedra"] for t, v in sp.stats["by_type"].items()},
+                 "new_nodes": int(sp.stats["new_nodes"]), "face_nodes": int(sp.stats["face_nodes"]),
+                 "interior_nodes": int(sp.stats["interior_nodes"]), "centre_nodes": int(sp.stats["centre_nodes"])}
+    for name, idx in raw.cell_sets.items():
+        out.cell_sets[name] = np.sort(sp.tets_of(idx))
+    faces = out.face_index
+    for name, skins in raw.skins.items():
+        tris = [sp.face_triangles(q) for q in skins if len(q)]
+        if tris:
+            out.surfaces[name] = faces.locate(np.concatenate(tris), name)
+    for name, rows in raw.faces.items():
+        pairs, tris = [], []
+        for e, label, where in rows:
+            mtype = raw.blocks[types[e]][0]
+            kind = ELEMENTS[mtype][0]
+            n_faces = len(FACES[kind])
+            if not re.fullmatch(rf"S[1-{n_faces}]", label):
+                raise MeshImportError(f"geometry.file: {where}: *SURFACE {name}: face label {label!r}; "
+                                      f"{kind} elements have S1-S{n_faces}")
+            f = int(label[1]) - 1
+            conn = raw.blocks[types[e]][1][e - starts[types[e]]]
+            if kind == "tetra":
+                pairs.append((int(sp.first[e]), f))
+            else:
+                tris.append(sp.face_triangles(conn[FACES[kind][f]][None, :]))
+        surf = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+        if tris:
+            surf = np.concatenate([surf, faces.locate(np.concatenate(tris), name)])
+        out.surfaces[name] = surf
+    out.node_sets.update(raw.node_sets)
     return out
 
 
@@ -258,104 +389,79 @@ class _FaceIndex:
         return np.asarray(sorted(hits), dtype=np.int64).reshape(-1, 2)
 
 
-_ABQ_KEYWORD = re.compile(r"^\s*\*\s*([A-Za-z ]+?)\s*(,|$)")
+_NASTRAN_UNSUPPORTED = {
+    "RBE2": "a rigid element", "RBE3": "an interpolation element", "RBAR": "a rigid bar", "RROD": "a rigid rod",
+    "MPC": "multi-point constraints", "MPCADD": "multi-point constraints", "CBAR": "a bar element",
+    "CBEAM": "a beam element", "CROD": "a rod element", "CONROD": "a rod element", "CBUSH": "a bush element",
+    "CELAS1": "a spring element", "CELAS2": "a spring element", "CONM2": "a point mass", "CONM1": "a point mass",
+    "CQUADR": "a shell element", "CTRIAR": "a shell element", "CSHEAR": "a shear panel",
+}
 
 
-def _abaqus_keywords(path: Path):
-    """(keyword upper-case, parameters dict, data lines) of each keyword block of an .inp file."""
-    block = None
+def _nastran_cards(path: Path):
+    """(card name, fields, line number) of the bulk data: small, large (``*``) and free (comma) fields,
+    continuations starting with ``+``, ``*`` or a blank first field."""
+    card = None
+    bulk = False
     with open(path, errors="replace") as f:
-        for line in f:
-            if line.startswith("**"):
+        for no, line in enumerate(f, 1):
+            line = line.rstrip("\n")
+            if not bulk:
+                bulk = line.strip().upper().startswith("BEGIN BULK")
                 continue
-            mk = _ABQ_KEYWORD.match(line)
-            if mk:
-                if block:
-                    yield block
-                params = {}
-                for item in line.split(",")[1:]:
-                    k, _, v = item.partition("=")
-                    params[k.strip().upper()] = v.strip()
-                block = (mk.group(1).upper(), params, [])
-            elif block and line.strip():
-                block[2].append(line)
-    if block:
-        yield block
-
-
-class _AbaqusScan(NamedTuple):
-    ids: list[int]                                  # element numbers of the tetrahedra, in file order
-    elsets: dict[str, list[int]]                    # upper-case name -> element numbers
-    surfaces: dict[str, list[tuple[str, str]]]      # name -> (element or ELSET, face label)
-
-
-def _scan_abaqus(path: Path) -> _AbaqusScan:
-    """One pass over an .inp for what meshio does not keep: element numbers, element sets and
-    ``*SURFACE, TYPE=ELEMENT``.  meshio reads one *NODE block and ignores assemblies, so those are
-    refused here, before it reads them wrongly."""
-    ids: list[int] = []
-    elsets: dict[str, list[int]] = {}
-    surfaces: dict[str, list[tuple[str, str]]] = {}
-    nodes = instances = 0
-    for kw, params, lines in _abaqus_keywords(path):
-        nodes += kw == "NODE"
-        instances += kw == "INSTANCE"
-        if kw == "ELEMENT":
-            etype = params.get("TYPE", "").upper()
-            if not etype.startswith("C3D4") and not etype.startswith("C3D10"):
+            if line.startswith("$") or not line.strip():
                 continue
-            values = [int(v) for ln in lines for v in ln.replace(",", " ").split()]
-            n = 5 if etype.startswith("C3D4") else 11
-            new = values[::n]
-            ids += new
-            if "ELSET" in params:
-                elsets.setdefault(params["ELSET"].upper(), []).extend(new)
-        elif kw == "ELSET":
-            items = [v.strip() for ln in lines for v in ln.split(",") if v.strip()]
-            if "GENERATE" in params:
-                a, b, *s = (int(v) for v in items)
-                items = [str(v) for v in range(a, b + 1, s[0] if s else 1)]
-            members = elsets.setdefault(params.get("ELSET", "").upper(), [])
-            for it in items:
-                members.extend([int(it)] if it.lstrip("-").isdigit() else elsets.get(it.upper(), []))
-        elif kw == "SURFACE":
-            name = params.get("NAME", "")
-            if params.get("TYPE", "ELEMENT").upper() != "ELEMENT":
-                raise MeshImportError(f"geometry.file: *SURFACE {name}: TYPE={params['TYPE']} is not supported; "
-                                      "use an element-based surface or a node set")
-            surfaces[name] = [tuple(v.strip() for v in ln.split(",")[:2]) for ln in lines]
-    if nodes > 1 or instances:
-        raise MeshImportError(f"geometry.file: {path.name} is an Abaqus assembly ({nodes} *NODE blocks, "
-                              f"{instances} *INSTANCE); write a flat input file (one *NODE block, "
-                              "no parts/instances)")
-    return _AbaqusScan(ids, elsets, surfaces)
+            if line.upper().startswith("ENDDATA"):
+                break
+            if "," in line:
+                fields = [v.strip() for v in line.split(",")]
+            elif line[:8].rstrip().endswith("*") or line.startswith("*"):
+                fields = [line[:8].strip()] + [line[i:i + 16].strip() for i in range(8, min(len(line), 72), 16)]
+            else:
+                fields = [line[i:i + 8].strip() for i in range(0, min(len(line), 72), 8)]
+            head = fields[0]
+            if card is not None and (head == "" or head.startswith("+") or head == "*" or
+                                     (head.startswith("*") and not head[1:2].isalpha())):
+                card[1].extend(fields[1:])
+                continue
+            if card is not None:
+                yield card
+            card = (head.rstrip("*").upper(), fields[1:], no)
+    if card is not None:
+        yield card
 
 
-def _abaqus_surfaces(path: Path, scan: _AbaqusScan, mf: MeshFile) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Element numbers of the volume elements, and the scanned surfaces as (cell, face)."""
-    elsets = scan.elsets
-    cell_ids = np.asarray(scan.ids, dtype=np.int64)
-    if len(cell_ids) != len(mf.cells):
-        raise MeshImportError(f"geometry.file: {path.name}: read {len(cell_ids)} element numbers for "
-                              f"{len(mf.cells)} tetrahedra")
-    index = {int(e): i for i, e in enumerate(cell_ids)}
-    out = {}
-    for name, rows in scan.surfaces.items():
-        pairs = []
-        for ref, label in rows:
-            lab = label.upper()
-            if not re.fullmatch(r"S[1-4]", lab):
-                raise MeshImportError(f"geometry.file: *SURFACE {name}: face label {label!r}; "
-                                      "tetrahedra have S1-S4")
-            elems = [int(ref)] if ref.lstrip("-").isdigit() else elsets.get(ref.upper())
-            if elems is None:
-                raise MeshImportError(f"geometry.file: *SURFACE {name}: unknown element set {ref!r}")
-            for e in elems:
-                if e not in index:
-                    raise MeshImportError(f"geometry.file: *SURFACE {name}: element {e} is not a tetrahedron")
-                pairs.append((index[e], int(lab[1]) - 1))
-        out[name] = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-    return cell_ids, out
+def _scan_nastran(path: Path) -> dict[str, tuple[list[int], str]]:
+    """``SET1`` node sets (name = set number) of a bulk data file; refuses the cards that change the
+    model (rigid and structural elements, MPCs, GRID displacement systems)."""
+    sets: dict[str, tuple[list[int], str]] = {}
+    for name, fields, no in _nastran_cards(path):
+        if name in _NASTRAN_UNSUPPORTED:
+            raise MeshImportError(f"geometry.file: {path.name} line {no}: {name} ({_NASTRAN_UNSUPPORTED[name]}) "
+                                  "is not supported: it changes the model")
+        if name == "GRID" and len(fields) > 5 and fields[5] not in ("", "0"):
+            raise MeshImportError(f"geometry.file: {path.name} line {no}: GRID {fields[0]} uses displacement "
+                                  f"coordinate system {fields[5]} (CD field); only the basic system is supported")
+        if name == "SET1":
+            vals = [v for v in fields[1:] if v]
+            grids: list[int] = []
+            i = 0
+            try:
+                while i < len(vals):
+                    if vals[i].upper() == "THRU":
+                        grids += list(range(grids[-1] + 1, int(vals[i + 1]) + 1))
+                        i += 2
+                    elif vals[i].upper() == "SKIN":
+                        i += 1
+                    else:
+                        grids.append(int(vals[i]))
+                        i += 1
+            except (ValueError, IndexError):
+                raise MeshImportError(f"geometry.file: {path.name} line {no}: cannot read SET1 "
+                                      f"{fields[:1]}") from None
+            old = sets.get(fields[0], ([], ""))[0]
+            sets[fields[0]] = (old + grids, f"line {no}")
+    return sets
 
 
 def _hypermesh_names(path: Path) -> dict[str, str]:
@@ -382,8 +488,6 @@ def _lookup(name, table: dict):
 
 def map_sets(mf: MeshFile, parts: dict[str, list], faces: dict[str, list]) -> MappedMesh:
     """Part tags 1, 2, ... and face tags 101, 102, ... in the order of the mapping."""
-    from fem_squeal.tags import mesh_file_tags
-
     volumes, face_tags = mesh_file_tags(list(parts), list(faces))
     avail_cells = sorted(mf.cell_sets)
     cell_values = np.zeros(len(mf.cells), dtype=np.int32)
@@ -463,9 +567,9 @@ def transform_points(points: np.ndarray, scale: float, center, axis) -> np.ndarr
 
 def distribute(comm: MPI.Comm, mapped: MappedMesh | None) -> MeshData:
     """dolfinx mesh and tags from rank 0's arrays, exactly as ``gmshio.model_to_mesh`` builds them."""
-    import ufl
-    from dolfinx import cpp
-    from dolfinx.mesh import CellType, create_mesh, meshtags_from_entities
+    import ufl  # heavy: FE stack
+    from dolfinx import cpp  # heavy: FE stack
+    from dolfinx.mesh import CellType, create_mesh, meshtags_from_entities  # heavy: FE stack
 
     nodes, fnodes = comm.bcast(None if mapped is None else (mapped.cells.shape[1], mapped.facets.shape[1]), root=0)
     if comm.rank == 0:
@@ -502,12 +606,14 @@ def prepare(path: str | Path, *, parts: dict[str, list], faces: dict[str, list],
             max_aspect_ratio: float = 10.0) -> tuple[MappedMesh, dict]:
     """Read, scale and turn, check the elements and map the sets (one process).  Returns the mapped
     mesh and a summary (sizes, bounding box, quality, warnings) for the results."""
-    from geometry.quality import tet_quality
 
     mf = read_mesh_file(path, fmt, id_field)
     mf.points = transform_points(mf.points, scale, center, axis)
     info: dict = {"file": str(path), "format": mf.format, "nodes": len(mf.points), "elements": len(mf.cells),
                   "element": "tetra10" if mf.degree == 2 else "tetra", "scale": scale, "warnings": []}
+    if mf.split:
+        info["file_elements"] = dict(mf.split["file_elements"])
+        info["split"] = {k: v for k, v in mf.split.items() if k != "file_elements"}
     lo, hi = mf.points.min(axis=0), mf.points.max(axis=0)
     info["bounding_box"] = [lo.tolist(), hi.tolist()]
     extent = float(np.max(hi - lo))
@@ -519,17 +625,22 @@ def prepare(path: str | Path, *, parts: dict[str, list], faces: dict[str, list],
     info["quality"] = {"worst_aspect_ratio": float(np.max(q.aspect_ratio)),
                        "worst_aspect_element": int(mf.cell_ids[np.argmax(q.aspect_ratio)]),
                        "min_jacobian_ratio": float(np.min(q.jacobian_ratio)),
-                       "poor_elements": len(q.poor), "max_aspect_ratio": max_aspect_ratio}
+                       "poor_elements": len(np.unique(mf.cell_ids[q.poor])), "max_aspect_ratio": max_aspect_ratio}
+    split_note = ""
+    if mf.split and set(mf.split["file_elements"]) - set(TETRA):
+        split_note = " (the file's element numbers; checked on the tetrahedra they are split into)"
     for what, idx in (("inverted (det J <= 0)", q.inverted), ("degenerate (zero volume or aspect ratio > 1e4)",
                                                                 q.degenerate)):
         if len(idx):
-            raise MeshImportError(f"geometry.file: {len(idx)} {what} elements: {mf.cell_ids[idx[:20]].tolist()}"
-                                  + (" ..." if len(idx) > 20 else ""))
+            ids = list(dict.fromkeys(mf.cell_ids[idx].tolist()))
+            raise MeshImportError(f"geometry.file: {len(ids)} {what} elements: {ids[:20]}"
+                                  + (" ..." if len(ids) > 20 else "") + split_note)
     if len(q.poor):
-        worst = q.poor[np.argsort(q.aspect_ratio[q.poor])[::-1][:10]]
+        worst = q.poor[np.argsort(q.aspect_ratio[q.poor])[::-1]]
+        ids = list(dict.fromkeys(mf.cell_ids[worst].tolist()))
         info["warnings"].append(
-            f"geometry.max_aspect_ratio: {len(q.poor)} elements have an aspect ratio above {max_aspect_ratio:g} "
-            f"(worst {q.aspect_ratio[worst[0]]:.3g}; elements {mf.cell_ids[worst].tolist()})")
+            f"geometry.max_aspect_ratio: {len(ids)} elements have an aspect ratio above {max_aspect_ratio:g} "
+            f"(worst {q.aspect_ratio[worst[0]]:.3g}; elements {ids[:10]}){split_note}")
     mapped = map_sets(mf, parts, faces)
     info["parts"] = {p: int(np.count_nonzero(mapped.cell_values == t)) for p, t in mapped.volumes.items()}
     info["faces"] = {f: int(np.count_nonzero(mapped.facet_values == t)) for f, t in mapped.faces.items()}

@@ -3,7 +3,7 @@
 # The default brake scene end to end (scenes/brake_mu_E_map.toml): preload, CEA, reduced model
 # checked against the full CEA, μ sweep and (μ, E) stability map; writes
 # out/mu_E_stability_map/report.html and checks its own results.  Stages are cached in
-# .fem_squeal_cache, so a second run only re-checks.
+# $XDG_CACHE_HOME/fem_squeal (or $FEM_SQUEAL_CACHE), so a second run only re-checks.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 py=$("$here/setup.sh" | tail -n 1)

@@ -3,23 +3,36 @@
 #   - Debian packages: the FEniCSx 0.5.2 stack, MPI, OpenBLAS (2.3-3x faster shift-invert solves).
 #   - A venv at $FEM_SQUEAL_VENV (default: <repo>/.venv) that sees the Debian packages,
 #     with fem_squeal installed editable. numpy/mpi4py/petsc4py/slepc4py are never pip-installed.
-# Usage: scripts/setup.sh [--bench]   (prints the venv python path on its last line)
+# Usage: scripts/setup.sh [--test] [--bench] [--packages-only]
+#   (prints the venv python path on its last line, except with --packages-only)
+#   --test:  also what only the test suite needs: chromium (485 MB; the headless render of
+#            report.html in tests/test_pipeline.py) and Sphinx with the MyST parser (the user guide,
+#            built by tests/test_docs.py through scripts/docs.sh).  scripts/test.sh passes it.
 #   --bench: also the peers of the benchmark suite: CalculiX (Debian calculix-ccx) and scikit-fem
 #            (pure Python, pip-installed into the venv without dependencies: numpy/scipy stay Debian's).
+#   --packages-only: only the Debian packages and the OpenBLAS selection; no venv, and nothing of
+#            the project is read but this script (docker/Dockerfile runs it before copying the
+#            sources, so that the package layer survives source edits).  Prints nothing on stdout.
 set -euo pipefail
 bench=0
+tests=0
+packages_only=0
 for a in "$@"; do
   case "$a" in
     --bench) bench=1 ;;
-    *) echo "setup.sh: unknown option $a (known: --bench)" >&2; exit 2 ;;
+    --test) tests=1 ;;
+    --packages-only) packages_only=1 ;;
+    *) echo "setup.sh: unknown option $a (known: --test, --bench, --packages-only)" >&2; exit 2 ;;
   esac
 done
 repo=$(cd "$(dirname "$0")/.." && pwd)
 venv=${FEM_SQUEAL_VENV:-$repo/.venv}
+SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
 
 pkgs=(python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh python3-meshio
       python3-venv python3-setuptools python3-pip python3-pytest python3-matplotlib python3-scipy
-      python3-hypothesis openmpi-bin libopenblas0-pthread chromium)
+      python3-hypothesis openmpi-bin libopenblas0-pthread)
+[ "$tests" -eq 1 ] && pkgs+=(chromium python3-sphinx python3-myst-parser)
 [ "$bench" -eq 1 ] && pkgs+=(calculix-ccx)
 
 missing=()
@@ -28,21 +41,27 @@ for p in "${pkgs[@]}"; do
 done
 if [ ${#missing[@]} -gt 0 ]; then
   echo "[setup] installing Debian packages: ${missing[*]}" >&2
-  SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
   export DEBIAN_FRONTEND=noninteractive
   $SUDO apt-get update -q >&2
   $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}" >&2
 fi
 
 # OpenBLAS must be the libblas.so.3 provider; the reference BLAS is 2.3-3x slower here.
-arch=$(dpkg-architecture -qDEB_HOST_MULTIARCH 2>/dev/null || echo x86_64-linux-gnu)
-ob=/usr/lib/$arch/openblas-pthread/libblas.so.3
-if [ -e "$ob" ] && [ "$(readlink -f /etc/alternatives/libblas.so.3-$arch 2>/dev/null)" != "$(readlink -f "$ob")" ]; then
-  SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
-  $SUDO update-alternatives --set "libblas.so.3-$arch" "$ob" >&2 || true
-  ol=/usr/lib/$arch/openblas-pthread/liblapack.so.3
-  [ -e "$ol" ] && { $SUDO update-alternatives --set "liblapack.so.3-$arch" "$ol" >&2 || true; }
+# The multiarch triplet (x86_64-linux-gnu, aarch64-linux-gnu, ...) from Debian's own Python, which
+# the packages above always bring (dpkg-architecture is in dpkg-dev, absent from minimal images).
+arch=$(/usr/bin/python3 -c 'import sysconfig; print(sysconfig.get_config_var("MULTIARCH") or "")' 2>/dev/null || true)
+if [ -z "$arch" ]; then
+  echo "[setup] warning: no multiarch triplet from /usr/bin/python3; OpenBLAS selection skipped" >&2
+else
+  ob=/usr/lib/$arch/openblas-pthread/libblas.so.3
+  if [ -e "$ob" ] && [ "$(readlink -f "/etc/alternatives/libblas.so.3-$arch" 2>/dev/null)" != "$(readlink -f "$ob")" ]; then
+    echo "[setup] selecting OpenBLAS ($arch) as libblas.so.3/liblapack.so.3" >&2
+    $SUDO update-alternatives --set "libblas.so.3-$arch" "$ob" >&2 || true
+    ol=/usr/lib/$arch/openblas-pthread/liblapack.so.3
+    [ -e "$ol" ] && { $SUDO update-alternatives --set "liblapack.so.3-$arch" "$ol" >&2 || true; }
+  fi
 fi
+[ "$packages_only" -eq 1 ] && exit 0
 
 if [ ! -x "$venv/bin/python" ]; then
   echo "[setup] creating venv $venv" >&2

@@ -26,8 +26,8 @@ def ring_mesh(width: float = 0.005, thickness: float = 0.004, mesh_size: float =
 def ring_operators(width=0.005, thickness=0.004, mesh_size=0.0025, kn=1e10, mu=0.3, sliding=(1, 1),
                    nu=0.4, alpha=0.0, beta=0.0, degree=2, clamped=()):
     """Operators of the ring between two plates (kn = 0: free ring without plates)."""
-    from fem_squeal.assembly import assemble_operators
-    from fem_squeal.model import Material, ModelSpec, RigidPlate
+    from fem_squeal.fe.assembly import assemble_operators
+    from fem_squeal.fe.model import Material, ModelSpec, RigidPlate
 
     plates = () if kn == 0 else (RigidPlate("top", kn, mu, sliding[0]), RigidPlate("bottom", kn, mu, sliding[1]))
     spec = ModelSpec({"disc": Material(3e9, nu, 1400.0, alpha, beta)}, plates, tuple(clamped), degree)

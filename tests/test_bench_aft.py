@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fem_squeal.reduced.aft import cubic_remainder_stiffness, first_harmonic
-from fem_squeal.reduced.contact_law import UnilateralLaw, exponential_like, tune_cubic
+from fem_squeal.reduced.laws.contact import UnilateralLaw, exponential_like, tune_cubic
 from fem_squeal.reduced.masa import MasaProblem
 
 DEFAULT_N = inspect.signature(MasaProblem).parameters["n_samples"].default

@@ -16,7 +16,7 @@ Tolerances, from what separates the codes (measured values: the benchmark, this 
 - The 4-point mass quadrature itself moves the frequencies by 1.5e-4 on this mesh, so a difference
   at the 1e-5 level between the codes (the benchmark's "same frequencies") would fail these tests.
 
-fem_squeal runs in a child process: the 4-point case patches fem_squeal.assembly._compile (its
+fem_squeal runs in a child process: the 4-point case patches fem_squeal.fe.assembly._compile (its
 quadrature_degree is ignored by FFCx 0.5), which must not leak into the other tests.
 """
 from __future__ import annotations

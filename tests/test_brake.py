@@ -23,9 +23,9 @@ BAND = (0.0, 6000.0)
 
 @functools.cache
 def model(*overrides: str):
-    from fem_squeal.assembly import assemble_operators
-    from fem_squeal.run import build_mesh
-    from fem_squeal.scene import load_scene, model_spec
+    from fem_squeal.app.analyses.mesh import build_mesh
+    from fem_squeal.app.scene import load_scene, model_spec
+    from fem_squeal.fe.assembly import assemble_operators
 
     scene = load_scene(SCENE, COARSE + list(overrides))
     md = build_mesh(COMM, scene)
@@ -35,7 +35,7 @@ def model(*overrides: str):
 
 @functools.cache
 def preloaded(*overrides: str):
-    from fem_squeal.preload import solve_preload
+    from fem_squeal.fe.preload import solve_preload
 
     scene, md, spec, ops = model(*overrides)
     return solve_preload(ops, friction=scene["preload"]["friction"])
@@ -103,14 +103,14 @@ def test_default_springs_take_a_small_share_of_the_clamp_force():
 
 
 def _cea(ops, n=24, method="auto"):
-    from fem_squeal.eigen import solve_complex_modes
+    from fem_squeal.fe.eigen import solve_complex_modes
 
     return solve_complex_modes(ops.K_total(), ops.M, ops.C, n, 0.5 * BAND[1], band_hz=BAND, method=method)
 
 
 @functools.cache
 def cea(*overrides: str):
-    from fem_squeal.assembly import linearise
+    from fem_squeal.fe.assembly import linearise
 
     _, _, _, ops = model(*overrides)
     lin = linearise(ops, preloaded(*overrides).active)
@@ -124,7 +124,7 @@ def test_preload_newton_reuses_the_lu_ordering():
     the 1e-9 tolerance with the closed set unchanged.  A repeat solve gives the same history."""
     from petsc4py import PETSc
 
-    from fem_squeal.preload import solve_preload
+    from fem_squeal.fe.preload import solve_preload
 
     _, _, _, ops = model()
     PETSc.Log.begin()
@@ -190,8 +190,8 @@ def test_stiffness_damping_moves_every_real_part_left():
 
 
 def test_energy_shares_add_up_and_name_the_components():
-    from fem_squeal.descriptors import strain_energy_shares
-    from fem_squeal.tags import BRAKE_CORNER_GROUPS
+    from fem_squeal.fe.descriptors import strain_energy_shares
+    from geometry.tags import BRAKE_CORNER_GROUPS
 
     lin, cm = cea()
     for xr, xi in zip(cm.vectors_re[:5], cm.vectors_im[:5]):

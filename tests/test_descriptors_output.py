@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from conftest import ring_operators
 
-from fem_squeal.descriptors import CircumferentialBasis
-from fem_squeal.output import write_json_atomic
+from fem_squeal.fe.descriptors import CircumferentialBasis
+from fem_squeal.util.atomic import write_json_atomic
 
 
 def cyl_field(ops, fn):

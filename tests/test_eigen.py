@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from conftest import ring_operators
 
-from fem_squeal.eigen import EigenSolveError, solve_complex_modes, solve_real_modes
+from fem_squeal.fe.eigen import EigenSolveError, solve_complex_modes, solve_real_modes
 
 TARGET = 2500.0
 

@@ -113,8 +113,8 @@ def test_transversely_isotropic_stiffness():
     and shear γ_xz store ½C₃₃ε²V and ½C₅₅γ²V with C from inverting the compliance (1e-12)."""
     from dolfinx import fem
 
-    from fem_squeal import forms
-    from fem_squeal.model import Material
+    from fem_squeal.fe import forms
+    from fem_squeal.fe.model import Material
 
     md = ring_mesh()
     V = fem.VectorFunctionSpace(md.mesh, ("Lagrange", 2))
@@ -150,8 +150,8 @@ def test_quadrature_degree_is_honoured():
     """discretisation.quadrature_degree reaches FFCx (it was silently ignored as a form-compiler
     parameter): the P2 mass on curved P2 cells is a degree-7 polynomial, so degree 7 and the
     default integrate it alike, while the 4-point rule (degree 2) under-integrates it (ccx's C3D10)."""
-    from fem_squeal.assembly import assemble_operators
-    from fem_squeal.model import Material, ModelSpec
+    from fem_squeal.fe.assembly import assemble_operators
+    from fem_squeal.fe.model import Material, ModelSpec
 
     md = ring_mesh(mesh_size=0.004)
     norms = {}

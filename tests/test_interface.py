@@ -17,7 +17,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fem_squeal import interface as itf
+from fem_squeal.fe import interface as itf
 
 COMM = MPI.COMM_WORLD
 RT = 1e-12
@@ -189,9 +189,9 @@ def test_non_matching_converges_to_matching():
 
 @functools.cache
 def preloaded(mu: float = 0.3, p: float = 1.0e6):
-    from fem_squeal.assembly import assemble_operators
-    from fem_squeal.model import GroundSpring, Interface, Material, ModelSpec, Pressure
-    from fem_squeal.preload import solve_preload
+    from fem_squeal.fe.assembly import assemble_operators
+    from fem_squeal.fe.model import GroundSpring, Interface, Material, ModelSpec, Pressure
+    from fem_squeal.fe.preload import solve_preload
 
     md = two_blocks(COMM)
     spec = ModelSpec({"lower": Material(2e10, 0.3, 7000.0), "upper": Material(5e9, 0.25, 2500.0)},
@@ -216,7 +216,7 @@ def test_preload_balances_the_pressure():
 
 def test_linearised_operator_reproduces_the_preload():
     """With a linear penalty and zero initial gap, (K + K_c(a) + K_f(a)) u_s = f exactly."""
-    from fem_squeal.assembly import linearise
+    from fem_squeal.fe.assembly import linearise
 
     _, ops, pre = preloaded()
     lin = linearise(ops, pre.active)
@@ -226,7 +226,7 @@ def test_linearised_operator_reproduces_the_preload():
 
 
 def test_all_closed_route_equals_the_preload_when_everything_is_closed():
-    from fem_squeal.assembly import linearise
+    from fem_squeal.fe.assembly import linearise
 
     _, ops, pre = preloaded()
     assert all(a.all() for a in pre.active.values())

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from fem_squeal.reduced.aft import IMPACTS, PERMANENT, cubic_remainder_stiffness, first_harmonic
-from fem_squeal.reduced.contact_law import UnilateralLaw, tune_cubic
 from fem_squeal.reduced.eigensolve import quadratic_eigs
+from fem_squeal.reduced.laws.contact import UnilateralLaw, tune_cubic
 from fem_squeal.reduced.masa import (
     ContactSet,
     MasaError,

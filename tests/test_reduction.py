@@ -15,15 +15,15 @@ import numpy as np
 import pytest
 from conftest import ROOT, clean_env, ring_mesh
 
-from fem_squeal.eigen import solve_complex_modes
+from fem_squeal.fe.eigen import solve_complex_modes
 from fem_squeal.reduced.sweep import solve_points
 
 BAND = (100.0, 5000.0)
 
 
 def _ops(kn: float, mu: float):
-    from fem_squeal.assembly import assemble_operators
-    from fem_squeal.model import Material, ModelSpec, RigidPlate
+    from fem_squeal.fe.assembly import assemble_operators
+    from fem_squeal.fe.model import Material, ModelSpec, RigidPlate
 
     spec = ModelSpec({"disc": Material(3e9, 0.4, 1400.0)},
                      (RigidPlate("top", kn, mu, 1), RigidPlate("bottom", kn, mu, 1)), (), 2)
@@ -46,7 +46,7 @@ def _error(model, point, full):
 @pytest.fixture(scope="module")
 def strong():
     """kn 1e10 and μ 1: strong friction coupling (at kn 1e11 the in-plane pairs leave the band)."""
-    from fem_squeal.reduction import ParametricOperators, common_mu
+    from fem_squeal.fe.projection import ParametricOperators, common_mu
 
     ops, spec = _ops(1e10, 1.0)
     return ops, ParametricOperators(ops, spec, common_mu(spec))
@@ -54,7 +54,7 @@ def strong():
 
 def test_static_correction_beats_modes_alone(strong):
     """Modes ≤ 2 × 5 kHz alone against the same modes + static corrections, at μ = 1."""
-    from fem_squeal.reduction import build_basis, reduce
+    from fem_squeal.fe.projection import build_basis, reduce
 
     ops, par = strong
     full = _full(par, ops.M, {"mu": 1.0})
@@ -69,7 +69,7 @@ def test_static_correction_beats_modes_alone(strong):
 def test_adaptive_reduce_meets_tol_and_tracks_E(strong):
     """Basis grown to tol 1e-4 with samples at E ± 20 %: reduced = full at the corners of the
     (μ, E) box, not only at the nominal point; backward errors of the lifted pairs are small."""
-    from fem_squeal.reduction import adaptive_reduce, m_orthonormalise
+    from fem_squeal.fe.projection import adaptive_reduce, m_orthonormalise
 
     ops, par = strong
     E0 = par.E0["disc"]

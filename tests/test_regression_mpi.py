@@ -18,9 +18,9 @@ import pytest
 from conftest import ROOT, clean_env
 from mpi4py import MPI
 
-from fem_squeal.output import write_json_atomic
-from fem_squeal.run import run_scene
-from fem_squeal.scene import load_scene
+from fem_squeal.app.run import run_scene
+from fem_squeal.app.scene import load_scene
+from fem_squeal.util.atomic import write_json_atomic
 
 SCENE = ROOT / "scenes" / "ryzhik_ring.toml"
 REFERENCE = ROOT / "tests" / "data" / "ryzhik_ring_reference.json"

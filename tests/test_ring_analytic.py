@@ -1,5 +1,5 @@
 """Verification of the ring against seed 003 (Ryzhik) and the corrected theory of
-``fem_squeal.ring_theory`` (derivation: docs/ring_theory.md)."""
+``fem_squeal.theory.ring_theory`` (derivation: docs/ring_theory.md)."""
 from __future__ import annotations
 
 import math
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from conftest import ring_operators
 
-from fem_squeal import ring_theory as rt
-from fem_squeal.descriptors import CircumferentialBasis
-from fem_squeal.eigen import solve_complex_modes, solve_real_modes
+from fem_squeal.fe.descriptors import CircumferentialBasis
+from fem_squeal.fe.eigen import solve_complex_modes, solve_real_modes
+from fem_squeal.theory import ring_theory as rt
 
 BAND = (100.0, 5000.0)
 KS = range(2, 7)

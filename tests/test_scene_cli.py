@@ -11,7 +11,7 @@ from conftest import ROOT, clean_env
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fem_squeal.scene import SceneError, apply_overrides, load_scene, model_spec, read_scene, validate
+from fem_squeal.app.scene import SceneError, apply_overrides, load_scene, model_spec, read_scene, validate
 
 SCENE = ROOT / "scenes" / "ryzhik_ring.toml"
 
@@ -145,7 +145,7 @@ BUNDLED = sorted((ROOT / "scenes").glob("*.toml"))
 
 def _check_valid(s: dict) -> None:
     """A valid scene must also give a model and a plan without error."""
-    from fem_squeal.pipeline import required, stage_keys
+    from fem_squeal.app.pipeline import required, stage_keys
 
     if "geometry" in s:
         model_spec(s)

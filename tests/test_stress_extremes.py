@@ -35,8 +35,8 @@ def test_nearly_incompressible_lining():
     r = se.ring_cea(["materials.disc.nu=0.49"])
     assert_theory(r)
     assert not [w for w in r["warnings"] if "incompressible" in w]
-    from fem_squeal.assembly import locking_warnings
-    from fem_squeal.model import Material, ModelSpec
+    from fem_squeal.fe.assembly import locking_warnings
+    from fem_squeal.fe.model import Material, ModelSpec
 
     w = locking_warnings(ModelSpec({"lining": Material(3e9, 0.49, 1400.0)}, degree=1))
     assert len(w) == 1 and "materials.lining" in w[0] and "degree 2" in w[0]

@@ -1,7 +1,7 @@
 """Stress test of the contact penalty (short version of benchmarks/stress_penalty.py).
 
 Ring (seed 003), P2 at 0.003 m (13k DOFs), k_n = 1e10 (the scene), 1e14 and 1e16 N/m³: penalty
-ratios r = k_n h / C₁₁ of about 6e-3, 61 and 6e3 (fem_squeal.penalty)."""
+ratios r = k_n h / C₁₁ of about 6e-3, 61 and 6e3 (fem_squeal.fe.penalty)."""
 from __future__ import annotations
 
 import sys
@@ -24,7 +24,7 @@ def rows():
 
 
 def test_warning_only_above_the_ratio(rows):
-    from fem_squeal.penalty import WARN_RATIO
+    from fem_squeal.fe.penalty import WARN_RATIO
 
     for kn, r in rows.items():
         assert r["warned"] == (r["ratio"] > WARN_RATIO), (kn, r["ratio"])
@@ -56,7 +56,7 @@ def test_condition_estimate_against_dense():
     non-symmetric matrix with a known, large condition number)."""
     from petsc4py import PETSc
 
-    from fem_squeal.penalty import condition_number_1
+    from fem_squeal.fe.penalty import condition_number_1
 
     rng = np.random.default_rng(0)
     n = 60

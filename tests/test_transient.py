@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fem_squeal.reduced.contact_law import ExponentialLaw, UnilateralLaw
 from fem_squeal.reduced.eigensolve import quadratic_eigs
-from fem_squeal.reduced.friction import ElasticCoulomb, StribeckFriction
+from fem_squeal.reduced.laws.contact import ExponentialLaw, UnilateralLaw
+from fem_squeal.reduced.laws.friction import ElasticCoulomb, StribeckFriction
 from fem_squeal.reduced.masa import linearise, static_equilibrium
 from fem_squeal.reduced.transient import (
     DynamicModel,

@@ -116,7 +116,7 @@ def test_exponential_law_carries_the_preload(results):
     each pad's normal force balances the brake load as in the full-order preload.  The piston
     force is the same, and each pad's share follows the caliper's stiffness, which the law only
     redistributes within a pad: measured 0.4 and 0.9 % (inner, outer); bound 2 %."""
-    from fem_squeal.reduced.contact_law import ExponentialLaw
+    from fem_squeal.reduced.laws.contact import ExponentialLaw
     from fem_squeal.reduced.model import ReducedModel
     from fem_squeal.reduced.transient import NewmarkHHT, from_reduced
 
@@ -173,3 +173,18 @@ def test_killed_transient_resumes_from_its_checkpoint(results):
     assert h["t"][0] == 0.0 and h["t"][-1] == pytest.approx(0.003, rel=1e-12)
     assert np.allclose(dt_rec, 1e-5, rtol=1e-6)                   # every 10th step, once
     assert t["energy_leak"] < 1e-9
+
+
+@pytest.mark.mpi
+def test_transient_demo_checks_itself_on_the_cached_stages(results):
+    """demos/transient_brake.py with the fixture's coarse settings and its cache (``FEM_SQUEAL_CACHE``):
+    every stage comes from the cache (the 2-rank run computed them), so the demo's cost is its own
+    check, the linear growth of a 1e-5 push against the tangent CEA's Re λ (1 %)."""
+    base, _, _ = results
+    out = base / "demo"
+    p = subprocess.run([sys.executable, str(ROOT / "demos" / "transient_brake.py"), str(out),
+                        *[f"--set={s}" for s in COARSE]], capture_output=True, text=True, timeout=900,
+                       env={**clean_env(), "FEM_SQUEAL_CACHE": str(base / "cache")})
+    assert p.returncode == 0 and "check passed" in p.stdout, p.stdout[-3000:] + p.stderr[-3000:]
+    stages = json.loads((out / "results.json").read_text())["stages"]
+    assert {s["status"] for s in stages} == {"cached"}, stages

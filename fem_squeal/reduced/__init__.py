@@ -6,5 +6,5 @@ K(p) = K₀ + Σᵢ(θᵢ − 1)Kᵢ + sign(v)μ K_f¹, θᵢ = Eᵢ/Eᵢ⁰.  O
 eigen-solves (:mod:`.eigensolve`), parameter grids evaluated over MPI ranks (:mod:`.sweep`),
 MAC-based mode tracking with coalescence detection (:mod:`.tracking`) and stability maps
 (:mod:`.stability_map`).  The full-order side that builds the model is
-:mod:`fem_squeal.reduction`.
+:mod:`fem_squeal.fe.projection`.
 """

@@ -18,7 +18,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from fem_squeal.reduced.contact_law import UnilateralLaw
+from fem_squeal.reduced.laws.contact import UnilateralLaw
+from fem_squeal.util.errors import ModelError
 
 NO_CONTACT, PERMANENT, IMPACTS = 0, 1, 2
 STATUS_NAMES = {NO_CONTACT: "no contact", PERMANENT: "permanent contact", IMPACTS: "impacts"}
@@ -34,7 +35,7 @@ class Harmonic(NamedTuple):
 def _trig(n_samples: int) -> tuple[np.ndarray, np.ndarray]:
     """cos θ_k, sin θ_k at θ_k = 2πk/N, built mirror-symmetric (θ_{N−k} = −θ_k bit for bit)."""
     if n_samples < 4:
-        raise ValueError(f"n_samples: must be >= 4 (got {n_samples})")
+        raise ModelError(f"n_samples: must be >= 4 (got {n_samples})")
     k = np.arange(n_samples)
     kk = np.minimum(k, n_samples - k)
     th = 2.0 * np.pi * kk / n_samples

@@ -10,6 +10,7 @@ each conjugate pair).  Either way every point returns m eigenvalues, sorted by f
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg import eig
 
 TWO_PI = 2.0 * np.pi
 
@@ -74,8 +75,6 @@ def condition_numbers(K: np.ndarray, C: np.ndarray | None = None) -> tuple[np.nd
     eigenvalue of a normal problem and grows as |μ − μ_c|^(−1/2) towards an exceptional point
     (two eigenvalues and their eigenvectors coalesce, yᴴ(2λI + C)x → 0); there the eigenvalue
     error of a backward-stable solve is ~κ ε."""
-    from scipy.linalg import eig
-
     K = np.asarray(K, float)
     m = K.shape[0]
     Cm = np.zeros_like(K) if C is None else np.asarray(C, float)

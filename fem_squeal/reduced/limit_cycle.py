@@ -20,6 +20,7 @@ import numpy as np
 from scipy.signal import hilbert
 
 from fem_squeal.reduced.eigensolve import TWO_PI, quadratic_eigs
+from fem_squeal.util.errors import ModelError
 
 
 @dataclass
@@ -58,7 +59,7 @@ def detect_limit_cycle(t: np.ndarray, x: np.ndarray, *, window: float | None = N
     amplitude is half its peak-to-peak over the last window."""
     t, x = np.asarray(t, float), np.asarray(x, float)
     if len(t) < 16:
-        raise ValueError(f"limit cycle: {len(t)} samples are too few")
+        raise ModelError(f"limit cycle: {len(t)} samples are too few")
     tail = t >= t[0] + 0.75 * (t[-1] - t[0])
     f = dominant_frequency(t[tail], x[tail])
     window = window or 10.0 / f

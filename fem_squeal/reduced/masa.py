@@ -31,13 +31,11 @@ from functools import cached_property
 import numpy as np
 
 from fem_squeal.reduced.aft import NO_CONTACT, contact_status, first_harmonic
-from fem_squeal.reduced.contact_law import UnilateralLaw, tune_cubic
 from fem_squeal.reduced.eigensolve import TWO_PI, quadratic_eigs, unstable
+from fem_squeal.reduced.laws.contact import UnilateralLaw, tune_cubic
 from fem_squeal.reduced.model import MU, ReducedModel
-
-
-class MasaError(RuntimeError):
-    """Bad MASA input, or a static equilibrium that did not converge (message has the history)."""
+from fem_squeal.util.errors import MasaError
+from fem_squeal.util.progress import ProgressBar
 
 
 @dataclass
@@ -61,9 +59,9 @@ class ContactSet:
             raise MasaError(f"{self.name}.d0: shape {self.d0.shape}, expected ({n},)")
         if not np.isfinite(self.mu):  # signed: sign(v)μ, < 0 for backward sliding
             raise MasaError(f"{self.name}.mu: must be finite (got {self.mu})")
-        if not isinstance(self.law, UnilateralLaw):
+        if not getattr(self.law, "aft", False):     # the law declares it (fem_squeal.reduced.laws.contact)
             raise MasaError(f"{self.name}.law: MASA's AFT needs the cubic UnilateralLaw (its remainder and "
-                            f"k_l, k_nl, c_max); got {type(self.law).__name__}")
+                            f"k_l, k_nl, c_max; a law with aft = True); got {type(self.law).__name__}")
         for a in ("k_l", "k_nl", "c_max"):
             v = np.asarray(getattr(self.law, a))
             if v.ndim and v.shape != (n,):
@@ -465,7 +463,6 @@ def run_masa(prob: MasaProblem, targets: Sequence[Instability], amplitudes, *, s
     two ranks help even for one instability.  Every rank returns all results, identical to a
     serial run (the same arithmetic runs for each pair whatever the rank count).  ``progress``
     draws rank 0's share of the work."""
-    from fem_squeal.progress import ProgressBar
 
     amplitudes = np.asarray(amplitudes, float)
     grids = np.broadcast_to(amplitudes, (len(targets), amplitudes.shape[-1])) \
@@ -527,13 +524,17 @@ def from_reduced(model: ReducedModel, params: dict | None = None, *, cubic_share
     The reduction linearised every contact interface about the full-order preload (penalty k_n
     on the closed points); that contribution is taken out of K(p) again (exactly: the same
     restricted rows), and each quadrature point becomes a contact point with the law
-    :func:`~fem_squeal.reduced.contact_law.tune_cubic` makes per unit area from the penalty k_n
+    :func:`~fem_squeal.reduced.laws.contact.tune_cubic` makes per unit area from the penalty k_n
     and the interface's mean preload pressure (one law per interface, scaled by each point's
     area w: the tangent is k_n at the mean pressure, stiffer above it, softer below).
     ``cubic_share`` = 0 is the linear unilateral penalty, which reproduces the full-order
     preload and CEA exactly when the preload displacement is in the basis.
     ``c_max`` [N s/m³ per area] and ``depth`` add seed 004's contact damping; ``patches`` =
-    (n_radial, n_angular) groups the points of each interface into AFT elements."""
+    (n_radial, n_angular) groups the points of each interface into AFT elements.
+    The tangential penalty k_t of a contact (``interfaces.<name>.kt``, across the sliding direction)
+    is not taken out: it stays in K as the linear spring G_t₂ᵀ diag(k_t w) G_t₂ on the points closed
+    at the preload, so the CEA at p = 0 is the full-order one with k_t; the AFT switches only the
+    normal law (a point that opens in the cycle keeps its k_t spring, as in a perturbation step)."""
     params = dict(params or {})
     if model.f is None or model.q_static is None:
         raise MasaError("reduced model: no static load or preload displacement (reduce with a preload)")

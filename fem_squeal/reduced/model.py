@@ -16,12 +16,29 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fem_squeal.util.atomic import write_npz_atomic
+from fem_squeal.util.errors import ModelError, UnknownNameError
+
 MU = "mu"
 
 
 def e_param(part: str) -> str:
     """Name of the parameter that sets part ``part``'s Young's modulus [Pa]."""
     return f"E.{part}"
+
+
+def format_point(point: Mapping[str, float]) -> str:
+    """A parameter point for people: ``sign(v)μ = −1.000, E(disc) = 100 GPa`` (units by parameter)."""
+    out = []
+    for name, value in point.items():
+        value = float(value)
+        if name == MU:
+            out.append(f"sign(v)μ = {value:+.3f}")
+        elif name.startswith("E."):
+            out.append(f"E({name[2:]}) = {value / 1e9:.4g} GPa")
+        else:
+            out.append(f"{name} = {value:.4g}")
+    return ", ".join(out)
 
 
 @dataclass
@@ -61,13 +78,13 @@ class ReducedModel:
     def __post_init__(self):
         m = self.K0.shape[0]
         if self.K0.shape != (m, m):
-            raise ValueError(f"K0: must be square (got {self.K0.shape})")
+            raise ModelError(f"K0: must be square (got {self.K0.shape})")
         for name, A in [("Kf1", self.Kf1), ("C0", self.C0), *self.K_parts.items()]:
             if A is not None and A.shape != (m, m):
-                raise ValueError(f"{name}: must be {m}×{m} like K0 (got {A.shape})")
+                raise ModelError(f"{name}: must be {m}×{m} like K0 (got {A.shape})")
         missing = sorted(set(self.K_parts) - set(self.E0))
         if missing:
-            raise ValueError(f"E0: no nominal modulus for part(s) {missing}")
+            raise ModelError(f"E0: no nominal modulus for part(s) {missing}")
 
     @property
     def size(self) -> int:
@@ -85,7 +102,8 @@ class ReducedModel:
     def _check(self, names) -> None:
         unknown = sorted(set(names) - set(self.parameters))
         if unknown:
-            raise KeyError(f"{unknown[0]}: not a parameter of this reduced model; parameters: {self.parameters}")
+            raise UnknownNameError(f"{unknown[0]}: not a parameter of this reduced model; "
+                                   f"parameters: {self.parameters}")
 
     def coefficients(self, points: Mapping[str, np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
         """Affine coefficients of K and C for ``n`` points: arrays (n, 1 + n_terms)."""
@@ -99,7 +117,7 @@ class ReducedModel:
         for j, part in enumerate(parts):
             E = np.broadcast_to(np.asarray(points.get(e_param(part), self.E0[part]), float), (n,))
             if np.any(~(E > 0)):
-                raise ValueError(f"{e_param(part)}: must be > 0 (got {E.min()})")
+                raise ModelError(f"{e_param(part)}: must be > 0 (got {E.min()})")
             ck[:, 2 + j] = E / self.E0[part] - 1.0
             cc[:, j] = self.beta.get(part, 0.0) * ck[:, 2 + j]
         return ck, cc
@@ -131,7 +149,6 @@ class ReducedModel:
 
     def save(self, path) -> None:
         """Write every array to a ``.npz`` (atomically)."""
-        from fem_squeal.output import write_npz_atomic
 
         arrays = {"K0": self.K0, "mu0": np.array(self.mu0)}
         for name in ("f", "q_static"):

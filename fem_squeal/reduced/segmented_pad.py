@@ -18,10 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fem_squeal.blas import single_threaded
-from fem_squeal.reduced.contact_law import UnilateralLaw
-from fem_squeal.reduced.friction import StribeckFriction
+from fem_squeal.reduced.laws.contact import UnilateralLaw
+from fem_squeal.reduced.laws.friction import StribeckFriction
 from fem_squeal.reduced.transient import DynamicModel, FrictionContact, NewmarkHHT, run_transient
+from fem_squeal.util.blas import single_threaded
+from fem_squeal.util.errors import ModelError
 
 
 @dataclass(frozen=True)
@@ -49,11 +50,11 @@ class SegmentedPad:
         for name in ("pitch", "radius", "m_element", "m_plate", "k", "k_z", "k_contact", "depth", "force",
                      "v_s", "v_d"):
             if not getattr(self, name) > 0:
-                raise ValueError(f"segmented_pad.{name}: must be > 0 (got {getattr(self, name)})")
+                raise ModelError(f"segmented_pad.{name}: must be > 0 (got {getattr(self, name)})")
         if self.n_side < 1:
-            raise ValueError(f"segmented_pad.n_side: must be >= 1 (got {self.n_side})")
+            raise ModelError(f"segmented_pad.n_side: must be >= 1 (got {self.n_side})")
         if not self.v_d > self.v_s:
-            raise ValueError(f"segmented_pad.v_d: must be > v_s = {self.v_s} (got {self.v_d})")
+            raise ModelError(f"segmented_pad.v_d: must be > v_s = {self.v_s} (got {self.v_d})")
 
     @property
     def n_elements(self) -> int:
@@ -166,7 +167,7 @@ def simulate(pad: SegmentedPad, speed: float, *, t_end: float = 0.3, dt: float =
     classify the regime over t ≥ ``analyse_from``·t_end.  HHT α = −0.3 damps the stiff
     sub-v_s branch of the law (its time constant m/(μ'(0)F) is a few µs)."""
     if not speed > 0:
-        raise ValueError(f"segmented_pad speed: must be > 0 (got {speed})")
+        raise ModelError(f"segmented_pad speed: must be > 0 (got {speed})")
     with single_threaded():
         return _simulate(pad, speed, t_end, dt, alpha, analyse_from, kick, record_every, tangent)
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
 from fem_squeal.reduced.sweep import SweepResult
+from fem_squeal.util.errors import ModelError
 
 
 @dataclass
@@ -26,10 +27,10 @@ class StabilityMap:
 def equal_bands(band_hz: tuple[float, float], n: int) -> list[tuple[float, float]]:
     """``n`` equal frequency ranges covering ``band_hz`` (the seed's ranges A–F for n = 6)."""
     if n < 1:
-        raise ValueError(f"n_bands: must be >= 1 (got {n})")
+        raise ModelError(f"n_bands: must be >= 1 (got {n})")
     lo, hi = band_hz
     if not 0 <= lo < hi:
-        raise ValueError(f"band_hz: must be increasing and >= 0 (got {band_hz})")
+        raise ModelError(f"band_hz: must be increasing and >= 0 (got {band_hz})")
     edges = np.linspace(lo, hi, n + 1)
     return [(float(a), float(b)) for a, b in zip(edges[:-1], edges[1:])]
 

@@ -16,6 +16,8 @@ import numpy as np
 
 from fem_squeal.reduced.eigensolve import quadratic_eigs
 from fem_squeal.reduced.model import ReducedModel
+from fem_squeal.util.errors import ModelError
+from fem_squeal.util.progress import ProgressBar
 
 
 @dataclass
@@ -26,11 +28,11 @@ class Grid:
 
     def __post_init__(self):
         if not self.axes:
-            raise ValueError("grid: needs at least one parameter axis")
+            raise ModelError("grid: needs at least one parameter axis")
         self.axes = {k: np.atleast_1d(np.asarray(v, float)) for k, v in self.axes.items()}
         for k, v in self.axes.items():
             if v.ndim != 1 or v.size == 0 or not np.all(np.isfinite(v)):
-                raise ValueError(f"grid.{k}: must be a non-empty list of finite numbers")
+                raise ModelError(f"grid.{k}: must be a non-empty list of finite numbers")
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -49,9 +51,9 @@ class Grid:
 def signed_mu_axis(mu_max: float, n: int) -> np.ndarray:
     """n values of sign(v)μ in [−μ_max, μ_max] (backward < 0 < forward), as in seed 001 Fig. 8."""
     if not mu_max > 0:
-        raise ValueError(f"mu_max: must be > 0 (got {mu_max})")
+        raise ModelError(f"mu_max: must be > 0 (got {mu_max})")
     if n < 2:
-        raise ValueError(f"n_mu: must be >= 2 (got {n})")
+        raise ModelError(f"n_mu: must be >= 2 (got {n})")
     return np.linspace(-mu_max, mu_max, n)
 
 
@@ -72,7 +74,7 @@ class SweepResult:
 def solve_points(model: ReducedModel, points: Mapping[str, np.ndarray], vectors: bool = False,
                  chunk: int = 32, bar=None):
     """Eigenvalues (n, m) [and vectors (n, m, m)] at the points given as flat arrays
-    (``bar``: a :class:`~fem_squeal.progress.ProgressBar` fed with the points done)."""
+    (``bar``: a :class:`~fem_squeal.util.progress.ProgressBar` fed with the points done)."""
     n = len(next(iter(points.values()))) if points else 1
     lams, Ys = [], []
     for s in range(0, n, chunk):
@@ -95,8 +97,6 @@ def evaluate(model: ReducedModel, grid: Grid, comm=None, chunk: int = 32, progre
     """Eigenvalues at every point of ``grid``; the points are shared among the ranks of ``comm``
     (an mpi4py communicator, or None for serial) and the result is on every rank.  ``progress``
     draws rank 0's share of the points."""
-    from fem_squeal.progress import ProgressBar
-
     t = time.perf_counter()
     pts = grid.points()
     size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
@@ -116,7 +116,7 @@ def evaluate(model: ReducedModel, grid: Grid, comm=None, chunk: int = 32, progre
 
 
 def _max_op():
-    from mpi4py import MPI
+    from mpi4py import MPI  # heavy: MPI initialisation
 
     return MPI.MAX
 

@@ -20,11 +20,14 @@ eigenvalue prediction, and the reference shapes of the ambiguous branches are no
 
 After tracking, every change of stability of a branch between two grid values (Re λ crossing
 ``growth_tol``·|λ|, see :func:`~fem_squeal.reduced.eigensolve.unstable`) is an event; its
-critical parameter (Re λ = 0: the Hopf point with damping, the exceptional point without, where
-LAPACK returns real θ and hence Re λ = 0 exactly before it) is refined by bisection on the reduced
-model to ``tol`` and its partner is the branch nearest in frequency.  An event whose partner
-frequency agrees to ``coalescence_rtol`` is a coalescence (mode coupling: for the undamped
-model, an exceptional point).
+critical parameter is where Re λ itself crosses zero (the Hopf point with damping, the exceptional
+point without, where LAPACK returns real θ and hence Re λ = 0 exactly before it), refined by
+bisection on Re λ of the reduced model to ``tol``.  The threshold only classifies: with light
+damping Re λ may already be positive, below the threshold, at the grid value before the step
+where the threshold is crossed; the sign change is then looked for in the earlier grid steps
+(see :func:`_events`), and ``bracket`` is the grid step that holds it.  The partner is the
+branch nearest in frequency.  An event whose partner frequency agrees to ``coalescence_rtol`` is
+a coalescence (mode coupling: for the undamped model, an exceptional point).
 """
 from __future__ import annotations
 
@@ -34,8 +37,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from fem_squeal.progress import ProgressBar
 from fem_squeal.reduced.eigensolve import TWO_PI
+from fem_squeal.util.errors import ModelError
+from fem_squeal.util.progress import ProgressBar
 
 Solver = Callable[[float], tuple[np.ndarray, np.ndarray]]
 
@@ -46,17 +50,19 @@ class CriticalPoint:
 
     branch: int
     partner: int | None
-    value: float                    # refined critical parameter
+    value: float                    # refined critical parameter: Re λ = 0 (the Hopf point)
     bracket: tuple[float, float]    # the grid values around it
     freq_hz: float
     kind: str                       # "coalescence" or "single"
     onset: bool                     # True: becomes unstable moving away from the start
     labels: tuple[str, ...] = ()
+    zero_crossing: bool = True      # False: no sign change of Re λ on the grid (Re λ > 0 up to
+                                    # its end): value is where Re λ = growth_tol·|λ|
 
     def as_dict(self) -> dict:
         return {"branch": self.branch, "partner": self.partner, "value": self.value,
                 "bracket": list(self.bracket), "freq_hz": self.freq_hz, "kind": self.kind,
-                "onset": self.onset, "labels": list(self.labels)}
+                "onset": self.onset, "labels": list(self.labels), "zero_crossing": self.zero_crossing}
 
 
 @dataclass
@@ -178,7 +184,7 @@ def track(solve: Solver, values: np.ndarray, *, start: float | None = None, mac_
     under which eigenvalues count as one degenerate cluster."""
     values = np.asarray(values, float)
     if values.ndim != 1 or values.size < 2 or np.any(np.diff(values) <= 0):
-        raise ValueError("values: must be at least 2 strictly increasing numbers")
+        raise ModelError("values: must be at least 2 strictly increasing numbers")
     if start is None:
         start = 0.0 if values[0] <= 0.0 <= values[-1] else float(values[0])
     walker = _Walker(solve, mac_min, max_depth, order_rtol, cluster_rtol, budget)
@@ -207,40 +213,78 @@ def _growth(lam: np.ndarray) -> np.ndarray:
     return lam.real / np.maximum(np.abs(lam), 1e-300)
 
 
+# Re λ ≤ _ZERO·|λ| at a grid point counts as Re λ = 0 when looking for the Hopf point: 100× the
+# round-off of Re λ for an undamped mode in the companion-form solve (~6e-15 relative, measured on a
+# random m = 200 basis), so such noise never starts a search; a genuine growth that small moves the
+# located point by at most _ZERO·|λ| / |d Re λ / dp|.  (On a grid value that is an exceptional
+# point the round-off is ~√ε·|λ|; the search then steps one grid value back, where Re λ = 0, and
+# bisects the step that ends at the exceptional point: the same point, found from the other side.)
+_ZERO = 1e-12
+
+
+def _bisect(solve: Solver, v: np.ndarray, lam_j: np.ndarray, i: int, above, tol: float) -> float:
+    """The parameter where ``above(λ)`` of one branch changes between the grid values v[i] and
+    v[i + 1] (``lam_j``: the branch's tracked eigenvalues), bisected to ``tol``; the branch is
+    followed by the eigenvalue nearest to the linear interpolation over the grid step."""
+    lo, hi, la, lb = v[i], v[i + 1], lam_j[i], lam_j[i + 1]
+    s_lo = bool(above(la))
+    a, b = lo, hi
+    while b - a > tol:
+        mid = 0.5 * (a + b)
+        ev = solve(mid)[0]
+        if bool(above(ev[np.argmin(np.abs(ev - (la + (lb - la) * (mid - lo) / (hi - lo))))])) == s_lo:
+            a = mid
+        else:
+            b = mid
+    return 0.5 * (a + b)
+
+
 def _events(tr: Tracking, solve: Solver, start: float, growth_tol: float, coalescence_rtol: float,
             tol: float) -> list[CriticalPoint]:
+    """Stability changes of every branch between grid values (the threshold test, as
+    :func:`~fem_squeal.reduced.eigensolve.unstable`), each located at its Hopf point Re λ = 0.
+
+    The classification and the location are separate questions.  A branch may have
+    0 < Re λ ≤ growth_tol·|λ| on the stable side of the grid step where the threshold is crossed
+    (light damping: the growth rises slowly past the Hopf point); Re λ then changed sign earlier,
+    so the stable side's grid values are walked away from the step, along the branch, to the
+    first one with Re λ ≤ 0 (to :data:`_ZERO`·|λ|), and the sign change is refined in that grid step.
+    The walk stops at a value where the branch is unstable by the threshold (a dip of the growth
+    that stays above zero) or at the end of the grid: then there is no sign change of Re λ on
+    the grid, and the event is located where Re λ crosses growth_tol·|λ| in its own step
+    (``zero_crossing`` False)."""
     v, lam = tr.values, tr.eigenvalues
-    grow = _growth(lam) > growth_tol
+    growth = _growth(lam)
+    grow = growth > growth_tol
+    zero = min(_ZERO, growth_tol)
     events = []
     k0 = int(np.searchsorted(v, start))
     for k in range(v.size - 1):
         outward = k >= k0  # walking away from the start: increasing p on the right, decreasing on the left
         for j in np.flatnonzero(grow[k] != grow[k + 1]):
-            lo, hi = v[k], v[k + 1]
-            la, lb = lam[k, j], lam[k + 1, j]
-            g_lo = bool(grow[k, j])  # the refinement keeps unstable_at(a) == g_lo
-
-            def unstable_at(p, la=la, lb=lb, lo=lo, hi=hi):
-                guess = la + (lb - la) * (p - lo) / (hi - lo)
-                ev = solve(p)[0]
-                return ev[np.argmin(np.abs(ev - guess))].real > 0.0
-
-            a, b = lo, hi
-            while b - a > tol:
-                mid = 0.5 * (a + b)
-                if unstable_at(mid) == g_lo:
-                    a = mid
-                else:
-                    b = mid
-            crit = 0.5 * (a + b)
-            k_un = k + 1 if grow[k + 1, j] else k
+            g_lo = bool(grow[k, j])
+            k_un, k_st = (k, k + 1) if g_lo else (k + 1, k)
+            step = k_st - k_un               # walk away from the unstable side
+            i = k_st
+            while 0 <= i + step < v.size and growth[i, j] > zero and not grow[i + step, j]:
+                i += step
+            if growth[i, j] > zero:          # no sign change of Re λ on the grid: the threshold
+                crit = _bisect(solve, v, lam[:, j], k, lambda x: _growth(x) > growth_tol, tol)
+                bracket, crossing = (v[k], v[k + 1]), False
+            else:                            # Re λ changes sign between v[i] and its neighbour
+                i_lo = min(i, i - step)
+                # Re λ exactly ≤ 0 (undamped before an exceptional point, or damped): refine on
+                # the sign itself; within round-off of zero: on the same margin as the walk
+                z = 0.0 if lam[i, j].real <= 0.0 else zero
+                crit = _bisect(solve, v, lam[:, j], i_lo, lambda x, z=z: _growth(x) > z, tol)
+                bracket, crossing = (v[i_lo], v[i_lo + 1]), True
             f = lam[k_un].imag
             others = np.delete(np.arange(lam.shape[1]), j)
             partner = int(others[np.argmin(np.abs(f[others] - f[j]))]) if others.size else None
             close = partner is not None and abs(f[partner] - f[j]) <= coalescence_rtol * abs(f[j])
             onset = (not g_lo) if outward else g_lo
             events.append(CriticalPoint(
-                int(j), partner, float(crit), (float(lo), float(hi)), float(f[j] / TWO_PI),
+                int(j), partner, float(crit), (float(bracket[0]), float(bracket[1])), float(f[j] / TWO_PI),
                 "coalescence" if close else "single", bool(onset),
-                (tr.labels[j],) + ((tr.labels[partner],) if partner is not None else ())))
+                (tr.labels[j],) + ((tr.labels[partner],) if partner is not None else ()), crossing))
     return events

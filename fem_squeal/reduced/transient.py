@@ -1,7 +1,7 @@
 """Nonlinear transient of a reduced model with contact and friction laws (seed 002 §2, seed 004).
 
 State q on a basis that keeps the contact interface explicit through its rows (modes plus
-contact-static-correction vectors, :func:`fem_squeal.reduction.contact_attachments`).  Each
+contact-static-correction vectors, :func:`fem_squeal.fe.projection.contact_attachments`).  Each
 contact element j of an interface has the closure δ_j = δ₀_j + D_j q (D = −G_nΦ), the tangential
 rows T_j (one or two directions) and the counter-face velocity V_j along them; its normal force
 F_j(δ, δ̇) (:mod:`.contact_law`) and friction force f_j(F, w) with w = T_j q̇ − V_j
@@ -37,16 +37,16 @@ from pathlib import Path
 import numpy as np
 import scipy.linalg as sla
 
-from fem_squeal.output import write_json_atomic, write_npz_atomic
-from fem_squeal.progress import ProgressBar
-from fem_squeal.reduced.contact_law import ExponentialLaw
-from fem_squeal.reduced.friction import ConstantFriction, CoulombState, ElasticCoulomb
+from fem_squeal.reduced.laws.contact import NORMAL_LAWS, ExponentialLaw
+from fem_squeal.reduced.laws.friction import ConstantFriction, CoulombState, ElasticCoulomb
+from fem_squeal.reduced.masa import MasaModel, aggregate, polar_patches
+from fem_squeal.reduced.masa import from_reduced as masa_model
+from fem_squeal.util.atomic import write_json_atomic, write_npz_atomic
+from fem_squeal.util.errors import TransientError
+from fem_squeal.util.progress import ProgressBar
 
 ENERGY_KEYS = ("kinetic", "strain", "W_ext", "W_friction", "W_normal", "D_damping", "W_skew")
 
-
-class TransientError(RuntimeError):
-    """Bad transient input, or a step whose Newton iterations failed (message has the history)."""
 
 
 @dataclass
@@ -195,7 +195,6 @@ STICK_RESOLUTION = 10.0
 def stick_resolution_warnings(model: DynamicModel, dt: float) -> list[str]:
     """Warn when the stick springs k_t of ElasticCoulomb elements ring faster than the step resolves:
     ω_t = √(k_t / m_t), m_t = 1/(t M⁻¹ tᵀ) the mass the element's tangential row t sees."""
-    from fem_squeal.reduced.friction import ElasticCoulomb
 
     out = []
     sticky = [cs for cs in model.contacts if isinstance(cs.friction, ElasticCoulomb)]
@@ -711,13 +710,20 @@ def from_reduced(rm, omega: float, *, params: dict | None = None, cubic_share: f
     element's counter-face speed is Ω r in the interface's sliding direction and its lever arm
     is r.  ``f_cut`` adds :func:`out_of_band_damping` above that frequency, and ``zeta`` a
     structural damping ratio on every mode (both on the tangent at steady sliding with the final
-    laws; the reduced model itself carries no damping unless its materials do)."""
-    from fem_squeal.reduced.masa import MasaModel, aggregate, polar_patches
-    from fem_squeal.reduced.masa import from_reduced as masa_model
+    laws; the reduced model itself carries no damping unless its materials do).
 
-    if normal not in ("cubic", "exponential"):
-        raise TransientError(f"normal: must be 'cubic' or 'exponential' (got {normal!r})")
-    exponential = normal == "exponential"
+    Tangential penalty: a contact's k_t [N/m³] (``interfaces.<name>.kt``) acts across the sliding
+    direction only and is linear in K (from the reduction, see :func:`~fem_squeal.reduced.masa.
+    from_reduced`); the friction rows T are along the sliding direction only, so an
+    :class:`~fem_squeal.reduced.laws.friction.ElasticCoulomb` stick spring k_t [N/m per element] is
+    the same penalty along s: nothing is counted twice.  The two are consistent when the element's
+    stick spring is the interface's k_t times the element's area (k_t·A_e): then a sticking element is
+    held by k_t in both tangential directions, and in steady sliding the tangent along s vanishes (as
+    in the CEA) while k_t stays across it."""
+
+    if normal not in NORMAL_LAWS:
+        raise TransientError(f"normal: must be one of {list(NORMAL_LAWS)} (got {normal!r})")
+    exponential = NORMAL_LAWS[normal].law is ExponentialLaw
     mm = masa_model(rm, params, cubic_share=0.0 if exponential else cubic_share,
                     c_max=0.0 if exponential else c_max, depth=depth)
     sets = [aggregate(cs, polar_patches(cs.x, *patches, axis)) if patches else cs for cs in mm.contacts]

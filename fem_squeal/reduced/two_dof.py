@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fem_squeal.reduced.contact_law import UnilateralLaw, tune_cubic
+from fem_squeal.reduced.laws.contact import UnilateralLaw, tune_cubic
 from fem_squeal.reduced.masa import ContactSet, MasaModel
 
 

@@ -1,0 +1,38 @@
+"""The registry of stages: one module per stage, in execution order.
+
+Each module declares ``STAGE``, a :class:`~fem_squeal.app.stage.Stage`: its name, the stages it
+needs, what it reads of the scene, its section ``analyses.<name>`` (fields with defaults and
+checks, and its cross-checks), the function that computes it (writing its files and plots) and its
+part of the report.  The scene loader, the pipeline, the runner and the report loop over
+:data:`STAGES`; adding an analysis is one new module here and its line below.
+
+    mesh → operators → preload → real_modes
+                               → cea
+                               → reduced → sweep, map, masa, transient → limit_cycle
+    segmented_pad (no mesh: a lumped model)
+"""
+from __future__ import annotations
+
+from fem_squeal.app.analyses import (
+    cea,
+    limit_cycle,
+    masa,
+    mesh,
+    operators,
+    preload,
+    real_modes,
+    reduced,
+    segmented_pad,
+    stability_map,
+    sweep,
+    transient,
+)
+from fem_squeal.app.stage import Stage
+
+STAGES: dict[str, Stage] = {m.STAGE.name: m.STAGE for m in (
+    mesh, operators, preload, real_modes, cea, reduced, sweep, stability_map, masa, transient, limit_cycle,
+    segmented_pad,
+)}
+
+#: the analyses a scene can ask for (stages with a section ``analyses.<name>``)
+ANALYSES: dict[str, Stage] = {n: s for n, s in STAGES.items() if s.section is not None}

@@ -1,0 +1,93 @@
+"""The ``cea`` analysis: complex eigenvalue analysis of the linearised model (seed 000 eq. 6, seed 001 eq. 5)."""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+from fem_squeal.app.fields import REAL, Field, band, non_negative, one_of, positive
+from fem_squeal.app.html import escape as _e
+from fem_squeal.app.html import link
+from fem_squeal.app.html import table as _table
+from fem_squeal.app.stage import Context, Stage
+from fem_squeal.util.errors import SceneError
+from geometry.tags import COMPONENT_GROUPS
+
+SECTION = {
+    "n_modes": Field(int, 20, positive, "complex modes (Im λ > 0) to compute"),
+    "target_hz": Field(REAL, 0.0, non_negative, "shift; 0 = centre of band_hz"),
+    "band_hz": Field(list, [0.0, 10000.0], band, "frequency band kept in the results"),
+    "method": Field(str, "auto", one_of("auto", "linear", "pep")),
+    "tol": Field(REAL, 1e-10, positive), "max_residual": Field(REAL, 1e-8, positive),
+    "describe_part": Field(str, "", None, "part for nodal diameters; '' = disc if present"),
+}
+
+
+def cea_target_hz(cea: dict) -> float:
+    """Shift of the CEA: ``target_hz`` or, when 0, the band centre in ω² (the linear EPS works in θ = ω²)."""
+    lo, hi = cea["band_hz"]
+    return cea["target_hz"] or math.sqrt(0.5 * (lo * lo + hi * hi))
+
+
+def run(ctx: Context, work: Path, timings: dict) -> dict:
+    """Complex eigenvalues λ²M + λC + (K + K_f) in analyses.cea.band_hz, with their descriptors."""
+    from fem_squeal.fe.descriptors import strain_energy_shares  # heavy: FE stack
+    from fem_squeal.fe.eigen import solve_complex_modes  # heavy: FE stack
+    from fem_squeal.fe.output import write_modes_xdmf, write_vtu  # heavy: FE stack
+
+    ops, basis, scene = ctx.products["linear"], ctx.products["basis"], ctx.scene
+    a = scene["analyses"]["cea"]
+    t = time.perf_counter()
+    cm = solve_complex_modes(ops.K_total(), ops.M, ops.C, a["n_modes"], cea_target_hz(a), method=a["method"],
+                             tol=a["tol"], max_residual=a["max_residual"], band_hz=tuple(a["band_hz"]),
+                             options=scene["solver"]["petsc_options"], prefix="cea_", progress=True)
+    timings["cea"] = time.perf_counter() - t
+    lo, hi = a["band_hz"]
+    rows, fields = [], []
+    for f, re, zeta, r, xr, xi in zip(cm.freqs_hz, cm.real_parts, cm.damping_ratios, cm.residuals,
+                                      cm.vectors_re, cm.vectors_im):
+        d = basis.describe(xr, xi)
+        rows.append({"index": len(rows), "freq_hz": f, "real_part": re, "damping_ratio": zeta,
+                     "residual": r, "unstable": bool(re > 0), **d._asdict()})
+        if ops.K_parts:
+            groups = COMPONENT_GROUPS.get(scene["geometry"]["builder"])
+            rows[-1]["energy_shares"] = strain_energy_shares(ops.K_parts, xr, xi, groups)
+        fields.append((xr, xi))
+    n_unstable = sum(r["unstable"] for r in rows)
+    ctx.say(f"[fem_squeal] CEA ({cm.method}): {len(rows)} modes in {lo:g}-{hi:g} Hz, "
+            f"{n_unstable} unstable, {timings['cea']:.2f} s")
+    if ctx.write_fields:
+        write_modes_xdmf(ctx.comm, work / "complex_modes.xdmf", ops.V, fields)
+        write_vtu(ctx.comm, work / "complex_modes.vtu", ops.V,
+                  {f"mode_{j}_{part}": x for j, pair in enumerate(fields) for part, x in zip(("re", "im"), pair)},
+                  {"freq_hz": [r["freq_hz"] for r in rows], "real_part": [r["real_part"] for r in rows]})
+    return {"complex_modes": rows, "n_unstable": n_unstable, "cea_method": cm.method}
+
+
+def check(scene: dict, volumes) -> None:
+    """analyses.cea.describe_part must be a part of the model."""
+    part = scene["analyses"]["cea"]["describe_part"]
+    if part and part not in volumes:
+        raise SceneError(f"analyses.cea.describe_part: unknown part {part!r}; parts: {sorted(volumes)}")
+
+
+def report(res: dict) -> str:
+    """The report section (HTML) of this stage from results.json ``res``."""
+    if "complex_modes" not in res:
+        return ""
+    cm = res["complex_modes"]
+    files = set(res.get("files", []))
+    shape = (lambda j: link("complex_modes.vtu", f"mode_{j}_re/_im")) if "complex_modes.vtu" in files else \
+        (lambda j: "")
+    rows = [[c["index"], c["freq_hz"], c["real_part"], c["damping_ratio"], c.get("nodal_diameter", ""),
+             c.get("travelling_direction", ""), c["residual"], shape(c["index"])] for c in cm]
+    note = " Shapes: the fields named in the last column of complex_modes.vtu (complex_modes.xdmf: time = #)." \
+        if "complex_modes.vtu" in files else ""
+    return (f"<h2>Complex eigenvalue analysis</h2><p><b>{res['n_unstable']}</b> unstable of {len(cm)} "
+            f"modes ({_e(res.get('cea_method', ''))}); unstable rows are shaded.{note}</p>" + _table(
+                ["#", "f [Hz]", "Re λ [1/s]", "ζ", "nodal diameter", "travelling", "residual", "shape"], rows,
+                ["unstable" if c["unstable"] else "" for c in cm]))
+
+
+STAGE = Stage("cea", ("preload",), run, "complex eigenvalue analysis", section=SECTION, check=check, report=report,
+              fields=True)

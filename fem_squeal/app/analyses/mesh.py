@@ -1,0 +1,58 @@
+"""The ``mesh`` stage: the scene's geometry built by its gmsh builder or read from a mesh file."""
+from __future__ import annotations
+
+import hashlib
+import time
+from pathlib import Path
+
+from mpi4py import MPI
+
+from fem_squeal.app.convert import mesh_errors
+from fem_squeal.app.stage import Context, Stage
+from fem_squeal.util.errors import PipelineError
+from geometry import BUILDERS
+
+
+def build_mesh(comm: MPI.Comm, scene: dict):
+    """Mesh stage: call the geometry builder named in the scene."""
+    g = dict(scene["geometry"])
+    builder = BUILDERS[g.pop("builder")]
+    with mesh_errors():
+        return builder(comm, **g)
+
+
+def run(ctx: Context, work: Path, timings: dict) -> dict:
+    """Build the mesh (gmsh builder or mesh file); summary and import report for results.json."""
+    t = time.perf_counter()
+    md = build_mesh(ctx.comm, ctx.scene)
+    timings["mesh"] = time.perf_counter() - t
+    ctx.products["mesh"] = md
+    out = {"cells": md.mesh.topology.index_map(3).size_global, "volumes": sorted(md.volumes)}
+    if md.info:
+        out["import"] = md.info
+        q = md.info["quality"]
+        ctx.say(f"[fem_squeal] mesh file {Path(md.info['file']).name} ({md.info['format']}): "
+                f"{md.info['elements']} "
+                f"{md.info['element']}, worst aspect ratio {q['worst_aspect_ratio']:.3g}, min Jacobian ratio "
+                f"{q['min_jacobian_ratio']:.3g}")
+        for w in md.info["warnings"]:
+            ctx.say(f"[fem_squeal] warning: {w}")
+    return {"mesh": out}
+
+
+def inputs(scene: dict, spec) -> dict:
+    """The geometry section; a mesh file counts by its content (SHA-256), not by its path."""
+    geo = dict(scene["geometry"])
+    if geo["builder"] == "mesh_file":
+        h = hashlib.sha256()
+        try:
+            with open(geo["file"], "rb") as f:
+                for chunk in iter(lambda: f.read(1 << 20), b""):
+                    h.update(chunk)
+        except OSError as e:
+            raise PipelineError(f"geometry.file: cannot read {geo['file']} ({e.strerror})") from None
+        geo["file"] = h.hexdigest()
+    return geo
+
+
+STAGE = Stage("mesh", (), run, "geometry (gmsh builder or mesh file) and tagged mesh", inputs=inputs, memory=True)

@@ -1,0 +1,105 @@
+"""The ``preload`` stage: the static contact state under the loads and the operators linearised about it."""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mpi4py import MPI
+
+from fem_squeal.app import plots
+from fem_squeal.app.html import table as _table
+from fem_squeal.app.stage import Context, Stage
+
+
+def _preload_outputs(comm, outdir: Path, ops, pre, write_fields: bool, title: str) -> dict[str, Any]:
+    """Summary of the preload for results.json; pressure PNG and XDMF (pressure, displacement)."""
+    from dolfinx import fem  # heavy: FE stack
+
+    from fem_squeal.fe.interface import project_to_nodes  # heavy: FE stack
+    from fem_squeal.fe.output import write_fields_xdmf, write_vtu  # heavy: FE stack
+
+    summary: dict[str, Any] = {}
+    plot_data = {}
+    for it, op in ops.contacts:
+        p = pre.pressure[it.name]
+        area = op.area(comm)
+        summary[it.name] = {
+            "normal_force": pre.normal_force[it.name], "friction_force": pre.friction_force[it.name],
+            "contact_area": pre.contact_area[it.name], "area": area,
+            "closed_share": pre.contact_area[it.name] / area if area > 0 else 0.0,
+            "peak_pressure": comm.allreduce(float(np.max(p, initial=0.0)), op=MPI.MAX),
+        }
+        xs, ps = comm.gather(op.x, root=0), comm.gather(p, root=0)
+        if comm.rank == 0:
+            plot_data[it.name] = (np.concatenate(xs), np.concatenate(ps))
+    if comm.rank == 0:
+        plots.contact_pressure(outdir / "contact_pressure.png", plot_data, title)
+    if write_fields:
+        V = ops.V
+        S = fem.FunctionSpace(V.mesh, ("Lagrange", V.ufl_element().degree()))
+        if S.dofmap.index_map.size_local != V.dofmap.index_map.size_local:
+            raise RuntimeError("contact pressure output: scalar and vector spaces number their nodes differently")
+        p_h = fem.Function(S, name="contact_pressure")
+        for it, op in ops.contacts:
+            dofs, vals = project_to_nodes(op, pre.pressure[it.name], comm)
+            p_h.vector.setValues(dofs.astype(np.int32), vals)
+        p_h.vector.assemble()
+        p_h.x.scatter_forward()
+        u = fem.Function(V, name="preload_displacement")
+        u.x.array[: pre.u.getLocalSize()] = pre.u.array_r
+        u.x.scatter_forward()
+        write_fields_xdmf(comm, outdir / "preload.xdmf", {"preload_displacement": u, "contact_pressure": p_h})
+        write_vtu(comm, outdir / "preload.vtu", V, {"preload_displacement": u}, scalars={"contact_pressure": p_h})
+    return summary
+
+
+def run(ctx: Context, work: Path, timings: dict) -> dict:
+    """Static contact state (nonlinear, or every point closed) and the linearisation about it."""
+    from fem_squeal.fe.assembly import linearise  # heavy: FE stack
+
+    ops = ctx.products["operators"]
+    out: dict[str, Any] = {}
+    pre = None
+    if ops.contacts:
+        pl = ctx.scene["preload"]
+        t = time.perf_counter()
+        if pl["mode"] == "nonlinear":
+            from fem_squeal.fe.preload import solve_preload  # heavy: FE stack
+
+            pre = solve_preload(ops, friction=pl["friction"], tol=pl["tol"], max_iterations=pl["max_iterations"],
+                                options=ctx.scene["solver"]["petsc_options"])
+            lin = linearise(ops, pre.active)
+            timings["preload"] = time.perf_counter() - t
+            out["preload"] = {"mode": "nonlinear", "iterations": pre.iterations, "history": pre.history,
+                              "interfaces": _preload_outputs(ctx.comm, work, ops, pre, ctx.write_fields,
+                                                             ctx.scene["title"])}
+            ctx.say(f"[fem_squeal] preload: {pre.iterations} Newton iterations, "
+                    + ", ".join(f"{k} N = {v['normal_force']:.4g} N, closed {100 * v['closed_share']:.1f} %"
+                                for k, v in out["preload"]["interfaces"].items())
+                    + f"; {timings['preload']:.2f} s")
+        else:
+            lin = linearise(ops, None)
+            timings["preload"] = time.perf_counter() - t
+            out["preload"] = {"mode": "all_closed"}
+        ops.K.destroy()
+        ops = lin
+    ctx.products["preload"] = pre
+    ctx.products["linear"] = ops
+    return out
+
+
+def report(res: dict) -> str:
+    """The report section (HTML) of this stage from results.json ``res``."""
+    if not (res.get("preload", {}).get("interfaces")):
+        return ""
+    rows = [[k, v["normal_force"], v["friction_force"], v["contact_area"] * 1e4, 100 * v["closed_share"],
+             v["peak_pressure"] / 1e6] for k, v in res["preload"]["interfaces"].items()]
+    return ("<h2>Preload</h2>" + _table(
+        ["interface", "normal force [N]", "friction force [N]", "contact area [cm²]", "closed [%]",
+         "peak pressure [MPa]"], rows))
+
+
+STAGE = Stage("preload", ("operators",), run, "static contact state and the linearisation about it",
+              inputs=lambda scene, spec: scene["preload"], report=report, memory=True, fields=True)

@@ -1,0 +1,263 @@
+"""The ``reduced`` analysis: the parametric reduced model of the linearised brake.
+
+The basis is grown to ``tol`` (:func:`fem_squeal.fe.projection.adaptive_reduce`), checked at the
+nominal point and at the corners of the parameter ranges that the sweep, the map and MASA ask for
+(:func:`design_points`); optionally the full CEA at those points, compared with the reduced one
+(``verify``).  Every analysis on the reduced model (sweep, map, masa, transient) pulls this one in
+with its defaults.  File: reduced_model.npz (and basis_field.npz for transient snapshots)."""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fem_squeal.app.fields import REAL, Field, band, increasing, non_negative, positive
+from fem_squeal.app.html import escape as _e
+from fem_squeal.app.html import num as _num
+from fem_squeal.app.html import table as _table
+from fem_squeal.app.stage import Context, Stage
+from fem_squeal.fe.model import common_mu
+from fem_squeal.reduced.eigensolve import TWO_PI, unstable
+from fem_squeal.reduced.model import MU, e_param, format_point
+from fem_squeal.reduced.sweep import solve_points
+from fem_squeal.util.errors import SceneError
+
+SECTION = {
+    "band_hz": Field(list, [0.0, 10000.0], band, "band of interest of the reduced model"),
+    "tol": Field(REAL, 1e-3, positive, "allowed relative change of the unstable eigenvalues"),
+    "cut_factors": Field(list, [1.25, 1.6, 2.0, 2.5], increasing(2, 1.0),
+                         "modes up to factor × band top, one basis per factor until tol is met"),
+    "static_correction": Field(bool, True, None, "add (K + σM)⁻¹ K_f Φ"),
+    "sigma_hz": Field(REAL, 0.0, non_negative, "shift σ = (2π f)² of the correction; 0 = 0.1 × cut"),
+    "growth_tol": Field(REAL, 1e-6, positive, "unstable: Re λ > growth_tol |λ|"),
+    "enrich_rtol": Field(REAL, 1e-3, positive, "modes sampled at other parameter values keep only "
+                         "directions whose new part exceeds this share of their norm"),
+    "verify": Field(bool, False, None, "full CEA at the check points, compared with the reduced"),
+}
+
+
+def map_E_range(scene: dict, spec) -> tuple[float, float]:
+    m = scene["analyses"]["map"]
+    E0 = spec.materials[m["part"]].E
+    return tuple(m["E_range"]) if m["E_range"] else (0.8 * E0, 1.2 * E0)
+
+
+def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict], list[str]]:
+    """(check points, E samples for the basis, parts whose E varies) implied by sweep and map."""
+    ana = scene["analyses"]
+    checks: list[dict] = [{MU: mu0}]
+    samples: list[dict] = []
+    parts: list[str] = []
+    if "sweep" in ana:
+        s = ana["sweep"]
+        lo, hi = s["range"]
+        if s["parameter"] == MU:
+            checks += [{MU: lo}, {MU: hi}]
+        else:
+            parts.append(s["parameter"][2:])
+            samples += [{s["parameter"]: lo}, {s["parameter"]: hi}]
+            checks += [{MU: mu0, s["parameter"]: lo}, {MU: mu0, s["parameter"]: hi}]
+    if "map" in ana:
+        m = ana["map"]
+        name = e_param(m["part"])
+        parts.append(m["part"])
+        e_lo, e_hi = map_E_range(scene, spec)
+        samples += [{name: e_lo}, {name: e_hi}]
+        checks += [{MU: s * m["mu_max"], name: e} for s in (-1, 1) for e in (e_lo, e_hi)]
+    if "masa" in ana:
+        checks += [{MU: float(v)} for v in ana["masa"]["mu"]]
+    uniq = lambda pts: [dict(t) for t in dict.fromkeys(tuple(sorted(p.items())) for p in pts)]  # noqa: E731
+    return uniq(checks), uniq(samples), sorted(set(parts))
+
+
+def basis_design(scene: dict, spec) -> tuple[float, list[dict], list[dict], list[str]]:
+    """(μ₀, check points, E samples, parts whose stiffness the basis carries): :func:`design_points`,
+    with every part when a transient asks for component strain-energy shares along its cycle."""
+    mu0 = common_mu(spec)
+    checks, samples, parts = design_points(scene, spec, mu0)
+    if "transient" in scene["analyses"]:
+        parts = sorted(spec.materials)
+    return mu0, checks, samples, parts
+
+
+def full_cea(par, point: dict, band, nev: int, options) -> tuple[np.ndarray, float]:
+    """Eigenvalues (Im λ > 0, in ``band``) of the full CEA at ``point`` and its wall time [s]."""
+    from fem_squeal.fe.eigen import solve_complex_modes  # heavy: FE stack
+
+    K, C = par.matrices(point)
+    t = time.perf_counter()
+    target = np.sqrt(0.5 * (band[0] ** 2 + band[1] ** 2))
+    cm = solve_complex_modes(K, par.ops.M, C, nev, target, band_hz=tuple(band), options=options,
+                             prefix="verify_", progress=True)
+    seconds = time.perf_counter() - t
+    for A in (K, C, *cm.vectors_re, *cm.vectors_im):
+        if A is not None:
+            A.destroy()
+    return cm.eigenvalues, seconds
+
+
+def _verify(par, model, point: dict, band, growth_tol: float, options) -> dict:
+    """Full CEA at ``point`` against the reduced eigenvalues: worst relative error of the unstable
+    full eigenvalues (of all in the band when none is unstable)."""
+    from fem_squeal.fe.projection import relative_change  # heavy: FE stack
+
+    lam_r = solve_points(model, {k: np.array([v]) for k, v in point.items()})[0]
+    f = lam_r.imag / TWO_PI
+    lam_r = lam_r[(f >= band[0]) & (f <= band[1])]
+    full, seconds = full_cea(par, point, band, len(lam_r) + 2, options)
+    bad = unstable(full, growth_tol)
+    watched = full[bad] if bad.any() else full
+    return {"point": point, "n_full": int(full.size), "n_unstable_full": int(bad.sum()),
+            "n_unstable_reduced": int(unstable(lam_r, growth_tol).sum()),
+            "max_rel_error": relative_change(watched, lam_r), "full_cea_s": seconds,
+            "unstable_full": [complex(x) for x in full[bad]]}
+
+
+def band_and_growth_tol(scene: dict) -> tuple[tuple[float, float], float]:
+    """analyses.reduced's band [Hz] and growth tolerance (unstable: Re λ > growth_tol |λ|)."""
+    a = scene["analyses"]["reduced"]
+    return tuple(a["band_hz"]), a["growth_tol"]
+
+
+def field_basis_needed(scene: dict) -> bool:
+    """The transient writes snapshots, so the reduced stage keeps Φ on the mesh nodes (basis_field.npz)."""
+    return scene["analyses"].get("transient", {}).get("snapshots", 0) > 0
+
+
+def extra_vector_settings(scene: dict) -> list | None:
+    """Patch attachments that MASA and the transient need in the basis (None: no extra vectors)."""
+    ana = scene["analyses"]
+    sets = [ana[a]["attachments"] for a in ("masa", "transient") if a in ana]
+    if not sets:
+        return None
+    non_empty = [s for s in sets if s]
+    return max(non_empty, key=lambda s: s[0] * s[1]) if non_empty else []
+
+
+def inputs(scene: dict, spec) -> dict:
+    """What the reduced basis depends on: analyses.reduced, the check points, E samples and parts
+    of :func:`basis_design`, and the extra vectors that masa and transient add."""
+    _, checks, samples, parts = basis_design(scene, spec)
+    return {"reduced": scene["analyses"]["reduced"], "checks": checks, "samples": samples, "parts": parts,
+            "extra_vectors": extra_vector_settings(scene), "field_basis": field_basis_needed(scene)}
+
+
+def masa_vectors(ops, preload, attachments: list, band, options) -> np.ndarray:
+    """Basis vectors MASA and the transient need beyond the modes: the preload displacement (so
+    that the reduced static equilibrium reproduces the full one) and the contact-patch
+    attachments ([n_radial, n_angular]; [] = none)."""
+    from fem_squeal.fe.projection import contact_attachments  # heavy: FE stack
+
+    cols = [preload.u.array_r.copy()[:, None]]
+    if attachments:
+        cols.append(contact_attachments(ops, tuple(attachments), 0.1 * band[1], options))
+    return np.hstack(cols)
+
+
+def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
+    """analyses.reduced: the basis grown to ``tol`` about the preload; ``reduced_model.npz``."""
+    from fem_squeal.fe.output import write_basis_field  # heavy: FE stack
+    from fem_squeal.fe.projection import ParametricOperators, adaptive_reduce  # heavy: FE stack
+
+    scene, spec, comm, say = ctx.scene, ctx.spec, ctx.comm, ctx.say
+    ops, preload = ctx.products["linear"], ctx.products["preload"]
+    a = scene["analyses"]["reduced"]
+    band = tuple(a["band_hz"])
+    opts = scene["solver"]["petsc_options"]
+    mu0, checks, samples, parts = basis_design(scene, spec)
+    par = ParametricOperators(ops, spec, mu0, parts)
+    t = time.perf_counter()
+    attach = extra_vector_settings(scene)
+    extra = masa_vectors(ops, preload, attach, band, opts) if attach is not None else None
+    model, basis, report = adaptive_reduce(
+        ops, par, band, checks, tol=a["tol"], cut_factors=tuple(a["cut_factors"]), samples=samples,
+        static=a["static_correction"], sigma_hz=a["sigma_hz"] or None, growth_tol=a["growth_tol"],
+        enrich_rtol=a["enrich_rtol"], preload=preload, options=opts, log=say, extra=extra)
+    timings["reduced_basis"] = time.perf_counter() - t
+    if comm.rank == 0:
+        model.save(work / "reduced_model.npz")
+    if field_basis_needed(scene):
+        write_basis_field(comm, work / "basis_field.npz", ops.V, basis.Phi)
+    out: dict[str, Any] = {"size": model.size, "parameters": model.parameters, "mu0": mu0, **report.as_dict()}
+    say(f"[fem_squeal] reduced model: {model.size} vectors {basis.counts}, estimated error "
+        f"{report.estimate:.1e}, {timings['reduced_basis']:.1f} s")
+    if a["verify"]:
+        t = time.perf_counter()
+        rows = [_verify(par, model, p, band, a["growth_tol"], opts) for p in checks]
+        timings["reduced_verify"] = time.perf_counter() - t
+        out["verification"] = rows
+        say("[fem_squeal] reduced vs full CEA: " + ", ".join(
+            f"{format_point(r['point'])}: {r['max_rel_error']:.1e}" for r in rows))
+    par.destroy()
+    ctx.products["reduced"] = model
+    return {"reduced": out}
+
+
+def verification_failures(reduced: dict, what: str = "") -> list[str]:
+    """The check points where the reduced model misses the full CEA: relative error above the
+    requested ``tol``, or a different number of unstable modes (``results["reduced"]``)."""
+    out = []
+    for v in reduced.get("verification", []):
+        if v["max_rel_error"] > reduced["tol"]:
+            out.append(f"{what}reduced vs full at {format_point(v['point'])}: {v['max_rel_error']:.1e} > tol "
+                       f"{reduced['tol']}")
+        if v["n_unstable_full"] != v["n_unstable_reduced"]:
+            out.append(f"{what}{v['n_unstable_reduced']} unstable reduced vs {v['n_unstable_full']} full "
+                       f"at {format_point(v['point'])}")
+    return out
+
+
+def check(scene: dict, volumes) -> None:
+    """A reduced model needs friction (its μ direction) with one common μ on every frictional interface."""
+    frictional = [n for n, t in scene["interfaces"].items()
+                  if t["type"] in ("rigid_plate", "contact") and t.get("mu", 0) > 0 and t.get("sliding", 0)]
+    mus = {scene["interfaces"][n]["mu"] for n in frictional}
+    if not frictional:
+        raise SceneError("analyses.reduced: needs an interface with friction (mu > 0, sliding != 0); "
+                         "its friction stiffness sets the μ direction of the reduced model")
+    if len(mus) > 1:
+        raise SceneError(f"interfaces: frictional interfaces have different mu {sorted(mus)}; the reduced "
+                         "model scales one common friction coefficient")
+
+
+def check_contact_study(scene: dict, name: str) -> None:
+    """Cross-checks shared by the nonlinear studies on the reduced model (masa, transient)."""
+    m = scene["analyses"][name]
+    if not any(t["type"] == "contact" for t in scene["interfaces"].values()):
+        raise SceneError(f"analyses.{name}: needs an interface of type 'contact' (its points carry the "
+                         "nonlinear contact law)")
+    if scene["preload"]["mode"] != "nonlinear":
+        raise SceneError(f"analyses.{name}: needs preload.mode = 'nonlinear' (it starts from the static "
+                         "equilibrium)")
+    if m["cubic_share"] > 1:
+        raise SceneError(f"analyses.{name}.cubic_share: must be in [0, 1] (got {m['cubic_share']})")
+    for key in ("patches", "attachments"):
+        v = m[key]
+        if v and (len(v) != 2 or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1 for n in v)):
+            raise SceneError(f"analyses.{name}.{key}: must be [] or [n_radial, n_angular], integers >= 1 "
+                             f"(got {v})")
+    cd = m["contact_damping"]
+    if cd and (len(cd) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0
+                                       for v in cd)):
+        raise SceneError(f"analyses.{name}.contact_damping: must be [] or [c_max > 0, depth > 0] (got {cd})")
+
+
+def report(res: dict) -> str:
+    """The report section (HTML) of this stage from results.json ``res``."""
+    if "reduced" not in res:
+        return ""
+    r = res["reduced"]
+    txt = (f"<h2>Reduced model</h2><p>{r['size']} vectors, parameters {_e(r['parameters'])}, estimated "
+           f"error {_num(r.get('estimated_error'))} (tol {_num(r['tol'])}), "
+           f"converged {_e(r.get('converged'))}.</p>")
+    if r.get("verification"):
+        txt += _table(["point", "max rel. error", "unstable full", "unstable reduced"],
+                      [[format_point(v["point"]), v["max_rel_error"], v["n_unstable_full"],
+                        v["n_unstable_reduced"]] for v in r["verification"]])
+    return (txt)
+
+
+STAGE = Stage("reduced", ("preload",), run, "reduced basis with error control", inputs=inputs, section=SECTION,
+              check=check, report=report, pulled=True)

@@ -1,0 +1,81 @@
+"""The ``map`` analysis: the (sign(v)μ, E) full-factorial design of seed 001 §4 on the reduced model,
+dealt over the ranks, with the number of unstable modes per frequency band (Figs. 17-19).
+Files: stability_map.npz, stability_map.png."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fem_squeal.app import plots
+from fem_squeal.app.analyses.reduced import band_and_growth_tol, map_E_range
+from fem_squeal.app.fields import REAL, Field, at_least, increasing, nonempty_str, positive
+from fem_squeal.app.html import escape as _e
+from fem_squeal.app.html import num as _num
+from fem_squeal.app.stage import Context, Stage
+from fem_squeal.reduced.model import MU, e_param
+from fem_squeal.reduced.stability_map import equal_bands, stability_map
+from fem_squeal.reduced.sweep import Grid, evaluate, signed_mu_axis
+from fem_squeal.util.atomic import write_npz_atomic
+from fem_squeal.util.errors import SceneError
+
+SECTION = {
+    "mu_max": Field(REAL, 1.0, positive, "sign(v)μ from -mu_max to mu_max"),
+    "n_mu": Field(int, 101, at_least(2)),
+    "part": Field(str, "disc", nonempty_str, "part whose Young's modulus is varied"),
+    "E_range": Field(list, [], None, "[E_min, E_max] [Pa]; [] = nominal ± 20 %"),
+    "n_E": Field(int, 21, at_least(2)),
+    "n_bands": Field(int, 6, positive, "equal frequency ranges of analyses.reduced.band_hz"),
+}
+
+
+def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
+    """analyses.map: unstable modes per band over the (sign(v)μ, E) design; stability_map.npz/png."""
+    scene, model = ctx.scene, ctx.reduced_model()
+    m = scene["analyses"]["map"]
+    band, gt = band_and_growth_tol(scene)
+    name = e_param(m["part"])
+    E = np.linspace(*map_E_range(scene, ctx.spec), m["n_E"])
+    grid = Grid({name: E, MU: signed_mu_axis(m["mu_max"], m["n_mu"])})
+    res = evaluate(model, grid, ctx.comm, progress=True)
+    timings["map"] = res.seconds
+    bands = equal_bands(band, m["n_bands"])
+    smap = stability_map(res, bands, gt)
+    out = {"parameter": name, "points": grid.size, "seconds": res.seconds,
+           "seconds_per_point": res.seconds_per_point, **smap.as_dict()}
+    ctx.say(f"[fem_squeal] stability map: {grid.size} points in {res.seconds:.2f} s "
+            f"({1e3 * res.seconds_per_point:.2f} ms per point per rank), "
+            f"at most {int(smap.total.max())} unstable modes")
+    if ctx.comm.rank == 0:
+        write_npz_atomic(work / "stability_map.npz", {"mu": grid.axes[MU], "E": E, "counts": smap.counts,
+                                                       "total": smap.total, "eigenvalues": res.eigenvalues,
+                                                       "bands_hz": np.array(bands)})
+        plots.stability_maps(work / "stability_map.png", grid.axes[MU], E / 1e9, smap.counts, smap.total,
+                             bands, f"E of {m['part']} [GPa]", scene["title"])
+    return {"map": out}
+
+
+def check(scene: dict, volumes) -> None:
+    """The varied part exists; E_range is [E_min, E_max] with 0 < E_min < E_max."""
+    m = scene["analyses"]["map"]
+    if m["part"] not in volumes:
+        raise SceneError(f"analyses.map.part: unknown part {m['part']!r}; parts: {sorted(volumes)}")
+    if m["E_range"]:
+        msg = increasing(2, 0.0)(m["E_range"])
+        if msg or len(m["E_range"]) != 2:
+            raise SceneError(f"analyses.map.E_range: {msg or 'must be [E_min, E_max]'}")
+
+
+def report(res: dict) -> str:
+    """The report section (HTML) of this stage from results.json ``res``."""
+    if "map" not in res:
+        return ""
+    m = res["map"]
+    return (f"<h2>Stability map</h2><p>{m['points']} points of (sign(v)μ, {_e(m['parameter'])}) in "
+               f"{_num(m['seconds'])} s; at most "
+               f"{_num(max(max(r) for r in m['total']) if m.get('total') else 0)} "
+               "unstable modes.</p>")
+
+
+STAGE = Stage("map", ("reduced",), run, "(μ, E) stability map", section=SECTION, check=check, report=report)

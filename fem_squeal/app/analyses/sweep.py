@@ -1,0 +1,88 @@
+"""The ``sweep`` analysis: one parameter (sign(v)μ or a part's E) over a range on the reduced model,
+every branch tracked by MAC continuation (:func:`fem_squeal.reduced.tracking.track`) and the
+critical values refined.  Files: sweep.json, root_locus.png, complex_plane.png."""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fem_squeal.app import plots
+from fem_squeal.app.analyses.reduced import band_and_growth_tol
+from fem_squeal.app.fields import Field, at_least, increasing
+from fem_squeal.app.html import escape as _e
+from fem_squeal.app.html import table as _table
+from fem_squeal.app.stage import Context, Stage
+from fem_squeal.reduced.eigensolve import unstable
+from fem_squeal.reduced.model import MU
+from fem_squeal.reduced.sweep import path_solver
+from fem_squeal.reduced.tracking import track
+from fem_squeal.util.atomic import write_json_atomic
+from fem_squeal.util.errors import SceneError
+
+SECTION = {
+    "parameter": Field(str, "mu", None, "'mu' (sign(v)μ) or 'E.<part>' (Young's modulus [Pa])"),
+    "range": Field(list, [-1.0, 1.0], increasing(2), "[first, last] value"),
+    "n": Field(int, 101, at_least(2), "number of values"),
+}
+
+
+def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
+    """analyses.sweep on the reduced model: sweep.json, root_locus.png, complex_plane.png."""
+    scene, model = ctx.scene, ctx.reduced_model()
+    s = scene["analyses"]["sweep"]
+    band, gt = band_and_growth_tol(scene)
+    t = time.perf_counter()
+    values = np.linspace(*s["range"], s["n"])
+    fixed = {} if s["parameter"] == MU else {MU: model.mu0}
+    tr = track(path_solver(model, s["parameter"], fixed), values, growth_tol=gt,
+               start=0.0 if s["parameter"] == MU and values[0] <= 0 <= values[-1] else None,
+               progress=ctx.comm.rank == 0)
+    timings["sweep"] = time.perf_counter() - t
+    f = tr.freqs_hz
+    inside = np.flatnonzero(np.any((f >= band[0]) & (f <= band[1]), axis=0))
+    events = [e for e in tr.events if band[0] <= e.freq_hz <= band[1]]
+    out = {"parameter": s["parameter"], "values": values, "branches": [
+        {"label": tr.labels[j], "parent_hz": tr.parents_hz[j], "freq_hz": f[:, j],
+         "real_part": tr.eigenvalues[:, j].real} for j in inside],
+        "critical": [e.as_dict() for e in events], "solves": tr.solves,
+        "ambiguous_steps": tr.ambiguous_steps, "seconds": timings["sweep"]}
+    ctx.say(f"[fem_squeal] sweep of {s['parameter']}: {s['n']} values, {tr.solves} reduced solves, "
+            f"{len(events)} stability changes in the band, {timings['sweep']:.2f} s")
+    if ctx.comm.rank == 0:
+        write_json_atomic(work / "sweep.json", out)
+        xlabel = "sign(v) μ" if s["parameter"] == MU else f"{s['parameter']} [Pa]"
+        plots.root_locus(work / "root_locus.png", values, tr.eigenvalues, unstable(tr.eigenvalues, gt),
+                         xlabel, band, tr.labels, scene["title"])
+        plots.complex_plane(work / "complex_plane.png", tr.eigenvalues, band, gt, scene["title"])
+    out.pop("branches")  # kept in sweep.json; results.json holds the summary
+    return {"sweep": out}
+
+
+def check(scene: dict, volumes) -> None:
+    """The swept parameter is μ or the Young's modulus of a part of the model (> 0)."""
+    s = scene["analyses"]["sweep"]
+    par = s["parameter"]
+    if par != "mu":
+        if not par.startswith("E.") or par[2:] not in volumes:
+            raise SceneError(f"analyses.sweep.parameter: must be 'mu' or 'E.<part>' with a part of "
+                             f"{sorted(volumes)} (got {par!r})")
+        if s["range"][0] <= 0:
+            raise SceneError(f"analyses.sweep.range: Young's modulus must be > 0 (got {s['range']})")
+
+
+def report(res: dict) -> str:
+    """The report section (HTML) of this stage from results.json ``res``."""
+    if "sweep" not in res:
+        return ""
+    s = res["sweep"]
+    return (f"<h2>Sweep of {_e(s['parameter'])}</h2><p>{len(s['values'])} values, {s['solves']} reduced "
+               "solves.</p>" + _table(["value", "f [Hz]", "kind", "branches"],
+                                      [[c["value"], c["freq_hz"], c["kind"], c.get("labels", "")]
+                                       for c in s["critical"]]))
+
+
+STAGE = Stage("sweep", ("reduced",), run, "one-parameter sweep with mode tracking", section=SECTION, check=check,
+              report=report)

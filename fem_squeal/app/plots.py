@@ -1,0 +1,297 @@
+"""Matplotlib figures (Agg backend, rank 0 only), saved atomically as PNG."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from scipy.signal import spectrogram
+
+from fem_squeal.reduced.eigensolve import TWO_PI, unstable
+from fem_squeal.util.atomic import save_figure_atomic
+
+
+def pyplot():
+    """matplotlib.pyplot on the non-interactive Agg backend (plots, reports and benchmarks)."""
+    import matplotlib  # heavy: matplotlib (plots only)
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # heavy: matplotlib (plots only)
+
+    return plt
+
+
+def contact_pressure(path: Path, data: dict[str, tuple[np.ndarray, np.ndarray]], title: str = "") -> None:
+    """One panel per contact interface: the pressure [MPa] at the slave quadrature points,
+    seen along the axis (x, y in mm), interpolated on their Delaunay triangulation."""
+    plt = pyplot()
+    n = max(len(data), 1)
+    fig, axes = plt.subplots(1, n, figsize=(5.0 * n, 4.2), squeeze=False)
+    vmax = max((float(p.max()) for _, p in data.values() if len(p)), default=1.0) / 1e6 or 1.0
+    for ax, (name, (x, p)) in zip(axes[0], data.items()):
+        if len(p) >= 3:
+            tc = ax.tricontourf(1e3 * x[:, 0], 1e3 * x[:, 1], p / 1e6, levels=np.linspace(0, vmax, 21),
+                                cmap="viridis")
+            fig.colorbar(tc, ax=ax, label="contact pressure [MPa]")
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [mm]")
+        ax.set_ylabel("y [mm]")
+        ax.set_title(name)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def _labels_apart(ax, marks: list[tuple[float, float, str]], gap: float = 0.045) -> None:
+    """Annotate points (x, y, text) of ``ax`` with labels moved apart vertically (at least ``gap`` of the
+    axes height between two labels closer than 0.2 of its width), each joined to its point by a line."""
+    if not marks:
+        return
+    ax.relim()
+    ax.autoscale_view()
+    to_axes = ax.transData + ax.transAxes.inverted()
+    placed: list[tuple[float, float]] = []
+    for x, y, text in sorted(marks, key=lambda m: m[1]):
+        xa, ya = to_axes.transform((x, y))
+        for px, py in placed:
+            if abs(px - xa) < 0.2 and ya < py + gap:
+                ya = py + gap
+        placed.append((xa, ya))
+        ax.annotate(text, (x, y), xytext=(xa, min(ya, 0.98)), textcoords="axes fraction", fontsize=7,
+                    arrowprops={"arrowstyle": "-", "color": "0.5", "lw": 0.5})
+
+
+def root_locus(path: Path, values: np.ndarray, lam: np.ndarray, unstable: np.ndarray, xlabel: str,
+               band_hz: tuple[float, float], labels: list[str] | None = None, title: str = "") -> None:
+    """Frequency and real part of every tracked branch against the swept parameter (seed 001
+    Figs. 3-4, 8): stable points grey, unstable points red; branches inside ``band_hz`` only."""
+    plt = pyplot()
+    f = lam.imag / TWO_PI
+    keep = np.flatnonzero(np.any((f >= band_hz[0]) & (f <= band_hz[1]), axis=0))
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 8), sharex=True)
+    marks = []
+    for j in keep:
+        a1.plot(values, f[:, j], "-", color="0.75", lw=0.7)
+        a2.plot(values, lam[:, j].real, "-", color="0.75", lw=0.7)
+        u = unstable[:, j]
+        if u.any():
+            a1.plot(values[u], f[u, j], ".", color="tab:red", ms=3)
+            a2.plot(values[u], lam[u, j].real, ".", color="tab:red", ms=3)
+            if labels:
+                k = np.flatnonzero(u)[np.argmax(lam[u, j].real)]     # the branch's peak growth
+                marks.append((values[k], lam[k, j].real, labels[j]))
+    _labels_apart(a2, marks)
+    a1.set_ylabel("frequency [Hz]")
+    a1.set_ylim(*band_hz)
+    a2.set_ylabel("Re λ [1/s]")
+    a2.set_xlabel(xlabel)
+    a2.axhline(0.0, color="k", lw=0.5)
+    if title:
+        a1.set_title(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def complex_plane(path: Path, lam: np.ndarray, band_hz: tuple[float, float], growth_tol: float = 1e-6,
+                  title: str = "") -> None:
+    """All eigenvalues of a sweep in the complex plane (seed 001 Figs. 2, 9): Re λ against frequency."""
+    plt = pyplot()
+    lam = np.ravel(lam)
+    f = lam.imag / TWO_PI
+    sel = (f >= band_hz[0]) & (f <= band_hz[1])
+    bad = unstable(lam, growth_tol)
+    fig, ax = plt.subplots(figsize=(8, 5))
+    ax.plot(lam.real[sel & ~bad], f[sel & ~bad], ".", color="0.6", ms=2, label="stable")
+    ax.plot(lam.real[sel & bad], f[sel & bad], ".", color="tab:red", ms=2, label="unstable")
+    ax.axvline(0.0, color="k", lw=0.5)
+    ax.set_xlabel("Re λ [1/s]")
+    ax.set_ylabel("frequency [Hz]")
+    ax.legend(loc="upper left")
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def stability_maps(path: Path, mu: np.ndarray, E: np.ndarray, counts: np.ndarray, total: np.ndarray,
+                   bands_hz: list[tuple[float, float]], E_label: str, title: str = "") -> None:
+    """Number of unstable modes per band over the (sign(v)μ, E) plane, one panel per band and the
+    total (seed 001 Figs. 17-19); counts[b] has shape (n_E, n_mu)."""
+    plt = pyplot()
+    n = len(bands_hz) + 1
+    cols = min(n, 4)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.4 * rows), squeeze=False)
+    panels = [(f"{lo:.0f}-{hi:.0f} Hz", c) for (lo, hi), c in zip(bands_hz, counts)] + [("all bands", total)]
+    for ax, (name, c) in zip(axes.ravel(), panels):
+        im = ax.pcolormesh(mu, E, c, shading="nearest", cmap="magma_r", vmin=0, vmax=max(int(c.max()), 1))
+        fig.colorbar(im, ax=ax, label="unstable modes")
+        ax.axvline(0.0, color="k", lw=0.4)
+        ax.set_title(name, fontsize=9)
+        ax.set_xlabel("sign(v) μ")
+        ax.set_ylabel(E_label)
+    for ax in axes.ravel()[n:]:
+        ax.axis("off")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def masa(path: Path, res, title: str = "", amplitude_label: str = "modal amplitude p") -> None:
+    """Seed 000 Figs. 4–9 for one instability: every eigenvalue of the state matrix in the band
+    against the amplitude (unstable ones coloured by their real part, stable ones grey), and the
+    instability's own real part with its stationary amplitudes."""
+    plt = pyplot()
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.5, 7.0), sharex=True, gridspec_kw={"height_ratios": [2, 1]},
+                                 layout="constrained")
+    p = np.repeat(res.amplitudes[:, None], res.eigenvalues.shape[1], axis=1)
+    lam = res.eigenvalues
+    ok = ~np.isnan(lam)
+    unst = ok & unstable(np.nan_to_num(lam))  # the default growth_tol, as the result's own counts
+    a1.scatter(p[ok & ~unst], lam[ok & ~unst].imag / TWO_PI / 1e3, s=2, c="0.75", lw=0)
+    if unst.any():
+        sc = a1.scatter(p[unst], lam[unst].imag / TWO_PI / 1e3, s=10, c=lam[unst].real, cmap="jet", lw=0)
+        fig.colorbar(sc, ax=[a1, a2], label="Re λ [1/s]")
+    a1.set_ylabel("frequency [kHz]")
+    a1.set_title(title or f"MASA of the instability at {res.freq_hz:.0f} Hz")
+    a2.plot(res.amplitudes, res.tracked.real, "k.-", ms=3)
+    a2.axhline(0.0, color="0.5", lw=0.8)
+    for s in res.stationary:
+        a2.axvline(s, color="r", lw=0.8, ls="--")
+    a2.set_ylabel(f"Re λ of the {res.freq_hz:.0f} Hz mode [1/s]")
+    a2.set_xlabel(amplitude_label)
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def contact_status(path: Path, res, title: str = "", amplitude_label: str = "modal amplitude p") -> None:
+    """Seed 000 Fig. 10: the status of every contact element against the amplitude: nothing for
+    no contact, a dot for permanent contact, a red circle for impacts."""
+    plt = pyplot()
+    n_el = res.status.shape[1]
+    fig, ax = plt.subplots(figsize=(7.5, max(3.0, min(9.0, 0.02 * n_el + 2))))
+    P, E = np.meshgrid(res.amplitudes, np.arange(n_el), indexing="ij")
+    perm, imp = res.status == 1, res.status == 2
+    ax.scatter(P[perm], E[perm], s=1, c="k", lw=0)
+    ax.scatter(P[imp], E[imp], s=6, facecolors="r", edgecolors="r", lw=0.3)
+    ax.set_xlabel(amplitude_label)
+    ax.set_ylabel("contact element")
+    ax.set_title(title or f"contact status, instability at {res.freq_hz:.0f} Hz (dot: contact, red: impacts)")
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def transient(path: Path, t: np.ndarray, x: np.ndarray, v: np.ndarray, extra: dict[str, np.ndarray] | None = None,
+              title: str = "", label: str = "displacement [µm]", scale: float = 1e6) -> None:
+    """Time history, spectrogram, phase portrait (last fifth) and extra histories of a transient."""
+
+
+    plt = pyplot()
+    extra = extra or {}
+    fig, ax = plt.subplots(2, 2, figsize=(11, 7.5))
+    ax[0, 0].plot(t * 1e3, x * scale, lw=0.4)
+    ax[0, 0].set(xlabel="t [ms]", ylabel=label, title="time history")
+    dt = float(np.mean(np.diff(t)))
+    nper = min(1024, max(len(t) // 16, 16))
+    fs, ts, S = spectrogram(x - np.mean(x), fs=1 / dt, nperseg=nper, noverlap=nper // 2)
+    ax[0, 1].pcolormesh(ts * 1e3 + t[0] * 1e3, fs / 1e3, 10 * np.log10(S + S.max() * 1e-12), shading="auto")
+    ax[0, 1].set(xlabel="t [ms]", ylabel="f [kHz]", title="spectrogram [dB]")
+    tail = t >= t[0] + 0.8 * (t[-1] - t[0])
+    ax[1, 0].plot(x[tail] * scale, v[tail] * scale, lw=0.4)
+    ax[1, 0].set(xlabel=label, ylabel=label.replace("[", "rate [").replace("]", "/s]"),
+                 title="phase portrait (last 20 %)")
+    for name, y in extra.items():
+        ax[1, 1].plot(t * 1e3, y, lw=0.5, label=name)
+    if extra:
+        ax[1, 1].legend(fontsize=7)
+    ax[1, 1].set(xlabel="t [ms]", title="contact")
+    fig.suptitle(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def dynamic_stability(path: Path, t: np.ndarray, lam: np.ndarray, band_hz, title: str = "") -> None:
+    """Seed 002 Fig. 10: tangent-CEA frequencies and real parts against time along a cycle."""
+    plt = pyplot()
+    f = lam.imag / TWO_PI
+    sel = (f >= band_hz[0]) & (f <= band_hz[1])
+    tt = np.broadcast_to(t[:, None], lam.shape)
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    sc = ax[0].scatter(tt[sel] * 1e3, f[sel] / 1e3, c=lam.real[sel], s=4, cmap="coolwarm",
+                       vmin=-np.abs(lam.real[sel]).max(), vmax=np.abs(lam.real[sel]).max())
+    fig.colorbar(sc, ax=ax[0], label="Re λ [1/s]")
+    ax[0].set(xlabel="t [ms]", ylabel="f [kHz]", title="frequency")
+    ax[1].scatter(f[sel] / 1e3, lam.real[sel], c=tt[sel] * 1e3, s=4)
+    ax[1].axhline(0, color="k", lw=0.5)
+    ax[1].set(xlabel="f [kHz]", ylabel="Re λ [1/s]", title="frequency–damping (colour: t)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def limit_cycle(path: Path, t: np.ndarray, x: np.ndarray, lc, svd_energy, best_mac: list[dict], t_shares,
+                shares: np.ndarray | None, parts: list[str], cycles: list[dict], title: str = "") -> None:
+    """Limit-cycle summary: envelope and saturation, SVD energy and MAC (seed 002 Figs. 8–9),
+    component strain-energy shares along the cycle (Fig. 11), friction work per complex-mode
+    cycle against α (§4.3)."""
+    plt = pyplot()
+    fig, ax = plt.subplots(2, 2, figsize=(11, 7.5))
+    ax[0, 0].plot(t * 1e3, (x - np.mean(x)) * 1e6, lw=0.3, color="0.5")
+    ax[0, 0].plot(t * 1e3, lc.envelope * 1e6, color="C3", lw=1, label="envelope")
+    if lc.saturated:
+        ax[0, 0].axvline(lc.t_saturation * 1e3, color="k", ls="--", lw=0.8, label="saturation")
+    ax[0, 0].legend(fontsize=7)
+    ax[0, 0].set(xlabel="t [ms]", ylabel="closure − mean [µm]",
+                 title=f"{lc.frequency_hz:.0f} Hz, amplitude {lc.amplitude * 1e6:.3g} µm")
+    k = np.arange(1, len(svd_energy) + 1)
+    ax[0, 1].bar(k, svd_energy, color="C0")
+    for b in best_mac:
+        ax[0, 1].annotate(f"{b['freq_hz']:.0f} Hz\nplane {100 * b['plane_share']:.0f} %, MAC {b['mac']:.2f}",
+                          (b["shape"], svd_energy[b["shape"] - 1]),
+                          ha="center", va="bottom", fontsize=7)
+    ax[0, 1].set(xlabel="SVD shape", ylabel="energy share", title="space–time SVD (strain-energy norm)")
+    if shares is not None:
+        ax[1, 0].stackplot(t_shares * 1e3, shares.T, labels=parts)
+        ax[1, 0].legend(fontsize=6, loc="upper right")
+    ax[1, 0].set(xlabel="t [ms]", ylabel="strain-energy share", title="components along the last cycle")
+    if cycles:
+        al = [c["alpha"] for c in cycles]
+        ax[1, 1].loglog(al, np.abs([c["friction_work"] for c in cycles]), "o-")
+    ax[1, 1].set(xlabel="α [× static closure]", ylabel="|friction work| per cycle [J]",
+                 title="complex-mode cycles (seed 002 eq. 6)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def pad_portraits(path: Path, runs: list[dict], pad, title: str = "") -> None:
+    """Seed 004: phase portrait (tangential displacement, velocity) of the centre element and its
+    sliding-speed history, one column per run, with the regime of each."""
+    plt = pyplot()
+    n = len(runs)
+    fig, ax = plt.subplots(2, n, figsize=(max(3.0 * n, 6), 6), squeeze=False)
+    for c, r in enumerate(runs):
+        p = r["portrait"]
+        ax[0, c].plot(p["x"] * 1e6, p["v"] * 1e3, lw=0.4)
+        ax[0, c].set(xlabel="y [µm]", ylabel="ẏ [mm/s]" if c == 0 else "",
+                     title=f"V = {r['speed'] * 1e3:g} mm/s\nv_s {r['v_s'] * 1e3:g}, v_d {r['v_d'] * 1e3:g} mm/s",
+                     )
+        ax[0, c].title.set_fontsize(8)
+        ax[1, c].plot((p["t"] - p["t"][0]) * 1e3, p["w"] * 1e3, lw=0.4)
+        ax[1, c].axhline(r["v_s"] * 1e3, color="C3", lw=0.6, ls="--")
+        ax[1, c].axhline(r["v_d"] * 1e3, color="C2", lw=0.6, ls="--")
+        ax[1, c].set(xlabel="t [ms]", ylabel="|w| [mm/s]" if c == 0 else "")
+        ax[1, c].set_title(", ".join(sorted(set(r["regimes"]))), fontsize=8)
+    fig.suptitle(f"segmented pad (μ_s {pad.mu_s}, μ_d {pad.mu_d}, F {pad.force:g} N) {title}")
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)

@@ -1,0 +1,346 @@
+"""Assemble the PETSc operators of a model: K (elastic + springs), K_f, M, C, loads, interfaces.
+
+The operator is λ²M + λC + (K + K_f): ``Kf`` is stored with the sign it has in the operator.
+Volume forms are assembled into the cell sparsity pattern of K; spring and bonded interfaces
+(built from the interface operator G) add entries between bodies.  Contact interfaces are kept
+apart as :class:`~fem_squeal.fe.interface.InterfaceOperator` s: their K_c, K_f depend on which
+points are closed, which the preload decides (:func:`linearise`).  Dirichlet (clamped) DOFs
+get 1 on the diagonal of K and 0 on those of M, C, K_f and the interface matrices: they become
+infinite eigenvalues that shift-invert never returns.
+"""
+from __future__ import annotations
+
+import logging
+import time
+import warnings
+from typing import NamedTuple
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
+from petsc4py import PETSc
+
+from fem_squeal.fe import forms
+from fem_squeal.fe import interface as itf
+from fem_squeal.fe.model import Interface, ModelSpec
+from fem_squeal.util.errors import ModelError, UnknownNameError
+
+# The JIT's compiler driver logs INFO lines through the root logger: keep only warnings from it.
+logging.getLogger().addFilter(lambda rec: rec.name != "root" or rec.levelno >= logging.WARNING)
+
+JIT_PARAMS = {"cffi_extra_compile_args": ["-O2"]}
+
+
+class Operators(NamedTuple):
+    """Assembled operators of λ²M + λC + (K + K_f) (PETSc ``aij``)."""
+
+    V: fem.FunctionSpace
+    K: PETSc.Mat          # elasticity + springs (+ closed contact after linearise), symmetric
+    Kf: PETSc.Mat | None  # friction stiffness incl. μ and sliding sign (asymmetric) or None
+    M: PETSc.Mat
+    C: PETSc.Mat | None   # Rayleigh damping or None
+    M_axial: PETSc.Mat    # mass of the motion along the axis, for in-plane/out-of-plane shares
+    bc_dofs: np.ndarray   # local indices of clamped DOFs (blocked x bs)
+    f: PETSc.Vec | None = None                       # pressure loads (0 on clamped DOFs)
+    contacts: tuple = ()                             # ((Interface, InterfaceOperator), ...)
+    K_parts: dict | None = None                      # part -> elastic stiffness (no BC rows)
+    M_parts: dict | None = None                      # part -> (M, M_axial) of that part
+
+    def K_total(self) -> PETSc.Mat:
+        """K + K_f as a new matrix (K itself when there is no friction)."""
+        if self.Kf is None:
+            return self.K
+        A = self.K.copy()
+        # K_f's pattern is a subset of K's at best (PETSc squeezes unused slots at assembly, so
+        # SAME_NONZERO_PATTERN would give wrong sums): let PETSc merge the patterns.
+        A.axpy(1.0, self.Kf, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        return A
+
+
+def _compile(a, quadrature_degree):
+    """JIT-compile ``a``; ``quadrature_degree`` (``discretisation.quadrature_degree``) goes into each
+    integral's metadata: FFCx 0.5 ignores it as a form-compiler parameter (it was silently unused)."""
+    if quadrature_degree is not None:
+        a = ufl.Form([itg.reconstruct(metadata={"quadrature_degree": quadrature_degree, **itg.metadata()})
+                      for itg in a.integrals()])
+    return fem.form(a, form_compiler_params={}, jit_params=JIT_PARAMS)
+
+
+def _assemble(form, pattern: fem.FormMetaClass, bcs, diagonal: float) -> PETSc.Mat:
+    A = fem_petsc.create_matrix(pattern)
+    fem_petsc.assemble_matrix(A, form, bcs=bcs, diagonal=diagonal)
+    A.assemble()
+    return A
+
+
+def _owned_global_rows(A: PETSc.Mat, V, local_dofs: np.ndarray) -> np.ndarray:
+    bs = V.dofmap.index_map_bs
+    n_owned = V.dofmap.index_map.size_local * bs
+    lo = A.getOwnershipRange()[0]
+    local_dofs = np.asarray(local_dofs)
+    return (local_dofs[local_dofs < n_owned] + lo).astype(PETSc.IntType)
+
+
+def _add(A: PETSc.Mat, B: PETSc.Mat, alpha: float = 1.0) -> None:
+    A.axpy(alpha, B, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+
+
+def _face_tag(mesh_data, face: str, present: set[int], where: str) -> int:
+    if face not in mesh_data.faces:
+        raise UnknownNameError(f"{where}: face {face!r} not in mesh; faces: {sorted(mesh_data.faces)}")
+    tag = mesh_data.faces[face]
+    if tag not in present:
+        raise ModelError(f"{where}: mesh has no facets tagged {tag} ({face})")
+    return tag
+
+
+def build_interface(V, mesh_data, spec: ModelSpec, it: Interface) -> itf.InterfaceOperator:
+    """The operator G of interface ``it`` (slave/master faces looked up by name)."""
+    for face in (it.slave, it.master):
+        if face not in mesh_data.faces:
+            raise UnknownNameError(f"interfaces.{it.name}: face {face!r} not in mesh; "
+                                   f"faces: {sorted(mesh_data.faces)}")
+    return itf.interface_operator(V, mesh_data.facet_tags, mesh_data.faces[it.slave],
+                                  mesh_data.faces[it.master], sliding=float(it.sliding), axis=spec.axis,
+                                  quadrature_degree=spec.interface_quadrature_degree, name=it.name)
+
+
+def contact_matrices(ops: Operators, stiffness: dict[str, np.ndarray] | None = None,
+                     friction: bool = True) -> tuple[PETSc.Mat | None, PETSc.Mat | None]:
+    """Σ K_c and Σ K_f over the contact interfaces, zero on the clamped DOFs.
+
+    ``stiffness[name]`` is the normal stiffness dσ/dg at each quadrature point of that contact
+    (k_n where closed, 0 where open, for the linear penalty); None: k_n everywhere (all closed).
+    K_c includes the tangential penalty k_t of the points where dσ/dg > 0 (the closed ones):
+    k_t G_t₂ᵀ W G_t₂ for a sliding contact, k_t (G_t₁ᵀ W G_t₁ + G_t₂ᵀ W G_t₂) for sliding = 0.
+    K_f only for ``friction`` and interfaces with friction; None where there is nothing to add."""
+    bc_rows = _owned_global_rows(ops.K, ops.V, ops.bc_dofs)
+    total: list[PETSc.Mat | None] = [None, None]
+    for it, op in ops.contacts:
+        k = it.kn if stiffness is None else stiffness[it.name]
+        mats = [itf.contact_stiffness(op, k)]
+        if it.kt > 0:   # tangential penalty on the closed points (dσ/dg > 0), μ-independent: in K_c
+            closed = 1.0 if stiffness is None else (np.asarray(k) > 0).astype(float)
+            T = itf.tangential_stiffness(op, it.kt * closed, it.sliding != 0)
+            _add(mats[0], T)
+            T.destroy()
+        mats.append(itf.friction_stiffness(op, k, it.mu) if friction and it.has_friction else None)
+        for j, A in enumerate(mats):
+            if A is None:
+                continue
+            A.zeroRowsColumns(bc_rows, diag=0.0)
+            if total[j] is None:
+                total[j] = A
+            else:
+                _add(total[j], A)
+                A.destroy()
+    return total[0], total[1]
+
+
+def linearise(ops: Operators, active: dict[str, np.ndarray] | None = None,
+              friction: bool = True) -> Operators:
+    """Operators with the contact interfaces' K_c and K_f added for the closed points.
+
+    ``active[name]`` flags the closed quadrature points of each contact (None: all closed, the
+    linear route).  Returns new K and K_f (the inputs are not modified)."""
+    if not ops.contacts:
+        return ops
+    stiffness = None if active is None else \
+        {it.name: it.kn * active[it.name].astype(float) for it, _ in ops.contacts}
+    Kc, Fc = contact_matrices(ops, stiffness, friction)
+    K = ops.K.copy()
+    _add(K, Kc)
+    Kc.destroy()
+    Kf = ops.Kf
+    if Fc is not None:
+        if Kf is None:
+            Kf = Fc
+        else:
+            Kf = Kf.copy()
+            _add(Kf, Fc)
+            Fc.destroy()
+    return ops._replace(K=K, Kf=Kf)
+
+
+#: ν above which displacement tetrahedra of each degree are warned about (benchmarks/stress_extremes.py,
+#: ring growth rates against theory: P1 is 12–20 % low at ν = 0.3 already (bending locking), 15–30 % at
+#: 0.45, and loses the flutter pairs k ≥ 3–4 from 0.49; P2 stays within 0.3 % up to 0.499, the last ν tested)
+LOCKING_NU = {1: 0.45, 2: 0.499}
+
+
+def locking_warnings(spec: ModelSpec) -> list[str]:
+    """Volumetric-locking warnings: parts with ν ≥ LOCKING_NU[1] for P1, ν > LOCKING_NU[2] for P2 (bulk/shear
+    K/G = 2(1+ν)/(3(1−2ν)): 9.7 at ν = 0.45, 25 at 0.49, 250 at 0.499)."""
+    out = []
+    for part, m in spec.materials.items():
+        nus = [m.nu] + ([m.nu_axial] if m.nu_axial is not None else [])
+        nu = max(nus)
+        limit = LOCKING_NU.get(spec.degree, 1.0)
+        if nu > limit or (spec.degree == 1 and nu >= limit):
+            ratio = 2 * (1 + nu) / (3 * (1 - 2 * nu))
+            out.append(f"materials.{part}: nu = {nu:g} with P{spec.degree} tetrahedra: nearly incompressible "
+                       f"(bulk/shear modulus {ratio:.3g}); displacement elements lock volumetrically and "
+                       + ("over-predict stiffness — use degree 2" if spec.degree == 1 else
+                          f"may over-predict stiffness (P2 verified up to nu = {limit})")
+                       + " (benchmarks/stress_extremes.py)")
+    return out
+
+
+def dirichlet_conditions(V, mesh_data, spec: ModelSpec) -> tuple[list, np.ndarray]:
+    """The Dirichlet conditions of ``boundary.clamped`` (all three components) and ``boundary.fixed``
+    (the named global components, each on the subspace V.sub(i)), and their local DOF indices
+    (blocked index × bs + component, sorted, unique)."""
+    facet_tags = mesh_data.facet_tags
+    fdim = V.mesh.topology.dim - 1
+    bs = V.dofmap.index_map_bs
+
+    def facets_of(face, where):
+        if face not in mesh_data.faces:
+            raise UnknownNameError(f"{where}: face {face!r} not in mesh; faces: {sorted(mesh_data.faces)}")
+        return facet_tags.indices[facet_tags.values == mesh_data.faces[face]]
+
+    bcs, dofs_all = [], [np.zeros(0, dtype=np.int32)]
+    if spec.clamped:
+        facets = np.unique(np.concatenate([facets_of(f, "boundary.clamped") for f in spec.clamped]))
+        dofs = fem.locate_dofs_topological(V, fdim, facets)
+        bcs.append(fem.dirichletbc(np.zeros(3, dtype=PETSc.ScalarType), dofs, V))
+        dofs_all.append((dofs[:, None] * bs + np.arange(bs)[None, :]).ravel())
+    for i in range(bs):   # one condition per component over every face that fixes it
+        faces = [fx.face for fx in spec.fixed if i in fx.indices]
+        if not faces:
+            continue
+        facets = np.unique(np.concatenate([facets_of(f, "boundary.fixed") for f in faces]))
+        dofs = fem.locate_dofs_topological(V.sub(i), fdim, facets)   # unrolled: block × bs + i
+        bcs.append(fem.dirichletbc(PETSc.ScalarType(0), dofs, V.sub(i)))
+        dofs_all.append(np.asarray(dofs))
+    return bcs, np.unique(np.concatenate(dofs_all)).astype(np.int32)
+
+
+def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
+                       describe_part: str | None = None, timings: dict | None = None) -> Operators:
+    """Build V = [P_degree]³ on the mesh and assemble K, K_f, M, C, M_axial, loads and interfaces.
+
+    ``parts``: also assemble each part's elastic stiffness (strain-energy shares, parametric
+    stiffness); ``describe_part``: also that part's M and M_axial (its nodal diameters);
+    ``timings``: filled with the wall time of the volume forms and of the interface operators."""
+
+    t0 = time.perf_counter()
+    mesh, cell_tags, facet_tags = mesh_data.mesh, mesh_data.cell_tags, mesh_data.facet_tags
+    if spec.degree == 1:
+        warnings.warn("degree 1: P1 tetrahedra lock in bending (ring frequencies +2 % at 158k DOFs, "
+                      "degenerate pairs split by as much as the friction effect); use degree 2",
+                      stacklevel=2)
+    elif spec.degree != 2:
+        raise ModelError(f"discretisation.degree: must be 1 or 2 (got {spec.degree})")
+    for w in locking_warnings(spec):
+        warnings.warn(w, stacklevel=2)
+    V = fem.VectorFunctionSpace(mesh, ("Lagrange", spec.degree))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    dx = ufl.Measure("dx", domain=mesh, subdomain_data=cell_tags)
+    ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags)
+    present_cells = set(np.concatenate(mesh.comm.allgather(np.unique(cell_tags.values))).tolist())
+    present_faces = set(np.concatenate(mesh.comm.allgather(np.unique(facet_tags.values))).tolist())
+
+    a_K = a_M = a_C = a_Mz = None
+    axis_c = fem.Constant(mesh, np.asarray(spec.axis, dtype=PETSc.ScalarType))
+    for part, mat in spec.materials.items():
+        if part not in mesh_data.volumes:
+            raise UnknownNameError(f"materials.{part}: no such part; "
+                                   f"parts of this mesh: {sorted(mesh_data.volumes)}")
+        tag = mesh_data.volumes[part]
+        if tag not in present_cells:
+            raise ModelError(f"materials.{part}: mesh has no cells tagged {tag}")
+        dxp = dx(tag)
+        k = forms.material_stiffness_form(u, v, mat, dxp)
+        m = forms.mass_form(u, v, mat.rho, dxp)
+        mz = forms.axial_mass_form(u, v, mat.rho, dxp, axis_c)
+        a_K = k if a_K is None else a_K + k
+        a_M = m if a_M is None else a_M + m
+        a_Mz = mz if a_Mz is None else a_Mz + mz
+        if mat.rayleigh_alpha > 0 or mat.rayleigh_beta > 0:
+            c = mat.rayleigh_alpha * forms.mass_form(u, v, mat.rho, dxp) + \
+                mat.rayleigh_beta * forms.material_stiffness_form(u, v, mat, dxp)
+            a_C = c if a_C is None else a_C + c
+    missing = sorted(set(mesh_data.volumes) - set(spec.materials))
+    if missing:
+        raise UnknownNameError(f"materials: no material for part(s) {missing}")
+
+    n = ufl.FacetNormal(mesh)
+    x = ufl.SpatialCoordinate(mesh)
+    a_f = None
+    for plate in spec.plates:
+        ftag = _face_tag(mesh_data, plate.face, present_faces, "interfaces")
+        if plate.kn > 0:
+            a_K = a_K + forms.contact_form(u, v, plate.kn, n, ds(ftag))
+            if plate.kt > 0:   # tangential penalty: across the sliding direction (sliding = 0: whole plane)
+                s_t = forms.circumferential_direction(x, float(plate.sliding)) if plate.sliding != 0 else None
+                # t₂ = n × s/|n × s| is not polynomial: FFCx's estimate (1444 points per facet) is
+                # replaced by the degree of a product of two P_k traces on a P2 facet, 2k + 2
+                qdeg = spec.quadrature_degree or 2 * spec.degree + 2
+                a_K = a_K + forms.tangential_penalty_form(
+                    u, v, plate.kt, n, s_t, ds(ftag, metadata={"quadrature_degree": qdeg}))
+            if plate.mu > 0 and plate.sliding != 0:
+                s = forms.circumferential_direction(x, float(plate.sliding))
+                # the traction μ k_n (u·n) s is a load: it enters the operator as −a_f
+                f = -forms.friction_form(u, v, plate.kn, plate.mu, n, s, ds(ftag))
+                a_f = f if a_f is None else a_f + f
+    for gs in spec.ground_springs:
+        ftag = _face_tag(mesh_data, gs.face, present_faces, "boundary.ground_springs")
+        a_K = a_K + forms.ground_spring_form(u, v, gs.k_axial, gs.k_transverse, axis_c, ds(ftag))
+    L = None
+    for pr in spec.pressures:
+        ftag = _face_tag(mesh_data, pr.face, present_faces, "loads.pressure")
+        lp = forms.pressure_load_form(v, pr.p, n, ds(ftag))
+        L = lp if L is None else L + lp
+
+    bcs, bc_dofs = dirichlet_conditions(V, mesh_data, spec)
+
+    qd = spec.quadrature_degree
+    fK = _compile(a_K, qd)
+    K = _assemble(fK, fK, bcs, 1.0)
+    M = _assemble(_compile(a_M, qd), fK, bcs, 0.0)
+    Mz = _assemble(_compile(a_Mz, qd), fK, bcs, 0.0)
+    C = _assemble(_compile(a_C, qd), fK, bcs, 0.0) if a_C is not None else None
+    Kf = _assemble(_compile(a_f, qd), fK, bcs, 0.0) if a_f is not None else None
+
+    f = None
+    if L is not None:
+        fL = _compile(L, qd)
+        f = fem_petsc.assemble_vector(fL)
+        f.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem_petsc.set_bc(f, bcs)
+
+    t1 = time.perf_counter()
+    contacts = []
+    bc_rows = _owned_global_rows(K, V, bc_dofs)
+    for it in spec.interfaces:
+        op = build_interface(V, mesh_data, spec, it)
+        if it.kind == "contact":
+            contacts.append((it, op))
+            continue
+        kt = it.kn if it.kind == "bonded" else it.kt
+        S = itf.spring_stiffness(op, it.kn, kt)
+        S.zeroRowsColumns(bc_rows, diag=0.0)
+        _add(K, S)
+        S.destroy()
+        op.destroy()
+
+    t2 = time.perf_counter()
+    K_parts = M_parts = None
+    if parts:
+        K_parts = {}
+        for part, mat in spec.materials.items():
+            fp = _compile(forms.material_stiffness_form(u, v, mat, dx(mesh_data.volumes[part])), qd)
+            K_parts[part] = _assemble(fp, fp, [], 0.0)
+    if describe_part is not None:
+        if describe_part not in spec.materials:
+            raise UnknownNameError(f"describe_part: no part {describe_part!r}; parts: {sorted(spec.materials)}")
+        mat, dxp = spec.materials[describe_part], dx(mesh_data.volumes[describe_part])
+        fm = _compile(forms.mass_form(u, v, mat.rho, dxp), qd)
+        M_parts = {describe_part: (_assemble(fm, fm, [], 0.0),
+                                   _assemble(_compile(forms.axial_mass_form(u, v, mat.rho, dxp, axis_c), qd),
+                                             fm, [], 0.0))}
+    if timings is not None:
+        timings.update(volume_forms=t1 - t0 + time.perf_counter() - t2, interfaces=t2 - t1)
+    return Operators(V, K, Kf, M, C, Mz, bc_dofs, f, tuple(contacts), K_parts, M_parts)

@@ -1,0 +1,238 @@
+"""Plain descriptions of the physics of a model: materials, plates, interfaces, springs, loads.
+
+These are validated values (the scene loader builds them); the assembly turns them into matrices.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fem_squeal.util.errors import ModelError
+
+
+@dataclass(frozen=True)
+class Material:
+    """Linear-elastic material with Rayleigh damping C = αM + βK.
+
+    Isotropic (E, ν), or transversely isotropic about the model axis (a friction lining pressed
+    through its thickness) when E_axial, nu_axial and G_axial are given: E, ν act in the plane
+    normal to the axis, E_axial along it, nu_axial = −ε_plane/ε_axial under axial stress and
+    G_axial is the shear modulus of planes containing the axis."""
+
+    E: float
+    nu: float
+    rho: float
+    rayleigh_alpha: float = 0.0
+    rayleigh_beta: float = 0.0
+    E_axial: float | None = None
+    nu_axial: float | None = None
+    G_axial: float | None = None
+
+    @property
+    def transversely_isotropic(self) -> bool:
+        return self.E_axial is not None
+
+    def voigt_stiffness(self) -> np.ndarray:
+        """6×6 stiffness in Voigt order (xx, yy, zz, yz, xz, xy), engineering shear strains,
+        axis = z: the inverse of the compliance
+        S = [[1/E, −ν/E, −ν_a/E_a], [−ν/E, 1/E, −ν_a/E_a], [−ν_a/E_a, −ν_a/E_a, 1/E_a]] ⊕
+            diag(1/G_a, 1/G_a, 2(1+ν)/E)."""
+        E, nu = self.E, self.nu
+        Ea, nua, Ga = (self.E_axial, self.nu_axial, self.G_axial) if self.transversely_isotropic else \
+            (E, nu, E / (2 * (1 + nu)))
+        S = np.zeros((6, 6))
+        S[:3, :3] = [[1 / E, -nu / E, -nua / Ea], [-nu / E, 1 / E, -nua / Ea], [-nua / Ea, -nua / Ea, 1 / Ea]]
+        S[3, 3] = S[4, 4] = 1 / Ga
+        S[5, 5] = 2 * (1 + nu) / E
+        return np.linalg.inv(S)
+
+    def __post_init__(self):
+        if not self.E > 0:
+            raise ModelError(f"E: must be > 0 (got {self.E})")
+        if not -1.0 < self.nu < 0.5:
+            raise ModelError(f"nu: must be in (-1, 0.5) (got {self.nu})")
+        if not self.rho > 0:
+            raise ModelError(f"rho: must be > 0 (got {self.rho})")
+        if self.rayleigh_alpha < 0 or self.rayleigh_beta < 0:
+            raise ModelError("rayleigh_alpha, rayleigh_beta: must be >= 0")
+        ti = (self.E_axial, self.nu_axial, self.G_axial)
+        if any(v is not None for v in ti):
+            if any(v is None for v in ti):
+                raise ModelError("E_axial, nu_axial, G_axial: give all three for a transversely "
+                                 "isotropic material")
+            if not (self.E_axial > 0 and self.G_axial > 0):
+                raise ModelError(f"E_axial, G_axial: must be > 0 (got {self.E_axial}, {self.G_axial})")
+            if np.min(np.linalg.eigvalsh(self.voigt_stiffness())) <= 0:
+                raise ModelError(f"nu_axial: {self.nu_axial} with E = {self.E}, E_axial = {self.E_axial} and "
+                                 f"nu = {self.nu} gives a stiffness that is not positive definite")
+
+
+@dataclass(frozen=True)
+class RigidPlate:
+    """A rigid plate pressed on face ``face`` through a penalty layer k_n [N/m³] with friction μ.
+
+    ``sliding`` = +1: the plate slides in +e_θ relative to the body (forward), −1: backward,
+    0: no sliding (no friction stiffness).  The friction traction on the body is μ k_n (u·n) s,
+    s = sliding·e_θ about the z axis.
+
+    ``kt`` [N/m³]: tangential penalty stiffness (the elastic slip of the friction law; see
+    :mod:`fem_squeal.fe.forms`, ``tangential_penalty_form``).  Sliding (``sliding`` ≠ 0): it acts
+    only across the sliding direction, along t₂ = n × s; never along s, where the friction force
+    stays μ p.  ``sliding`` = 0 (sticking): on the whole tangent plane.  0 (the default) is the
+    seed 001 model.
+    """
+
+    face: str
+    kn: float
+    mu: float = 0.0
+    sliding: int = 1
+    kt: float = 0.0
+
+    def __post_init__(self):
+        if not self.kn >= 0:
+            raise ModelError(f"kn: must be >= 0 (got {self.kn})")
+        if not self.kt >= 0:
+            raise ModelError(f"kt: must be >= 0 (got {self.kt})")
+        if not self.mu >= 0:
+            raise ModelError(f"mu: must be >= 0 (got {self.mu})")
+        if self.sliding not in (-1, 0, 1):
+            raise ModelError(f"sliding: must be -1, 0 or +1 (got {self.sliding})")
+
+
+@dataclass(frozen=True)
+class Interface:
+    """Coupling of two deformable faces through the interface operator G (see ``interface``).
+
+    ``kind``:
+      * ``contact``: unilateral penalty k_n [N/m³] on the normal gap, friction μ with the master
+        sliding along ``sliding``·e_θ relative to the slave (+1 forward, −1 backward, 0 none);
+        k_t [N/m³] the tangential penalty on the closed points: across the sliding direction only
+        (along t₂ = n × t₁) when ``sliding`` ≠ 0, on both tangents when ``sliding`` = 0 (stick);
+        0 (the default) is the seed 001 model;
+      * ``spring``: elastic layer k_n normal, k_t [N/m³] in both tangential directions;
+      * ``bonded``: a tie, a spring layer with k_n = k_t (large).
+    The slave face carries the quadrature points (the finer or softer side: the lining)."""
+
+    name: str
+    slave: str
+    master: str
+    kind: str = "contact"
+    kn: float = 0.0
+    kt: float = 0.0
+    mu: float = 0.0
+    sliding: int = 1
+
+    def __post_init__(self):
+        if self.kind not in ("contact", "spring", "bonded"):
+            raise ModelError(f"kind: must be 'contact', 'spring' or 'bonded' (got {self.kind!r})")
+        if not self.kn > 0:
+            raise ModelError(f"kn: must be > 0 (got {self.kn})")
+        if not self.kt >= 0 or not self.mu >= 0:
+            raise ModelError("kt, mu: must be >= 0")
+        if self.kind != "contact" and self.mu > 0:
+            raise ModelError(f"mu: only contact interfaces have friction (kind {self.kind!r})")
+        if self.sliding not in (-1, 0, 1):
+            raise ModelError(f"sliding: must be -1, 0 or +1 (got {self.sliding})")
+
+    @property
+    def has_friction(self) -> bool:
+        return self.kind == "contact" and self.mu > 0 and self.sliding != 0
+
+
+AXES = ("x", "y", "z")
+
+
+@dataclass(frozen=True)
+class FixedFace:
+    """Zero displacement of the global components ``components`` (a subset of x, y, z) on a face."""
+
+    face: str
+    components: tuple[str, ...]
+
+    def __post_init__(self):
+        comps = tuple(self.components)
+        if not comps or any(c not in AXES for c in comps) or len(set(comps)) != len(comps):
+            raise ModelError(f"components: must be a non-empty subset of {list(AXES)} without repeats "
+                             f"(got {list(comps)})")
+        object.__setattr__(self, "components", comps)
+
+    @property
+    def indices(self) -> tuple[int, ...]:
+        return tuple(sorted(AXES.index(c) for c in self.components))
+
+
+@dataclass(frozen=True)
+class GroundSpring:
+    """Distributed springs from a face to ground [N/m³]: k_axial along the axis, k_transverse across.
+
+    Guide pins and the anchor bracket: the caliper and the pads slide axially (small k_axial)."""
+
+    face: str
+    k_axial: float
+    k_transverse: float
+
+    def __post_init__(self):
+        if self.k_axial < 0 or self.k_transverse < 0 or self.k_axial + self.k_transverse <= 0:
+            raise ModelError("k_axial, k_transverse: must be >= 0, not both 0")
+
+
+@dataclass(frozen=True)
+class Pressure:
+    """Uniform pressure p [Pa] on a face (pushes along −n, n the face's outward normal)."""
+
+    face: str
+    p: float
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """Everything the assembly needs besides the mesh: materials per part, plates, clamps, degree."""
+
+    materials: dict[str, Material]
+    plates: tuple[RigidPlate, ...] = ()
+    clamped: tuple[str, ...] = ()
+    degree: int = 2
+    quadrature_degree: int | None = None
+    axis: tuple[float, float, float] = field(default=(0.0, 0.0, 1.0))
+    interfaces: tuple[Interface, ...] = ()
+    ground_springs: tuple[GroundSpring, ...] = ()
+    pressures: tuple[Pressure, ...] = ()
+    interface_quadrature_degree: int = 4
+    fixed: tuple[FixedFace, ...] = ()     # component-wise Dirichlet conditions (clamped: all three)
+
+    def __post_init__(self):
+        held: dict[str, set[int]] = {}
+        for face in self.clamped:
+            if face in held:
+                raise ModelError(f"boundary: face {face!r} is clamped twice")
+            held[face] = {0, 1, 2}
+        for fx in self.fixed:
+            twice = held.get(fx.face, set()) & set(fx.indices)
+            if twice:
+                raise ModelError(f"boundary: face {fx.face!r} has component(s) {[AXES[i] for i in sorted(twice)]} "
+                                 "fixed twice (clamped or another fixed entry)")
+            held.setdefault(fx.face, set()).update(fx.indices)
+
+    @property
+    def has_damping(self) -> bool:
+        return any(m.rayleigh_alpha > 0 or m.rayleigh_beta > 0 for m in self.materials.values())
+
+    @property
+    def has_friction(self) -> bool:
+        return any(p.mu > 0 and p.sliding != 0 and p.kn > 0 for p in self.plates) or \
+            any(i.has_friction for i in self.interfaces)
+
+    @property
+    def contacts(self) -> tuple[Interface, ...]:
+        return tuple(i for i in self.interfaces if i.kind == "contact")
+
+
+def common_mu(spec: ModelSpec) -> float:
+    """The friction coefficient shared by every frictional interface (a μ sweep scales it)."""
+    mus = {p.mu for p in spec.plates if p.kn > 0 and p.mu > 0 and p.sliding != 0}
+    mus |= {it.mu for it in spec.interfaces if it.kind == "contact" and it.mu > 0 and it.sliding != 0}
+    if len(mus) > 1:
+        raise ModelError(f"interfaces: frictional interfaces have different mu {sorted(mus)}; a reduced "
+                         "model scales one common friction coefficient")
+    return mus.pop() if mus else 0.0

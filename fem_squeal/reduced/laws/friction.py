@@ -1,0 +1,223 @@
+"""Friction laws of a contact element for the transient solver, vectorised over elements.
+
+Each element has n_dir = 1 or 2 tangential directions.  w is the velocity of the structure
+relative to the counter-face (disc, belt) along them, w = T q̇ − V (V: the counter-face surface
+velocity), and the law returns the friction force f on the structure along the same directions,
+with its derivatives with respect to the normal force F, the relative velocity w and the
+relative displacement increment Δs of the step (None where it does not depend on one).
+
+- :class:`ConstantFriction`: f = μF V/|V|, the sliding law the CEA linearises (the counter-face
+  drags the structure along its own velocity whatever the vibration does).
+- :class:`ElasticCoulomb`: regularised Coulomb with a tangential stiffness k_t (seed 002 eq. 3),
+  an elastic stick spring and return mapping (below).
+- :class:`StribeckFriction`: μ(|w|) of seed 004 eq. 4 with the static and dynamic levels μ_s, μ_d
+  and the transition velocities v_s < v_d, f = −μ(|w|) F w/|w|.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import NamedTuple, Protocol
+
+import numpy as np
+
+from fem_squeal.util.errors import ModelError
+
+__all__ = ["FRICTION_LAWS", "ConstantFriction", "CoulombState", "ElasticCoulomb", "FrictionLaw", "FrictionState",
+           "StribeckFriction", "smooth_step"]
+
+
+def _check(name: str, value, positive: bool = False) -> None:
+    v = np.asarray(value, float)
+    bad = ~np.isfinite(v) | ((v <= 0) if positive else (v < 0))
+    if np.any(bad):
+        raise ModelError(f"friction law {name}: must be finite and {'> 0' if positive else '>= 0'} "
+                         f"(got {np.min(v):g})")
+
+
+def _col(a, ndim: int) -> np.ndarray:
+    a = np.asarray(a, float)
+    return a.reshape(a.shape + (1,) * (ndim - a.ndim)) if a.ndim else a
+
+
+def smooth_step(x: np.ndarray, x0: float | np.ndarray, h0: float | np.ndarray, x1: float | np.ndarray,
+                h1: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cubic STEP(x, x₀, h₀, x₁, h₁) of seed 004 eq. 4 (h₀ before x₀, h₁ after x₁,
+    h₀ + (h₁ − h₀) a²(3 − 2a) between, a = (x − x₀)/(x₁ − x₀)) and its derivative."""
+    a = np.clip((x - x0) / (x1 - x0), 0.0, 1.0)
+    h = h0 + (h1 - h0) * a * a * (3.0 - 2.0 * a)
+    dh = np.where((a > 0) & (a < 1), (h1 - h0) * 6.0 * a * (1.0 - a) / (x1 - x0), 0.0)
+    return h, dh
+
+
+class FrictionState:
+    """History a law carries from step to step (elastic slip and stick flags); None if none."""
+
+
+@dataclass(frozen=True)
+class ConstantFriction:
+    """f = μF V̂ (constant-μ sliding along the counter-face velocity V, as in the CEA)."""
+
+    mu: np.ndarray | float
+
+    def __post_init__(self):
+        _check("mu", self.mu)
+
+    def initial_state(self, n: int, n_dir: int):
+        return None
+
+    def evaluate(self, F, w, V, dw_disp, state):
+        """(f, ∂f/∂F, ∂f/∂Δs, ∂f/∂w, new state); shapes (n, d), (n, d), (n, d, d) or None."""
+        n, d = V.shape
+        speed = np.linalg.norm(V, axis=1, keepdims=True)
+        vhat = np.divide(V, speed, out=np.zeros_like(V), where=speed > 0)
+        dfdF = _col(self.mu, 2) * vhat
+        return dfdF * F[:, None], dfdF, None, None, None
+
+
+@dataclass(frozen=True)
+class StribeckFriction:
+    """μ(s) of seed 004 eq. 4 as a magnitude, s = |w|:
+
+        μ(s) = μ_s (2a²(3 − 2a) − 1), a = (s + v_s)/(2v_s)    for s < v_s  (μ(0) = 0, μ(v_s) = μ_s)
+        μ(s) = STEP(s, v_s, μ_s, v_d, μ_d)                      for v_s ≤ s < v_d
+        μ(s) = μ_d                                              for s ≥ v_d
+
+    and f = −μ(s) F w/s (μ(s)/s → μ'(0) = 3μ_s/(2v_s) as s → 0, so f is smooth through w = 0:
+    there is no true stick, only creep below v_s)."""
+
+    mu_s: np.ndarray | float
+    mu_d: np.ndarray | float
+    v_s: np.ndarray | float
+    v_d: np.ndarray | float
+
+    def __post_init__(self):
+        _check("mu_s", self.mu_s)
+        _check("mu_d", self.mu_d)
+        _check("v_s", self.v_s, positive=True)
+        _check("v_d", self.v_d, positive=True)
+        if np.any(np.asarray(self.v_d, float) <= np.asarray(self.v_s, float)):
+            raise ModelError("friction law v_d: must be > v_s (the static level is reached first)")
+
+    def initial_state(self, n: int, n_dir: int):
+        return None
+
+    def coefficient(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """μ(s) and μ'(s) for s ≥ 0."""
+        mu_s, mu_d = np.asarray(self.mu_s, float), np.asarray(self.mu_d, float)
+        v_s, v_d = np.asarray(self.v_s, float), np.asarray(self.v_d, float)
+        low, dlow = smooth_step(s, -v_s, -mu_s, v_s, mu_s)
+        mid, dmid = smooth_step(s, v_s, mu_s, v_d, mu_d)
+        return np.where(s < v_s, low, mid), np.where(s < v_s, dlow, dmid)
+
+    def evaluate(self, F, w, V, dw_disp, state):
+        n, d = w.shape
+        s = np.linalg.norm(w, axis=1)
+        mu, dmu = self.coefficient(s)
+        slope0 = 1.5 * np.asarray(self.mu_s, float) / np.asarray(self.v_s, float)
+        tiny = s < 1e-12 * np.maximum(np.asarray(self.v_s, float), 1e-300)
+        ratio = np.where(tiny, slope0, mu / np.where(tiny, 1.0, s))          # μ(s)/s
+        what = np.divide(w, s[:, None], out=np.zeros_like(w), where=~tiny[:, None])
+        dfdF = -ratio[:, None] * w
+        # ∂(μ(s) w/s)/∂w = (μ/s) I + (μ' − μ/s) ŵŵᵀ
+        J = ratio[:, None, None] * np.eye(d) + (np.where(tiny, slope0, dmu) - ratio)[:, None, None] * (
+            what[:, :, None] * what[:, None, :])
+        return dfdF * F[:, None], dfdF, None, -F[:, None, None] * J, None
+
+
+@dataclass
+class CoulombState:
+    z: np.ndarray        # (n, d) elastic tangential displacement of the stick spring [m]
+    stick: np.ndarray    # (n,) True where the element sticks
+
+
+@dataclass(frozen=True)
+class ElasticCoulomb:
+    """Regularised Coulomb with a tangential stiffness k_t (seed 002 eq. 3).
+
+    Each element carries an elastic stick spring of stiffness k_t [N/m] (and an optional
+    Kelvin–Voigt damper c_t [N s/m] that damps its ringing); the spring extension z follows the
+    relative displacement Δs = T Δq − VΔt of the step.  Trial force f* = −k_t(z + Δs) − c_t w;
+
+        stick  (f = f*,  z ← z + Δs)           while |f*| ≤ μ F  (μ = μ_s if it stuck, else μ_d)
+        slip   (f = μ_d F f*/|f*|, z = −f/k_t)  otherwise (return mapping)
+
+    which is seed 002's "f_t = k_t w_s while k_t|w_s| ≤ μ f_n, μ f_n beyond", read with w_s the
+    elastic slip (the inequality as printed, μ·w_s ≤ k_t·f_n, is not dimensionally consistent;
+    this reading makes f_t continuous at the switch).  With μ_s > μ_d a sliding element re-sticks
+    only when its slip stops, and breaks loose at μ_s F: the static/dynamic stick–slip of a belt.
+    Without c_t the stick spring rings undamped after every stick onset (its frequency is
+    √(k_t/m) for a mass m); that ringing is part of the regularised model, not of Coulomb's."""
+
+    mu_s: np.ndarray | float
+    mu_d: np.ndarray | float
+    k_t: np.ndarray | float
+    c_t: np.ndarray | float = 0.0
+
+    def __post_init__(self):
+        _check("mu_s", self.mu_s)
+        _check("mu_d", self.mu_d)
+        _check("k_t", self.k_t, positive=True)
+        _check("c_t", self.c_t)
+        if np.any(np.asarray(self.mu_d, float) > np.asarray(self.mu_s, float)):
+            raise ModelError("friction law mu_d: must be <= mu_s")
+
+    def initial_state(self, n: int, n_dir: int) -> CoulombState:
+        return CoulombState(np.zeros((n, n_dir)), np.zeros(n, bool))
+
+    def evaluate(self, F, w, V, dw_disp, state: CoulombState):
+        """(f, ∂f/∂F, ∂f/∂Δs, ∂f/∂w, new state)."""
+        n, d = dw_disp.shape
+        kt = np.broadcast_to(np.asarray(self.k_t, float), (n,))
+        ct = np.broadcast_to(np.asarray(self.c_t, float), (n,))
+        z_trial = state.z + dw_disp
+        trial = -kt[:, None] * z_trial - ct[:, None] * w
+        mag = np.linalg.norm(trial, axis=1)
+        limit = np.where(state.stick, np.asarray(self.mu_s, float), np.asarray(self.mu_d, float)) * F
+        stick = mag <= limit
+        mu_d = np.broadcast_to(np.asarray(self.mu_d, float), (n,))
+        safe = np.where(mag > 0, mag, 1.0)
+        dirn = trial / safe[:, None]
+        f = np.where(stick[:, None], trial, (mu_d * F)[:, None] * dirn)
+        dfdF = np.where(stick[:, None], 0.0, mu_d[:, None] * dirn)
+        # slip: ∂(μF f*/|f*|)/∂f* = μF/|f*| (I − n̂n̂ᵀ); stick: ∂f/∂f* = I;  ∂f*/∂Δs = −k_t, ∂f*/∂w = −c_t
+        eye = np.eye(d)
+        P = np.where(stick[:, None, None], eye, (mu_d * F / safe)[:, None, None]
+                     * (eye - dirn[:, :, None] * dirn[:, None, :]))
+        new = CoulombState(np.where(stick[:, None], z_trial, -f / kt[:, None]), stick)
+        return f, dfdF, -kt[:, None, None] * P, -ct[:, None, None] * P, new
+
+
+class FrictionLaw(Protocol):
+    """What the transient asks of a friction law: the friction force f of each element from its normal
+    force F, its slip velocity w and the counter-face velocity V, with the derivatives its Newton needs,
+    and the law's state (a stick spring's extension).  One sign convention: f opposes the slip."""
+
+    def initial_state(self, n: int, n_dir: int):
+        """The state of ``n`` elements with ``n_dir`` tangential directions (None: stateless)."""
+
+    def evaluate(self, F, w, V, dw_disp, state):
+        """(f, ∂f/∂F, ∂f/∂Δs, ∂f/∂w, new state)."""
+
+
+class FrictionLawEntry(NamedTuple):
+    """A friction law the scene can choose by name, and how its parameters come from the scene:
+    ``make(mu, mu_s, mu_d, v_s, v_d, k_t, c_t)`` (``mu``: the scene's |μ|; ``mu_s``/``mu_d`` 0 = ``mu``)."""
+
+    doc: str
+    make: Callable[..., FrictionLaw]
+
+
+#: the friction laws by their scene name (``analyses.transient.friction``); the first is the default
+FRICTION_LAWS: dict[str, FrictionLawEntry] = {
+    "constant": FrictionLawEntry("constant μ along the sliding direction (the CEA's sliding law; never "
+                                 "reverses, so it cannot bound a cycle by stick-slip)",
+                                 lambda mu, mu_s, mu_d, v_s, v_d, k_t, c_t: ConstantFriction(mu)),
+    "stribeck": FrictionLawEntry("Stribeck μ(v) (seed 004 eq. 4)",
+                                 lambda mu, mu_s, mu_d, v_s, v_d, k_t, c_t:
+                                 StribeckFriction(mu_s or mu, mu_d or mu, v_s, v_d)),
+    "coulomb": FrictionLawEntry("elastic Coulomb with stick springs (seed 002 eq. 3)",
+                                lambda mu, mu_s, mu_d, v_s, v_d, k_t, c_t:
+                                ElasticCoulomb(mu_s or mu, mu_d or mu, k_t, c_t)),
+}
+

@@ -1,0 +1,75 @@
+"""Every error fem_squeal raises, defined once, under one base class.
+
+``FemSquealError`` is what the command line catches: an :class:`InputError` (a scene, a command
+line, a mesh file or a model that is refused before or while it is read) exits with 2, any other
+``FemSquealError`` (a computation that failed: a solver that did not converge, a run killed) with 3.
+The message always starts with what is wrong (a scene key path, a file, a stage).  The classes keep
+the builtin base they had (``ValueError``, ``KeyError``, ``RuntimeError``) so ``except ValueError``
+in user scripts still works.
+"""
+from __future__ import annotations
+
+
+class FemSquealError(Exception):
+    """Base class of every error of the package."""
+
+    exit_code = 3
+
+    def __str__(self) -> str:                       # KeyError would quote the message
+        return BaseException.__str__(self)
+
+
+class InputError(FemSquealError, ValueError):
+    """Bad input: the message names the field (key path, file, option) and the reason."""
+
+    exit_code = 2
+
+
+class SceneError(InputError):
+    """Invalid scene: the message starts with the key path."""
+
+
+class MeshError(InputError):
+    """A mesh file that cannot be read or used (wraps ``geometry.mesh_file.MeshImportError``)."""
+
+
+class ResourceError(InputError):
+    """A model too large for the machines of the run (estimated before anything is built)."""
+
+
+class ModelError(InputError):
+    """A model description the physics refuses (a value out of range, an inconsistent choice)."""
+
+
+class UnknownNameError(ModelError, KeyError):
+    """A name that is not in the model: a face, a part, a parameter (the message lists the known ones)."""
+
+
+class PipelineError(FemSquealError, RuntimeError):
+    """The stage cache or the pipeline refused a run (a stage that cannot be computed, a locked entry)."""
+
+    exit_code = 2
+
+
+class SolveError(FemSquealError, RuntimeError):
+    """A computation that failed (exit 3); the message names the stage and the reason."""
+
+
+class EigenSolveError(SolveError):
+    """An eigensolve that did not converge or returned pairs with too large residuals."""
+
+
+class PreloadError(SolveError):
+    """The nonlinear static preload did not converge."""
+
+
+class ReductionError(SolveError):
+    """The reduced basis did not reach its accuracy target."""
+
+
+class MasaError(SolveError):
+    """Modal amplitude stability analysis failed or was given a model it cannot treat."""
+
+
+class TransientError(SolveError):
+    """The nonlinear transient failed (Newton did not converge, a bad state)."""

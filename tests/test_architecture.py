@@ -1,0 +1,130 @@
+"""The layering rules of docs/architecture.md, read from the source (no module is imported).
+
+util ← theory ← reduced ← fe ← app, each importing only from the layers left of it; ``geometry``
+imports nothing from fem_squeal; ``reduced`` imports no dolfinx/PETSc/UFL; no import cycles between
+modules; an import inside a function body is allowed only with a comment naming the heavy optional
+import it defers (``# heavy: ...`` on the line or the line before)."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+LAYERS = ["util", "theory", "reduced", "fe", "app"]      # each may import the ones before it
+FE_STACK = {"dolfinx", "petsc4py", "slepc4py", "ufl", "basix", "ffcx", "gmsh"}
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for pkg in ("fem_squeal", "geometry"):
+        for p in sorted((ROOT / pkg).rglob("*.py")):
+            parts = list(p.relative_to(ROOT).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts.pop()
+            out[".".join(parts)] = p
+    return out
+
+
+MODULES = _modules()
+
+
+def _imports(path: Path) -> list[tuple[str, int, bool]]:
+    """(imported module, line, inside a function) of every import in ``path``; ``from a import b``
+    yields ``a.b`` when that is a module of the package, else ``a``."""
+    tree = ast.parse(path.read_text())
+    in_function: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            in_function |= {id(n) for n in ast.walk(node)} - {id(node)}
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [(a.name, node.lineno, id(node) in in_function) for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            for a in node.names:
+                full = f"{node.module}.{a.name}"
+                out.append((full if full in MODULES else node.module, node.lineno, id(node) in in_function))
+    return out
+
+
+def _layer(module: str) -> str | None:
+    parts = module.split(".")
+    if parts[0] == "geometry":
+        return "geometry"
+    if parts[0] == "fem_squeal" and len(parts) > 1 and parts[1] in LAYERS:
+        return parts[1]
+    return None
+
+
+def test_every_package_module_is_in_a_layer():
+    """A newcomer finds each module in its layer: at the top of fem_squeal only the package, its
+    entry points and the public re-exports."""
+    top = {m for m in MODULES if m.startswith("fem_squeal") and _layer(m) is None}
+    assert top == {"fem_squeal", "fem_squeal.__main__", "fem_squeal.cli"}
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_imports_only_downward(module):
+    layer = _layer(module)
+    errors = []
+    for name, line, _ in _imports(MODULES[module]):
+        root = name.split(".")[0]
+        target = _layer(name)
+        where = f"{MODULES[module].relative_to(ROOT)}:{line} imports {name}"
+        if layer == "geometry" and root == "fem_squeal":
+            errors.append(f"{where}: geometry imports nothing from fem_squeal")
+        if layer in LAYERS and target in LAYERS and LAYERS.index(target) > LAYERS.index(layer):
+            errors.append(f"{where}: layer {layer} may not import the higher layer {target}")
+        if layer in ("util", "theory") and target == "geometry":
+            errors.append(f"{where}: {layer} imports no geometry")
+        if layer in ("util", "theory", "reduced") and root in FE_STACK:
+            errors.append(f"{where}: {layer} is NumPy/SciPy only")
+    assert not errors, "\n".join(errors)
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_function_body_imports_name_their_reason(module):
+    """Imports go at the top; one inside a function must defer a heavy optional import and say which."""
+    lines = MODULES[module].read_text().splitlines()
+    bad = [f"{MODULES[module].relative_to(ROOT)}:{line}: {name}"
+           for name, line, inside in _imports(MODULES[module])
+           if inside and "# heavy" not in lines[line - 1] and "# heavy" not in lines[line - 2]]
+    assert not bad, "imports inside functions without a '# heavy: <what>' comment:\n" + "\n".join(bad)
+
+
+def test_no_import_cycles():
+    graph = {m: {n for n, _, _ in _imports(p) if n in MODULES and n != m} for m, p in MODULES.items()}
+    # a module importing a submodule imports its package too; a package importing its own submodules
+    # (re-exports in __init__) is not a cycle of the layering
+    state: dict[str, int] = {}
+    cycles = []
+
+    def visit(m: str, stack: list[str]) -> None:
+        state[m] = 1
+        for n in sorted(graph[m]):
+            if n.startswith(m + "."):
+                continue
+            if state.get(n) == 1:
+                cycles.append(" -> ".join(stack[stack.index(n):] + [n]))
+            elif n not in state:
+                visit(n, stack + [n])
+        state[m] = 2
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m, [m])
+    assert not cycles, "import cycles:\n" + "\n".join(cycles)
+
+
+def test_rules_are_checked_on_a_bad_example(tmp_path):
+    """The checker itself: a geometry module importing fem_squeal and a reduced module importing
+    dolfinx inside a function without a reason are both caught."""
+    p = tmp_path / "m.py"
+    p.write_text("import numpy\n\ndef f():\n    from dolfinx import fem\n    return fem\n")
+    assert _imports(p) == [("numpy", 1, False), ("dolfinx", 4, True)]
+    p.write_text("def f():\n    # heavy: dolfinx (the FE stack)\n    from dolfinx import fem\n")
+    lines = p.read_text().splitlines()
+    name, line, inside = _imports(p)[0]
+    assert inside and "# heavy" in lines[line - 2]

@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 
 def spawn(script: str, args: list[str], ranks: int, env: dict[str, str] | None = None) -> dict:
@@ -54,3 +55,25 @@ def save_plot(fig, name: str, ranks: int, quick: bool) -> None:
     from fem_squeal.util.atomic import save_figure_atomic
 
     save_figure_atomic(fig, out_path(name, ranks, quick, "png"))
+
+
+# ---------------------------------------------------------------- CalculiX decks
+
+def ccx_real(v: float) -> str:
+    """A real in at most 20 characters (ccx reads node coordinates with Fortran (f20.0) per field)."""
+    s = f"{v:.17f}" if abs(v) < 1.0 else f"{v:.13e}"
+    return s if len(s) <= 20 else f"{v:.12e}"
+
+
+def ccx_nodes(inp: Path) -> None:
+    """Re-print the *NODE block of the Abaqus deck ``inp`` for CalculiX (meshio writes 23-character
+    reals that ccx rejects)."""
+    out, in_nodes = [], False
+    for line in inp.read_text().splitlines():
+        if line.startswith("*"):
+            in_nodes = line.upper().replace(" ", "").startswith("*NODE")
+        elif in_nodes and line.strip():
+            n, *x = line.split(",")
+            line = n.strip() + ", " + ", ".join(ccx_real(float(v)) for v in x)
+        out.append(line)
+    inp.write_text("\n".join(out) + "\n")

@@ -56,6 +56,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from casework import ccx_nodes, ccx_real  # noqa: E402
 
 R, B, H = 0.05, 0.005, 0.004
 E, NU, RHO = 3e9, 0.4, 1400.0
@@ -64,25 +66,6 @@ F_STATIC = 1.001            # μ_static / μ of the sliding steps
 P_PRESS = 1e5               # contact pressure of the press [Pa]: the plates move by d = p/k_n
 SLIP = 2e-4                 # slip at the mean radius in the sliding step [m] (μ p/λ = 3e-6 at μ = 0.3)
 N_THETA, PLATE_T, PLATE_OVERHANG = 180, 1e-3, 1e-3
-
-
-def _field20(v: float) -> str:
-    """A real in at most 20 characters (ccx reads node coordinates with Fortran (f20.0) per field)."""
-    s = f"{v:.17f}" if abs(v) < 1.0 else f"{v:.13e}"
-    return s if len(s) <= 20 else f"{v:.12e}"
-
-
-def _ccx_nodes(inp: Path) -> None:
-    """Re-print the *NODE block (meshio writes 23-character reals that ccx rejects)."""
-    out, in_nodes = [], False
-    for line in inp.read_text().splitlines():
-        if line.startswith("*"):
-            in_nodes = line.upper().replace(" ", "").startswith("*NODE")
-        elif in_nodes and line.strip():
-            n, *x = line.split(",")
-            line = n.strip() + ", " + ", ".join(_field20(float(v)) for v in x)
-        out.append(line)
-    inp.write_text("\n".join(out) + "\n")
 
 
 def make_mesh(folder: Path, h: float) -> dict:
@@ -97,7 +80,7 @@ def make_mesh(folder: Path, h: float) -> dict:
               folder / "ring.msh")
     mf = read_mesh_file(folder / "ring.msh")
     write_mesh_file(mf, folder / "ring.inp")
-    _ccx_nodes(folder / "ring.inp")
+    ccx_nodes(folder / "ring.inp")
     inner = np.unique(np.concatenate([_facet_nodes(mf.cells[c], f) for c, f in mf.surfaces["inner"]]))
     return {"nodes": len(mf.points), "elements": len(mf.cells), "inner": inner + 1}
 
@@ -113,7 +96,7 @@ def plate_lines(first_node: int, first_elem: int, z0: float, z1: float, name: st
         for i, r in enumerate(rs):
             for j, t in enumerate(th):
                 nid[k, i, j] = n
-                lines.append(f"{n}, {_field20(r * np.cos(t))}, {_field20(r * np.sin(t))}, {_field20(z)}")
+                lines.append(f"{n}, {ccx_real(r * np.cos(t))}, {ccx_real(r * np.sin(t))}, {ccx_real(z)}")
                 n += 1
     lines.append(f"*ELEMENT, TYPE=C3D8, ELSET=E{name}")
     e = first_elem
@@ -147,7 +130,7 @@ def ccx_deck(mesh: dict, mu: float, kn: float, lam: float, n_modes: int) -> str:
             for r in rs:
                 for t in th:
                     x, y = r * np.cos(t), r * np.sin(t)
-                    out += [f"{k}, 1, 1, {_field20(-theta * y)}", f"{k}, 2, 2, {_field20(theta * x)}"]
+                    out += [f"{k}, 1, 1, {ccx_real(-theta * y)}", f"{k}, 2, 2, {ccx_real(theta * x)}"]
                     k += 1
         return out
 

@@ -78,6 +78,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import casework  # noqa: E402
+from casework import ccx_nodes  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
@@ -101,25 +102,6 @@ SKFEM_4PT = (2, 2)
 
 def stem(h: float) -> str:
     return f"disc_{h * 1e3:g}mm".replace(".", "p")
-
-
-def _field20(v: float) -> str:
-    """A real in at most 20 characters (ccx reads node coordinates with Fortran (f20.0) per field)."""
-    s = f"{v:.17f}" if abs(v) < 1.0 else f"{v:.13e}"
-    return s if len(s) <= 20 else f"{v:.12e}"
-
-
-def _ccx_nodes(inp: Path) -> None:
-    """Re-print the *NODE block of ``inp`` (meshio writes 23-character reals that ccx rejects)."""
-    out, in_nodes = [], False
-    for line in inp.read_text().splitlines():
-        if line.startswith("*"):
-            in_nodes = line.upper().replace(" ", "").startswith("*NODE")
-        elif in_nodes and line.strip():
-            n, *x = line.split(",")
-            line = n.strip() + ", " + ", ".join(_field20(float(v)) for v in x)
-        out.append(line)
-    inp.write_text("\n".join(out) + "\n")
 
 
 def ccx_deck(mesh_inp: str, clamp_nodes: np.ndarray, n_modes: int | None) -> str:
@@ -151,7 +133,7 @@ def make_mesh(h: float, folder: str, n_modes: int) -> dict:
     t1 = time.perf_counter()
     mf = read_mesh_file(d / f"{s}.msh")
     write_mesh_file(mf, d / f"{s}.inp")
-    _ccx_nodes(d / f"{s}.inp")
+    ccx_nodes(d / f"{s}.inp")
     clamp = np.unique(np.concatenate([_facet_nodes(mf.cells[c], f) for c, f in mf.surfaces["inner"]]))
     (d / f"{s}_ccx.inp").write_text(ccx_deck(f"{s}.inp", clamp, n_modes))
     (d / f"{s}_ccx_read.inp").write_text(ccx_deck(f"{s}.inp", clamp, None))

@@ -75,6 +75,12 @@ SUITE: tuple[Bench, ...] = (
           "stress_coalescence.py", ((),), (("--quick",),)),
     Bench("stress_extremes", "mu up to 2, nu 0.49 lining, thin/thick parts, distorted meshes, determinism",
           "stress_extremes.py", ((),), (("--quick",),)),
+    Bench("hex_plate", "C3D20 clamped annular plate vs Kirchhoff/Mindlin and a fine P2 tet mesh, refinement",
+          "hex_plate.py", ((),), (("--quick",),)),
+    Bench("hex_brake", "mixed hex/tet brake deck vs its all-tet twins (structured, gmsh): CEA, refinement",
+          "hex_brake.py", ((),), (("--quick",),)),
+    Bench("cea_calculix", "frictional CEA with tangential slip stiffness kt vs CalculiX 2.20 on the same mesh",
+          "cea_calculix.py", ((),), (("--quick",),), needs=("ccx",)),
 )
 
 

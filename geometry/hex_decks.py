@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from geometry.split import local_split, quad_faces
+
 #: meshio type -> Abaqus element type (VTK order = Abaqus order for these).
 ABAQUS = {"tetra": "C3D4", "tetra10": "C3D10", "hexahedron": "C3D8", "hexahedron20": "C3D20R", "wedge": "C3D6",
           "wedge15": "C3D15", "pyramid": "C3D5", "pyramid13": "C3D13"}
@@ -125,7 +127,6 @@ def mixed_block(shape=(3, 2, 2), size=(3.0, 2.0, 2.0), *, wedges=(), pyramids=()
                         where["pyramid"].append(cell)
                 elif cell in tets:
                     if tet_rule == "min":
-                        from geometry.split import local_split, quad_faces
                         d = tuple(int(np.argmin([c[v] for v in q]) % 2) for q in quad_faces("hexahedron"))
                         local = local_split("hexahedron", d)
                         if any(8 in t for t in local):
@@ -350,7 +351,7 @@ def brake_gmsh(path: str | Path, mesh_size: float = 0.012, dims: dict | None = N
     element-set and surface names (so the same scene maps both).  The parts are separate volumes,
     not fragmented: their meshes have their own nodes on the shared faces, as in the deck.
     Returns the number of tetrahedra."""
-    import gmsh
+    import gmsh  # heavy: gmsh (not needed to read mesh files)
 
     d = {**BRAKE, **(dims or {})}
     half = d["disc_h"] / 2

@@ -3,11 +3,12 @@
 #   - Debian packages: the FEniCSx 0.5.2 stack, MPI, OpenBLAS (2.3-3x faster shift-invert solves).
 #   - A venv at $FEM_SQUEAL_VENV (default: <repo>/.venv) that sees the Debian packages,
 #     with fem_squeal installed editable. numpy/mpi4py/petsc4py/slepc4py are never pip-installed.
-# Usage: scripts/setup.sh [--test] [--bench] [--packages-only]
+# Usage: scripts/setup.sh [--test] [--docs] [--bench] [--packages-only]
 #   (prints the venv python path on its last line, except with --packages-only)
 #   --test:  also what only the test suite needs: chromium (485 MB; the headless render of
 #            report.html in tests/test_pipeline.py) and Sphinx with the MyST parser (the user guide,
 #            built by tests/test_docs.py through scripts/docs.sh).  scripts/test.sh passes it.
+#   --docs:  also Sphinx with the MyST parser (scripts/docs.sh passes it).
 #   --bench: also the peers of the benchmark suite: CalculiX (Debian calculix-ccx) and scikit-fem
 #            (pure Python, pip-installed into the venv without dependencies: numpy/scipy stay Debian's).
 #   --packages-only: only the Debian packages and the OpenBLAS selection; no venv, and nothing of
@@ -16,13 +17,15 @@
 set -euo pipefail
 bench=0
 tests=0
+docs=0
 packages_only=0
 for a in "$@"; do
   case "$a" in
     --bench) bench=1 ;;
     --test) tests=1 ;;
+    --docs) docs=1 ;;
     --packages-only) packages_only=1 ;;
-    *) echo "setup.sh: unknown option $a (known: --test, --bench, --packages-only)" >&2; exit 2 ;;
+    *) echo "setup.sh: unknown option $a (known: --test, --docs, --bench, --packages-only)" >&2; exit 2 ;;
   esac
 done
 repo=$(cd "$(dirname "$0")/.." && pwd)
@@ -32,7 +35,8 @@ SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
 pkgs=(python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh python3-meshio
       python3-venv python3-setuptools python3-pip python3-pytest python3-matplotlib python3-scipy
       python3-hypothesis openmpi-bin libopenblas0-pthread)
-[ "$tests" -eq 1 ] && pkgs+=(chromium python3-sphinx python3-myst-parser)
+[ "$tests" -eq 1 ] && pkgs+=(chromium) && docs=1
+[ "$docs" -eq 1 ] && pkgs+=(python3-sphinx python3-myst-parser)
 [ "$bench" -eq 1 ] && pkgs+=(calculix-ccx)
 
 missing=()

@@ -19,14 +19,15 @@ def test_bessel_solver_reproduces_published_plate_frequencies():
     """λ²a² of Leissa (NASA SP-160, Tables 2.1, 2.3, 2.28) and Itao & Crandall (free plate, ν = 0.33)."""
     from hex_plate import kirchhoff_roots
 
-    clamped = [kirchhoff_roots(n, 0.0, 1.0, None, "clamped", 0.3, 2) ** 2 for n in range(3)]
+    clamped = [kirchhoff_roots(n, 0.0, 1.0, None, "clamped", 0.3, 2, lam_max=9.0) ** 2 for n in range(3)]
     assert np.allclose([clamped[0][0], clamped[0][1], clamped[1][0], clamped[2][0]],
                        [10.2158, 39.771, 21.260, 34.877], rtol=2e-5)
-    free = {n: kirchhoff_roots(n, 0.0, 1.0, None, "free", 0.33, 1)[0] ** 2 for n in (0, 1, 2, 3)}
+    free = {n: kirchhoff_roots(n, 0.0, 1.0, None, "free", 0.33, 1, lam_max=6.0)[0] ** 2 for n in (0, 1, 2, 3)}
     assert np.allclose([free[2], free[0], free[3], free[1]], [5.262, 9.068, 12.24, 20.51], rtol=5e-4)
     # annular plates in their limits r_i -> 0: a free hole in a clamped plate, a plate clamped at its centre
-    assert kirchhoff_roots(0, 1e-4, 1.0, "free", "clamped", 0.3, 1)[0] ** 2 == pytest.approx(10.2158, rel=1e-4)
-    assert kirchhoff_roots(0, 1e-4, 1.0, "clamped", "free", 0.3, 1)[0] ** 2 == pytest.approx(3.752, rel=1e-3)
+    hole = kirchhoff_roots(0, 1e-4, 1.0, "free", "clamped", 0.3, 1, lam_max=5.0)[0] ** 2
+    centre = kirchhoff_roots(0, 1e-4, 1.0, "clamped", "free", 0.3, 1, lam_max=5.0)[0] ** 2
+    assert hole == pytest.approx(10.2158, rel=1e-4) and centre == pytest.approx(3.752, rel=1e-3)
 
 
 def test_mindlin_correction_is_mindlins_dispersion_for_a_plane_wave():

@@ -295,3 +295,61 @@ def pad_portraits(path: Path, runs: list[dict], pad, title: str = "") -> None:
     fig.tight_layout()
     save_figure_atomic(fig, path)
     plt.close(fig)
+
+
+def tornado(path: Path, record: dict, title: str = "") -> None:
+    """Tornado plot of one mode's sensitivities (a record of results.json → sensitivity): the
+    relative forms p·∂Re λ/∂p [1/s] and p·∂f/∂p [Hz], parameters sorted by |p·∂Re λ/∂p|."""
+    plt = pyplot()
+    fig, ax = plt.subplots(1, 2, figsize=(10, 0.5 * max(len(record["rel_d_real_part"]), 3) + 1.6))
+    head = f"mode {record['index']}: {record['freq_hz']:.0f} Hz, Re λ = {record['real_part']:.3g} 1/s"
+    if record["near_coalescence"]:
+        for a in ax:
+            a.text(0.5, 0.5, f"near a coalescence (κ_loc = {record['kappa_local']:.3g}):\n"
+                   "the derivative is infinite", ha="center", va="center", transform=a.transAxes)
+            a.set_axis_off()
+    else:
+        names = sorted(record["rel_d_real_part"], key=lambda p: abs(record["rel_d_real_part"][p]))
+        y = np.arange(len(names))
+        for a, key, label in ((ax[0], "rel_d_real_part", "p·∂Re λ/∂p [1/s]"),
+                              (ax[1], "rel_d_freq_hz", "p·∂f/∂p [Hz]")):
+            v = np.array([record[key][p] for p in names])
+            a.barh(y, v, color=np.where(v > 0, "C3", "C0"))
+            a.axvline(0, color="k", lw=0.8)
+            a.set_yticks(y, names)
+            a.set_xlabel(label)
+    fig.suptitle(f"{head}  {title}", fontsize=9)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def robustness(path: Path, bands_hz, band_p, band_se, drivers: dict[str, dict], families: list[dict],
+               title: str = "") -> None:
+    """Robustness summary: instability probability per frequency band (± 2 standard errors), the
+    drivers (Spearman ρ of each parameter with the largest growth rate and its 95 % interval), and
+    the growth-rate histograms of the families most often unstable (``families``: label, growth)."""
+    plt = pyplot()
+    fig, ax = plt.subplots(1, 3, figsize=(15, 4.2))
+    x = np.arange(len(bands_hz))
+    ax[0].bar(x, band_p, yerr=2 * np.asarray(band_se), color="C3", capsize=3)
+    ax[0].set_xticks(x, [f"{lo / 1e3:.1f}–{hi / 1e3:.1f}" for lo, hi in bands_hz], rotation=30, fontsize=7)
+    ax[0].set(xlabel="band [kHz]", ylabel="P(≥ 1 unstable mode)", ylim=(0, 1.05), title="instability probability")
+    names = list(drivers)
+    rho = np.array([drivers[n]["rho"] for n in names])
+    lo = rho - np.array([drivers[n]["ci95"][0] for n in names])
+    hi = np.array([drivers[n]["ci95"][1] for n in names]) - rho
+    ax[1].barh(np.arange(len(names)), rho, xerr=[lo, hi], color=np.where(rho > 0, "C3", "C0"), capsize=3)
+    ax[1].set_yticks(np.arange(len(names)), names)
+    ax[1].axvline(0, color="k", lw=0.8)
+    ax[1].set(xlim=(-1, 1), xlabel="Spearman ρ with the largest growth rate", title="drivers (95 % interval)")
+    for k, fam in enumerate(families):
+        ax[2].hist(fam["growth"], bins=40, histtype="step", lw=1.2, color=f"C{k}", label=fam["label"])
+    ax[2].axvline(0, color="k", lw=0.8)
+    ax[2].set(xlabel="Re λ [1/s]", ylabel="samples", title="growth rate per mode family")
+    if families:
+        ax[2].legend(fontsize=7)
+    fig.suptitle(title)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)

@@ -35,6 +35,14 @@ sweep            parameter, values, critical [{branch, partner, value, bracket, 
                  onset, labels, zero_crossing (False: no Re λ = 0 in reach, value is where Re λ =
                  growth_tol |λ|)}], solves, seconds (branches in sweep.json)
 map              parameter, points, seconds, seconds_per_point, axes, bands_hz, counts, total
+sensitivity      [{index, freq_hz, real_part, unstable, d_real_part {parameter: ∂Re λ/∂p}, d_freq_hz
+                   {parameter: ∂f/∂p}, rel_d_real_part, rel_d_freq_hz (p·∂/∂p), kappa_local, kappa,
+                   near_coalescence (then the derivatives are None), ranking}] (reduced model)
+robustness       n_samples, seed, ranks, seconds, seconds_per_sample, parameters {name: distribution},
+                 probability {p, stderr, wilson95}, bands [{band_hz, p, stderr, ...}], families
+                 [{label, freq_hz, nominal_real_part, p, stderr, growth {mean, std, min, q05,
+                 median, q95, max}, drivers}], drivers {parameter: Spearman ρ and its 95 % interval},
+                 family_assignment, spot_checks [{point, max_rel_error, ...}] (full CEA)
 masa             cases [{mu, equilibrium, elements, basis, instabilities [{freq_hz, real_part,
                  stationary_amplitudes, stationary_in_unit, broke_at, steps}], seconds}]
 transient        basis, contact_elements, steps, steps_computed (fewer when resumed), dt, t_end,

@@ -28,6 +28,7 @@ from petsc4py import PETSc
 
 from fem_squeal.fe.assembly import Operators, _owned_global_rows, contact_matrices
 from fem_squeal.fe.eigen import set_options
+from fem_squeal.reduced.laws.contact import UnilateralLaw
 from fem_squeal.util.errors import ModelError, PreloadError
 
 
@@ -44,10 +45,10 @@ class PreloadResult(NamedTuple):
 
 
 def _traction(g: np.ndarray, kn: float, k3: float) -> tuple[np.ndarray, np.ndarray]:
-    closed = g < 0.0
-    sig = np.where(closed, kn * g + k3 * g ** 3, 0.0)
-    dsig = np.where(closed, kn + 3.0 * k3 * g ** 2, 0.0)
-    return sig, dsig
+    """Normal traction σ = −p (≤ 0) per unit area and dσ/dg at gaps ``g``, from the cubic unilateral law
+    of the reduced layer (one definition: p = k_n δ + k_3 δ³ for the closure δ = −g > 0, else 0)."""
+    law = UnilateralLaw(k_l=kn, k_nl=k3)
+    return 0.0 - law.force(-g), law.stiffness(-g)   # 0.0 - F: open points give +0.0, not -0.0
 
 
 def _lu(A: PETSc.Mat, options: dict | None, prefix: str) -> PETSc.KSP:
@@ -155,7 +156,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
             obj.destroy()
     pressure, normal, fric, area = {}, {}, {}, {}
     for it, op in ops.contacts:
-        pressure[it.name] = p = 0.0 - _traction(gaps[it.name], it.kn, k3)[0]  # no "-0.0"
+        pressure[it.name] = p = UnilateralLaw(k_l=it.kn, k_nl=k3).force(-gaps[it.name])
         normal[it.name] = comm.allreduce(float(op.weight @ p), op=MPI.SUM)
         fric[it.name] = it.mu * normal[it.name] if it.has_friction and friction else 0.0
         area[it.name] = comm.allreduce(float(op.weight @ (gaps[it.name] < 0)), op=MPI.SUM)

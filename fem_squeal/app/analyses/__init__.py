@@ -8,7 +8,8 @@ part of the report.  The scene loader, the pipeline, the runner and the report l
 
     mesh → operators → preload → real_modes
                                → cea
-                               → reduced → sweep, map, masa, transient → limit_cycle
+                               → reduced → sweep, map, sensitivity, masa, transient → limit_cycle
+                               → reduced + preload → robustness (its spot checks solve the full CEA)
     segmented_pad (no mesh: a lumped model)
 """
 from __future__ import annotations
@@ -22,7 +23,9 @@ from fem_squeal.app.analyses import (
     preload,
     real_modes,
     reduced,
+    robustness,
     segmented_pad,
+    sensitivity,
     stability_map,
     sweep,
     transient,
@@ -30,8 +33,8 @@ from fem_squeal.app.analyses import (
 from fem_squeal.app.stage import Stage
 
 STAGES: dict[str, Stage] = {m.STAGE.name: m.STAGE for m in (
-    mesh, operators, preload, real_modes, cea, reduced, sweep, stability_map, masa, transient, limit_cycle,
-    segmented_pad,
+    mesh, operators, preload, real_modes, cea, reduced, sweep, stability_map, sensitivity, robustness, masa,
+    transient, limit_cycle, segmented_pad,
 )}
 
 #: the analyses a scene can ask for (stages with a section ``analyses.<name>``)

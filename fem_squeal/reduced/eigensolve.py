@@ -64,6 +64,24 @@ def unstable(lam: np.ndarray, growth_tol: float = 1e-6) -> np.ndarray:
     return lam.real > growth_tol * np.abs(lam)
 
 
+def eig_left_right(K: np.ndarray, C: np.ndarray | None = None):
+    """Eigenvalues λ (m, sorted as :func:`~fem_squeal.reduced.eigensolve.quadratic_eigs`) of
+    λ²I + λC + K with right and left eigenvectors X, Y (columns), from the companion form
+    (right vector [x; λx], left vector [(λI + C)ᴴy; y] of A = [[0, I], [−K, −C]])."""
+    K = np.asarray(K, float)
+    m = K.shape[0]
+    Cm = np.zeros_like(K) if C is None else np.asarray(C, float)
+    A = np.zeros((2 * m, 2 * m))
+    A[:m, m:] = np.eye(m)
+    A[m:, :m] = -K
+    A[m:, m:] = -Cm
+    mu, WL, WR = eig(A, left=True, right=True)
+    keep = np.argsort(-mu.imag - 1e-9 * mu.real, kind="stable")[:m]
+    lam, X, Y = mu[keep], WR[:m, keep], WL[m:, keep]
+    order = np.lexsort((lam.real, np.round(lam.imag, 9)))
+    return lam[order], X[:, order], Y[:, order]
+
+
 def condition_numbers(K: np.ndarray, C: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Eigenvalues λ (as :func:`quadratic_eigs`: m of them, sorted) of λ²I + λC + K and their
     condition numbers (Tisseur 2000, Theorem 5; 2-norms, relative perturbations of K, C, I)
@@ -76,19 +94,10 @@ def condition_numbers(K: np.ndarray, C: np.ndarray | None = None) -> tuple[np.nd
     (two eigenvalues and their eigenvectors coalesce, yᴴ(2λI + C)x → 0); there the eigenvalue
     error of a backward-stable solve is ~κ ε."""
     K = np.asarray(K, float)
-    m = K.shape[0]
     Cm = np.zeros_like(K) if C is None else np.asarray(C, float)
-    A = np.zeros((2 * m, 2 * m))
-    A[:m, m:] = np.eye(m)
-    A[m:, :m] = -K
-    A[m:, m:] = -Cm
-    mu, WL, WR = eig(A, left=True, right=True)
-    keep = np.argsort(-mu.imag - 1e-9 * mu.real, kind="stable")[:m]
-    lam, X, Y = mu[keep], WR[:m, keep], WL[m:, keep]
+    lam, X, Y = eig_left_right(K, C)
     nK, nC = np.linalg.norm(K, 2), np.linalg.norm(Cm, 2)
     al = np.abs(lam)
     den = al * np.abs(np.einsum("ij,ij->j", Y.conj(), 2 * lam * X + Cm @ X))
     num = (al ** 2 + al * nC + nK) * np.linalg.norm(X, axis=0) * np.linalg.norm(Y, axis=0)
-    kappa = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.inf)
-    order = np.lexsort((lam.real, np.round(lam.imag, 9)))
-    return lam[order], kappa[order]
+    return lam, np.where(den > 0, num / np.where(den > 0, den, 1.0), np.inf)

@@ -36,9 +36,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import eig
 
-from fem_squeal.reduced.eigensolve import TWO_PI
+from fem_squeal.reduced.eigensolve import TWO_PI, eig_left_right
 from fem_squeal.reduced.model import MU, ReducedModel
 from fem_squeal.util.errors import ModelError
 
@@ -83,24 +82,6 @@ def parameter_derivatives(model: ReducedModel, name: str) -> tuple[np.ndarray, n
     Ki = model.K_parts[part] / model.E0[part]
     beta = model.beta.get(part, 0.0)
     return Ki, (beta * Ki if beta else None)
-
-
-def eig_left_right(K: np.ndarray, C: np.ndarray | None = None):
-    """Eigenvalues λ (m, sorted as :func:`~fem_squeal.reduced.eigensolve.quadratic_eigs`) of
-    λ²I + λC + K with right and left eigenvectors X, Y (columns), from the companion form
-    (as :func:`~fem_squeal.reduced.eigensolve.condition_numbers`: right [x; λx], left [(λ+C)ᴴy; y])."""
-    K = np.asarray(K, float)
-    m = K.shape[0]
-    Cm = np.zeros_like(K) if C is None else np.asarray(C, float)
-    A = np.zeros((2 * m, 2 * m))
-    A[:m, m:] = np.eye(m)
-    A[m:, :m] = -K
-    A[m:, m:] = -Cm
-    mu, WL, WR = eig(A, left=True, right=True)
-    keep = np.argsort(-mu.imag - 1e-9 * mu.real, kind="stable")[:m]
-    lam, X, Y = mu[keep], WR[:m, keep], WL[m:, keep]
-    order = np.lexsort((lam.real, np.round(lam.imag, 9)))
-    return lam[order], X[:, order], Y[:, order]
 
 
 def sensitivities(model: ReducedModel, point: dict[str, float] | None = None,

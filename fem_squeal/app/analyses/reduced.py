@@ -195,18 +195,25 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     return {"reduced": out}
 
 
-def verification_failures(reduced: dict, what: str = "") -> list[str]:
-    """The check points where the reduced model misses the full CEA: relative error above the
-    requested ``tol``, or a different number of unstable modes (``results["reduced"]``)."""
+def mismatches(rows: list[dict], tol: float, what: str = "",
+               where=lambda r: format_point(r["point"])) -> list[str]:
+    """The reduced-vs-full checks ``rows`` (``max_rel_error``, ``n_unstable_full``, ``n_unstable_reduced``)
+    where the reduced model misses the full CEA: relative error above ``tol``, or a different number of
+    unstable modes; ``where(row)`` names the point."""
     out = []
-    for v in reduced.get("verification", []):
-        if v["max_rel_error"] > reduced["tol"]:
-            out.append(f"{what}reduced vs full at {format_point(v['point'])}: {v['max_rel_error']:.1e} > tol "
-                       f"{reduced['tol']}")
+    for v in rows:
+        if v["max_rel_error"] > tol:
+            out.append(f"{what}reduced vs full at {where(v)}: {v['max_rel_error']:.1e} > tol {tol}")
         if v["n_unstable_full"] != v["n_unstable_reduced"]:
             out.append(f"{what}{v['n_unstable_reduced']} unstable reduced vs {v['n_unstable_full']} full "
-                       f"at {format_point(v['point'])}")
+                       f"at {where(v)}")
     return out
+
+
+def verification_failures(reduced: dict, what: str = "") -> list[str]:
+    """The check points of ``results["reduced"]`` where the reduced model misses the full CEA
+    (:func:`mismatches` with the requested ``tol``)."""
+    return mismatches(reduced.get("verification", []), reduced["tol"], what)
 
 
 def check(scene: dict, volumes) -> None:

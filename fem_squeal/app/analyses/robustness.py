@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from fem_squeal.app import plots
-from fem_squeal.app.analyses.reduced import band_and_growth_tol, full_cea
+from fem_squeal.app.analyses.reduced import band_and_growth_tol, full_cea, mismatches
 from fem_squeal.app.analyses.sensitivity import check_parameter
 from fem_squeal.app.fields import Field, at_least, non_negative, positive
 from fem_squeal.app.html import escape as _e
@@ -185,17 +185,10 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
 
 
 def spot_check_failures(rob: dict, tol: float, what: str = "") -> list[str]:
-    """Spot samples where the reduced model misses the full CEA (relative error above ``tol``, or a
-    different number of unstable modes)."""
-    out = []
-    for s in rob.get("spot_checks", []):
-        if s["max_rel_error"] > tol:
-            out.append(f"{what}reduced vs full at sample {s['sample']} ({format_point(s['point'])}): "
-                       f"{s['max_rel_error']:.1e} > tol {tol}")
-        if s["n_unstable_full"] != s["n_unstable_reduced"]:
-            out.append(f"{what}{s['n_unstable_reduced']} unstable reduced vs {s['n_unstable_full']} full "
-                       f"at sample {s['sample']} ({format_point(s['point'])})")
-    return out
+    """Spot samples where the reduced model misses the full CEA (:func:`~fem_squeal.app.analyses.reduced.
+    mismatches`: relative error above ``tol``, or a different number of unstable modes)."""
+    return mismatches(rob.get("spot_checks", []), tol, what,
+                      lambda s: f"sample {s['sample']} ({format_point(s['point'])})")
 
 
 def check(scene: dict, volumes) -> None:

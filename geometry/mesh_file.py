@@ -24,8 +24,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from meshio import _mesh
-from meshio._helpers import reader_map
 from mpi4py import MPI
 
 from geometry.abaqus import AbaqusError, AbaqusSyntaxError, read_deck
@@ -131,6 +129,7 @@ def read_mesh_file(path: str | Path, fmt: str = "", id_field: str = "") -> MeshF
 
 def _read_meshio(path: Path, fmt: str, id_field: str) -> _Raw:
     # meshio.read prints and calls sys.exit on a ReadError; its format readers raise
+    from meshio._helpers import reader_map  # heavy: meshio (0.15 s import; only to read a mesh file)
 
     if fmt not in reader_map:
         raise MeshImportError(f"geometry.format: unknown meshio format {fmt!r}; "
@@ -225,6 +224,7 @@ def _read_meshio(path: Path, fmt: str, id_field: str) -> _Raw:
 def _teach_meshio() -> None:
     """meshio 5.0 (Debian bookworm) lists wedge15 and pyramid13 in its readers but not in the table
     of cell dimensions that every cell block looks up: add them."""
+    from meshio import _mesh  # heavy: meshio (0.15 s import; only to read a mesh file)
 
     for t in ("wedge15", "pyramid13"):
         _mesh.topological_dimension.setdefault(t, 3)

@@ -12,8 +12,6 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-import meshio
-import meshio.nastran._nastran as nastran
 import numpy as np
 
 from fem_squeal.util.atomic import atomic_path
@@ -77,7 +75,8 @@ def write_mesh_file(mf: MeshFile, path: str | Path, fmt: str = "") -> list[str]:
     property IDs (CTETRA, CTRIA3/6 for surfaces) with ``$HMNAME COMP`` names; VTU integer cell data
     ``set_id`` with the names in field data.  Node sets become surfaces where a format has none.
     Written atomically.  Returns warnings about sets that could not be kept."""
-
+    import meshio  # heavy: meshio (0.15 s import; only to write a mesh file)
+    import meshio.nastran._nastran as nastran  # heavy: as above
 
     path = Path(path)
     fmt = file_format(path, fmt)

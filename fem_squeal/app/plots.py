@@ -4,7 +4,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import spectrogram
 
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
 from fem_squeal.util.atomic import save_figure_atomic
@@ -199,6 +198,8 @@ def transient(path: Path, t: np.ndarray, x: np.ndarray, v: np.ndarray, extra: di
     ax[0, 0].set(xlabel="t [ms]", ylabel=label, title="time history")
     dt = float(np.mean(np.diff(t)))
     nper = min(1024, max(len(t) // 16, 16))
+    from scipy.signal import spectrogram  # heavy: scipy.signal (0.6 s import; the transient plot only)
+
     fs, ts, S = spectrogram(x - np.mean(x), fs=1 / dt, nperseg=nper, noverlap=nper // 2)
     ax[0, 1].pcolormesh(ts * 1e3 + t[0] * 1e3, fs / 1e3, 10 * np.log10(S + S.max() * 1e-12), shading="auto")
     ax[0, 1].set(xlabel="t [ms]", ylabel="f [kHz]", title="spectrogram [dB]")

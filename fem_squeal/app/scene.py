@@ -1,6 +1,7 @@
 """Scene files: TOML → validated, defaulted dictionary → model description.
 
-The schema below is the one place where keys, types, bounds and defaults are defined.  Errors
+The model sections' schema below and the analyses' sections (``fem_squeal.app.analyses``) are the one
+place where keys, types, bounds and defaults are defined.  Errors
 name the key path and the reason (``SceneError("geometry.width: must be > 0 (got -0.1)")``);
 nothing is computed before a scene validates.  ``--set a.b.c=value`` overrides any key; the
 value is parsed as TOML (``0.3``, ``[1, 2]``, ``"top"``) and falls back to a bare string.
@@ -36,36 +37,10 @@ preload          mode ("nonlinear": active-set Newton then linearise about the c
                  "all_closed": every contact point closed, no static solve), friction (sliding
                  friction in the static step), tol, max_iterations
 discretisation   degree (1 or 2), quadrature_degree (0 = automatic), interface_quadrature_degree
-analyses.real_modes  n_modes, target_hz, tol, max_residual
-analyses.cea         n_modes, target_hz, band_hz = [lo, hi], method ("auto"|"linear"|"pep"),
-                     tol, max_residual, describe_part (part whose nodal diameters are reported;
-                     "" = "disc" if the model has one, else all)
-analyses.reduced     band_hz, tol, cut_factors, static_correction, sigma_hz, growth_tol, enrich_rtol,
-                     verify
-                     (modal projection with error control; pulled in by sweep and map)
-analyses.sweep       parameter ("mu" = sign(v)μ, or "E.<part>" [Pa]), range = [first, last], n:
-                     one-parameter sweep on the reduced model with mode tracking
-analyses.map         mu_max, n_mu, part, E_range = [E_min, E_max] [Pa], n_E, n_bands: unstable
-                     modes per frequency band over the (sign(v)μ, E) design (seed 001 Figs. 17-19)
-analyses.masa        mu (list of sign(v)μ values; [] = the scene's), amplitude_max, n_amplitudes,
-                     amplitude_unit ("loss": multiples of the amplitude of first contact loss of each
-                     instability, "modal": p of seed 000 eq. 25), cubic_share (k_l/k_nl tuning),
-                     contact_damping = [c_max per area, depth], patches = [n_radial, n_angular]
-                     (AFT elements per interface; [] = every contact point), attachments =
-                     [n_radial, n_angular] (basis enrichment), n_samples, sweep_break, update_shape,
-                     refine: modal amplitude stability analysis (seed 000; pulls in analyses.reduced)
-analyses.transient   omega [rad/s], t_end, dt [s], alpha (HHT), rtol, tangent, adaptive, friction
-                     ("constant" | "stribeck" | "coulomb") with mu_s, mu_d, v_s, v_d, k_t, c_t;
-                     cubic_share, contact_damping, patches, attachments (as masa), f_cut_hz,
-                     zeta_cut, amplitude (initial push [× static closure]), record_every,
-                     checkpoint_every, snapshots, snapshot_window (displacement fields as VTU and
-                     XDMF): nonlinear transient of the reduced brake (seed 002; pulls in
-                     analyses.reduced)
-analyses.limit_cycle cycles, svd_shapes, stability_samples, mode_cycle_amplitudes,
-                     mode_cycle_samples: post-processing of the transient (seed 002 §3-4)
-analyses.segmented_pad  speeds [m/s], velocity_pairs [[v_s, v_d]], pair_speeds, t_end, dt, alpha
-                     and every field of fem_squeal.reduced.segmented_pad.SegmentedPad: the lumped
-                     pad of seed 004.  A scene with only this analysis has no geometry section.
+analyses.<name>  one section per analysis, declared by its module in fem_squeal.app.analyses (the
+                 registry): fields, defaults and cross-checks.  The full reference of every key, model
+                 and analyses alike, is generated from these tables:
+                 ``python -m fem_squeal.app.schema_reference`` (docs/reference/scene.md in the guide).
 solver           petsc_options = { key = value } (given with their prefix, e.g. "cea_st_type")
 """
 from __future__ import annotations

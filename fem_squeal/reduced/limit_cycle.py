@@ -17,7 +17,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import hilbert
 
 from fem_squeal.reduced.eigensolve import TWO_PI, quadratic_eigs
 from fem_squeal.util.errors import ModelError
@@ -67,6 +66,8 @@ def detect_limit_cycle(t: np.ndarray, x: np.ndarray, *, window: float | None = N
     n_w = max(int(round(window / dt)), 4)
     box = np.ones(min(n_w, len(x))) / min(n_w, len(x))
     trend = np.convolve(np.pad(x, (len(box) // 2, len(box) - 1 - len(box) // 2), mode="edge"), box, mode="valid")
+    from scipy.signal import hilbert  # heavy: scipy.signal (0.6 s import; only the envelope needs it)
+
     env = np.abs(hilbert(x - trend))          # about the moving mean (the static offset can drift)
     env = np.convolve(np.pad(env, (len(box) // 2, len(box) - 1 - len(box) // 2), mode="edge"), box, mode="valid")
     last = x[-n_w:] if len(x) >= n_w else x

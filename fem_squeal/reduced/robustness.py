@@ -36,7 +36,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
-from scipy.stats import rankdata
 
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
 from fem_squeal.reduced.model import ReducedModel
@@ -124,6 +123,8 @@ def spearman(x: np.ndarray, y: np.ndarray) -> dict:
     n = len(x)
     if n < 4 or np.ptp(x) == 0 or np.ptp(y) == 0:
         return {"rho": 0.0, "ci95": [-1.0, 1.0], "constant": True}
+    from scipy.stats import rankdata  # heavy: scipy.stats (0.25 s import; the drivers only)
+
     rx, ry = rankdata(x), rankdata(y)
     rho = float(np.corrcoef(rx, ry)[0, 1])
     z, h = np.arctanh(np.clip(rho, -0.999999, 0.999999)), Z95 * np.sqrt(1.06 / (n - 3))

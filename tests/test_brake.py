@@ -234,7 +234,9 @@ def test_brake_scene_same_on_one_and_two_ranks(tmp_path, mpirun):
         assert pb[k]["contact_area"] == pytest.approx(pa[k]["contact_area"], rel=1e-9)
 
 
-@pytest.mark.parametrize("ranks", [1, 2])
+# serial behind the slow marker: the 2-rank run makes the same self-checks, and rank independence has its
+# own test (test_brake_scene_same_on_one_and_two_ranks); it saves 21 s of the default suite
+@pytest.mark.parametrize("ranks", [pytest.param(1, marks=pytest.mark.slow), 2])
 def test_brake_demo_runs_and_checks_itself(ranks, mpirun, tmp_path):
     cmd = [sys.executable, str(ROOT / "demos" / "brake_corner_cea.py"), str(tmp_path), "--set", COARSE[0],
            "--set", "analyses.cea.n_modes=20", "--set", "analyses.cea.band_hz=[0.0, 5000.0]"]

@@ -324,7 +324,9 @@ def test_round_trip_gives_the_native_real_and_complex_modes(brake_runs, fmt):
         assert other["preload"]["interfaces"][face]["normal_force"] == pytest.approx(v["normal_force"], rel=1e-8)
 
 
-@pytest.mark.parametrize("ranks", [1, 2])
+# serial behind the slow marker: the 2-rank run makes the same self-checks (deck = native mesh), and the
+# round trip above compares the deck's modes with the native ones; it saves 36 s of the default suite
+@pytest.mark.parametrize("ranks", [pytest.param(1, marks=pytest.mark.slow), 2])
 def test_import_demo_runs_and_checks_itself(ranks, mpirun, tmp_path):
     cmd = [sys.executable, str(ROOT / "demos" / "import_abaqus_mesh.py"), str(tmp_path),
            "--set=analyses.cea.band_hz=[0.0, 5000.0]", "--set=analyses.cea.n_modes=24"]

@@ -83,3 +83,20 @@ def test_lumped_scene_loads_no_fe_stack(tmp_path):
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=clean_env())
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     assert json.loads(p.stdout.strip().splitlines()[-1]) == [0, []]
+
+
+def test_geometry_errors_become_the_applications():
+    """geometry imports nothing from fem_squeal: its errors are re-raised at the app boundary, so the CLI
+    (which catches FemSquealError) shows one line, never a traceback."""
+    from fem_squeal.app.convert import mesh_errors
+    from fem_squeal.util.errors import MeshError, MeshingError
+    from geometry.mesh_file import MeshImportError
+
+    for error, expected, code in ((MeshImportError("geometry.file: x"), MeshError, 2),
+                                  (ValueError("geometry: need 0 < inner_radius"), MeshError, 2),
+                                  (RuntimeError("brake corner: meshing failed"), MeshingError, 3)):
+        with pytest.raises(expected, match=str(error)) as info:
+            with mesh_errors():
+                raise error
+        assert info.value.exit_code == code
+

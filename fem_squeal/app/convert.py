@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from fem_squeal.util.atomic import atomic_path
-from fem_squeal.util.errors import MeshError
+from fem_squeal.util.errors import MeshError, MeshingError
 from fem_squeal.util.vtu import add_vtu_field_data
 from geometry import MODELS, write_msh
 from geometry.mesh_file import MeshFile, MeshImportError, _facet_nodes, file_format, read_mesh_file
@@ -23,12 +23,17 @@ from geometry.mesh_file import MeshFile, MeshImportError, _facet_nodes, file_for
 
 @contextmanager
 def mesh_errors() -> Iterator[None]:
-    """Re-raise ``geometry``'s :class:`MeshImportError` (that package imports nothing from fem_squeal)
-    as the application's :class:`~fem_squeal.util.errors.MeshError`, with the same message."""
+    """Re-raise the errors of ``geometry`` (which imports nothing from fem_squeal) as the application's,
+    with the same message: a file that cannot be read (:class:`MeshImportError`) or a builder's refused
+    input (``ValueError``, e.g. ``geometry: need 0 < inner_radius < outer_radius``) as
+    :class:`~fem_squeal.util.errors.MeshError` (exit 2), a builder that failed (``RuntimeError``) as
+    :class:`~fem_squeal.util.errors.MeshingError` (exit 3)."""
     try:
         yield
-    except MeshImportError as e:
+    except (MeshImportError, ValueError) as e:
         raise MeshError(str(e)) from e
+    except RuntimeError as e:
+        raise MeshingError(str(e)) from e
 
 
 def _partition(sets: dict[str, np.ndarray], key) -> tuple[dict[str, np.ndarray], list[str]]:

@@ -55,6 +55,10 @@ class SolveError(FemSquealError, RuntimeError):
     """A computation that failed (exit 3); the message names the stage and the reason."""
 
 
+class MeshingError(SolveError):
+    """The geometry could not be built or meshed (a gmsh builder failed on valid input)."""
+
+
 class EigenSolveError(SolveError):
     """An eigensolve that did not converge or returned pairs with too large residuals."""
 

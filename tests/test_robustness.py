@@ -261,3 +261,16 @@ def test_analyses_run_and_report(tmp_path):
     html = rob_stage.report({"robustness": res})
     assert "P(at least one unstable mode)" in html and "Drivers" in html
     assert sens_stage.report({}) == "" and rob_stage.report({}) == ""
+
+
+def test_monotone_driver_interval_contains_rho():
+    """A perfectly monotone driver (ρ = 1, e.g. the growth of a ring's flutter pairs in μ) has an
+    interval that contains ρ (the plot draws ρ minus/plus the interval: never negative)."""
+    from fem_squeal.reduced.robustness import spearman
+
+    x = np.linspace(0.2, 0.4, 200)
+    for y, sign in ((x ** 3, 1.0), (-np.exp(x), -1.0)):
+        d = spearman(x, y)
+        assert d["rho"] == pytest.approx(sign, abs=1e-12)
+        assert d["ci95"][0] <= d["rho"] <= d["ci95"][1]
+

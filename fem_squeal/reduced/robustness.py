@@ -128,7 +128,9 @@ def spearman(x: np.ndarray, y: np.ndarray) -> dict:
     rx, ry = rankdata(x), rankdata(y)
     rho = float(np.corrcoef(rx, ry)[0, 1])
     z, h = np.arctanh(np.clip(rho, -0.999999, 0.999999)), Z95 * np.sqrt(1.06 / (n - 3))
-    return {"rho": rho, "ci95": [float(np.tanh(z - h)), float(np.tanh(z + h))], "constant": False}
+    # |ρ| = 1 (a monotone driver) is clipped for arctanh: keep the interval around the estimate itself
+    lo, hi = min(float(np.tanh(z - h)), rho), max(float(np.tanh(z + h)), rho)
+    return {"rho": rho, "ci95": [lo, hi], "constant": False}
 
 
 def assign_families(lam: np.ndarray, nominal: np.ndarray) -> np.ndarray:

@@ -98,7 +98,7 @@ def full_cea(par, point: dict, band, nev: int, options) -> tuple[np.ndarray, flo
     return cm.eigenvalues, seconds
 
 
-def _verify(par, model, point: dict, band, growth_tol: float, options) -> dict:
+def verify_point(par, model, point: dict, band, growth_tol: float, options) -> dict:
     """Full CEA at ``point`` against the reduced eigenvalues: worst relative error of the unstable
     full eigenvalues (of all in the band when none is unstable)."""
     from fem_squeal.fe.projection import relative_change  # heavy: FE stack
@@ -185,7 +185,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
         f"{report.estimate:.1e}, {timings['reduced_basis']:.1f} s")
     if a["verify"]:
         t = time.perf_counter()
-        rows = [_verify(par, model, p, band, a["growth_tol"], opts) for p in checks]
+        rows = [verify_point(par, model, p, band, a["growth_tol"], opts) for p in checks]
         timings["reduced_verify"] = time.perf_counter() - t
         out["verification"] = rows
         say("[fem_squeal] reduced vs full CEA: " + ", ".join(

@@ -10,6 +10,10 @@ import numpy as np
 import pytest
 from conftest import ROOT, clean_env
 
+# Slow (105 s, the longest case of the suite): the MASA arithmetic's rank independence is checked bit for
+# bit in the default suite (tests/test_masa.py); this runs the whole brake chain twice.
+pytestmark = pytest.mark.slow
+
 COARSE = ["--set=geometry.mesh_size=0.016", "--set=analyses.masa.n_amplitudes=30",
           "--set=analyses.reduced.band_hz=[0.0, 6000.0]", "--set=analyses.cea.band_hz=[0.0, 6000.0]"]
 

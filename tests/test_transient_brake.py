@@ -85,7 +85,8 @@ def test_changing_a_limit_cycle_option_reruns_that_stage_only(results):
     assert r["transient"] == first["transient"]
 
 
-@pytest.mark.mpi
+@pytest.mark.slow       # 49 s: the snapshot writer itself is checked in the default suite
+@pytest.mark.mpi        # (test_mesh_import.py::test_vtu_fields_and_snapshots_are_the_functions_at_the_nodes)
 def test_fields_add_the_transient_snapshots(results):
     """With fields on (a new key from the preload on, which writes fields too), the transient writes
     the scene's 20 snapshots over the last 0.4 ms from the reduced stage's Φ on the nodes, and its

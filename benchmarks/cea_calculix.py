@@ -22,23 +22,26 @@ The .dat file lists complex eigenfrequencies ω; s = iω, Re(s) = −Im(ω).
 
 Writes benchmarks/out/cea_calculix[_quick].json and .md.
 
-Measured (``--quick``: h 3 mm, 1457 C3D10, μ = 0.3; ccx 2.20 takes 110–145 s, fem_squeal ~20 s):
+Measured (h 3 mm ``--quick``: 1457 C3D10; h 2 mm: the default; k_n = 1e13, λ = k_n/10, fem_squeal with
+k_t = λ/F; ccx 80–100 s per μ on a loaded machine; 24 modes, 12 unstable pairs in both codes at every μ):
 
-* k_n = 1e13, λ = 1e12: the same 12 unstable pairs in both codes (41.5–73.3 kHz).  fem_squeal with
-  k_t = λ/F: f within −1.9e-3 … +5.6e-3, Re(s) 8.7–11 % above ccx; with k_t = 0 (seed 001): Re(s)
-  20–73 % below ccx.  So the tangential penalty is the missing physics, but the target (f 1e-3,
-  Re(s) 2 %) is NOT met: Re(s) of the 6 lowest pairs matches within 2 % for k_t ≈ 0.5 λ (then f
-  −1.9e-3 … −3.2e-3), i.e. ccx's effective stiffness across the slip is about half of λ/F here.
-  With λ = k_n/100 (``--stick-slope 0.01``) ccx's Re(s) drops by 20 % (5617 → 4449 for the lowest pair)
-  and lies 1 % below fem_squeal's k_t = 0 (k_t = λ/F: +9 %, f within −5e-4 … +2.7e-3): ccx's response
-  to λ is not that of a fixed k_t = λ/F (not explained yet; the slide of step 2 is 2e-4 m in ~10
-  increments, the elastic slip 3e-8 m).
-* k_n = 1e10, λ = 1e9 (``--kn 1e10``; k_t changes nothing there, 1e-5): ccx's axial mode (the ring on
-  its contact springs: 2 k_n A/m in fem_squeal, 9502 Hz, to 7e-4) is 8787 Hz: ccx's effective
-  penalty is 0.855 k_n (cause not identified: its node-to-surface weights on 6-node faces, 1/999 and
-  332/999, do sum to the face area).  With k_n and k_t scaled by 0.855 in fem_squeal, all 12 flutter
-  pairs (8.9–20.7 kHz) agree to 9.4e-5 in f and 6.2e-4 in Re(s); at k_n = 1e13 the same factor leaves
-  −1.9e-3 in f and +6 % in Re(s).
+| μ | h | Δf/f | ΔRe(s)/Re(s) | k_t = 0 (seed 001): ΔRe(s)/Re(s) |
+|---|---|---|---|---|
+| 0.1 | 3 mm | −8.2e-4 … −4.8e-5 | +0.45 … +0.56 % | −28 … −88 % |
+| 0.3 | 3 mm | −2.1e-3 … −4.0e-4 | +0.58 … +0.67 % | −28 … −75 % |
+| 0.6 | 3 mm | −4.0e-3 … −9.0e-4 | +0.73 … +0.88 % | −10 … −63 % |
+| 0.3 | 2 mm | −2.0e-3 … −5.2e-4 | +0.27 … +0.35 % | −27 … −75 % |
+
+The growth rates meet the 2 % target at all three μ and converge towards ccx with the mesh; the
+frequencies meet 1e-3 at μ = 0.1 only.  The remaining frequency offset grows in proportion to μ
+(about −6.5e-3·μ on the lowest pairs) and does not change from h = 3 to 2 mm, so it is a term of
+ccx's slip-state tangent that the model here leaves out, not discretisation; not identified yet.
+
+History: the earlier runs placed the plates at z ∈ [H, H + T] and [−T, 0] while the ring spans
+[−H/2, H/2] (ccx resolved it by a 2 mm rigid shift in the static step) and used ccx's default σ∞:
+ccx's LINEAR law is smoothed, p = K d (1/2 + atan(d/ε)/π) with ε = π σ∞/K (springforc_n2f.f), so its
+tangent at the press was 0.5–0.86 K (the "effective penalty 0.855 k_n", Re(s) 9–11 % off).  A static
+press at k_n = 1e10 now gives the plate force K A d to 0.1 % (156.0 N for 156.0 N).
 """
 from __future__ import annotations
 
@@ -64,6 +67,11 @@ E, NU, RHO = 3e9, 0.4, 1400.0
 KN = 1e13                   # penalty [N/m³] (--kn)
 F_STATIC = 1.001            # μ_static / μ of the sliding steps
 P_PRESS = 1e5               # contact pressure of the press [Pa]: the plates move by d = p/k_n
+#: ccx's LINEAR node-to-face law is smoothed, p = K d (1/2 + atan(d/ε)/π) with ε = π σ∞/K (ccx source
+#: springforc_n2f.f): its tangent is K only for d ≫ ε.  σ∞ (the tension at large clearances) = P/1000
+#: puts the press d = P/K at d/ε = 1000/π, where the tangent is K to 1e-6; ccx's default σ∞ left the
+#: tangent at 0.5–0.86 K (the "effective penalty 0.855 k_n" of the earlier runs)
+SIGMA_INF = P_PRESS / 1000
 SLIP = 2e-4                 # slip at the mean radius in the sliding step [m] (μ p/λ = 3e-6 at μ = 0.3)
 N_THETA, PLATE_T, PLATE_OVERHANG = 180, 1e-3, 1e-3
 
@@ -113,8 +121,9 @@ def plate_lines(first_node: int, first_elem: int, z0: float, z1: float, name: st
 
 
 def ccx_deck(mesh: dict, mu: float, kn: float, lam: float, n_modes: int) -> str:
-    top, n, e = plate_lines(10 ** 6, 10 ** 6, H, H + PLATE_T, "PTOP")
-    bot, n, e = plate_lines(n, e, -PLATE_T, 0.0, "PBOT")
+    # the ring spans z ∈ [−H/2, H/2] (geometry.annular_disc is centred on z = 0): the plates touch its faces
+    top, n, e = plate_lines(10 ** 6, 10 ** 6, H / 2, H / 2 + PLATE_T, "PTOP")
+    bot, n, e = plate_lines(n, e, -H / 2 - PLATE_T, -H / 2, "PBOT")
     inner = [", ".join(str(int(k)) for k in mesh["inner"][i:i + 8]) for i in range(0, len(mesh["inner"]), 8)]
     theta = SLIP / R
 
@@ -141,7 +150,8 @@ def ccx_deck(mesh: dict, mu: float, kn: float, lam: float, n_modes: int) -> str:
              "*MATERIAL, NAME=STEEL", "*ELASTIC", "2.1e11, 0.3", "*DENSITY", "7850.",
              "*SOLID SECTION, ELSET=disc, MATERIAL=RING",
              "*SOLID SECTION, ELSET=EPTOP, MATERIAL=STEEL", "*SOLID SECTION, ELSET=EPBOT, MATERIAL=STEEL",
-             "*SURFACE INTERACTION, NAME=SI", "*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR", f"{kn:.6e}",
+             "*SURFACE INTERACTION, NAME=SI", "*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR",
+             f"{kn:.6e}, {SIGMA_INF:.6e}",
              "*FRICTION", f"{F_STATIC * mu:.8g}, {lam:.6e}",
              "*CONTACT PAIR, INTERACTION=SI, TYPE=NODE TO SURFACE", "top, MTOP", "bottom, MBOT",
              "*BOUNDARY", "INNERN, 1, 2", "NPTOP, 1, 2", "NPBOT, 1, 2",

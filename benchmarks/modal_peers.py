@@ -55,6 +55,14 @@ its 4-point run up to 100k.
     .venv/bin/python benchmarks/modal_peers.py [--quick] [--ranks 2] [--workdir DIR]
     .venv/bin/python benchmarks/modal_peers.py --render benchmarks/out/modal_peers_2ranks.json --ranks 2
 
+``--speed`` (issue #23): real modes against the fastest peer, every code on one thread, on the 10, 6
+and 4 mm meshes (26k, 87k, 260k DOFs; ``--sizes``), 20 modes, ``--repeats`` interleaved runs (the
+fastest kept): fem_squeal with its defaults (CHOLMOD on one rank) and as before #23 (MUMPS LDLᵀ, tol
+1e-10, purified: the reference of Δf); GetFEM 5.4 (Debian ``python3-getfem``: P2 on the imported
+curved mesh, CHOLMOD from scikit-sparse, scipy ``eigsh`` shift-invert with the factor as ``OPinv``);
+scikit-fem with the same CHOLMOD + ``eigsh``; CalculiX.  The peers' ``eigsh`` tol is fem_squeal's
+(SPEED_TOL).  Writes benchmarks/out/modal_peers_speed_1ranks.md and .json.
+
 ``--ranks N``: fem_squeal also on N ranks and ccx also on N threads (``--ranks 1``: serial only; the
 serial runs are part of every invocation, so ``--ranks 2`` alone gives the whole comparison).
 ``--quick``: the 20 mm mesh only, 10 modes, it is its own reference (about 10 s).  ``--render``: re-write
@@ -95,6 +103,10 @@ SKFEM_MAX_DOFS = 300_000                 # scikit-fem (same quadrature as fem_sq
 SKFEM_4PT_MAX_DOFS = 100_000             # the 4-point scikit-fem run (explanation only) on small meshes
 AUTO, FOUR_POINT = 0, 2                  # fem_squeal quadrature: form-compiler estimate / degree 2
 SKFEM_AUTO = (5, 7)                      # scikit-fem intorder (stiffness, mass) = fem_squeal's estimate
+SPEED_SIZES = (0.01, 0.006, 0.004)       # --speed: 26k, 87k, 260k DOFs (the meshes of issue #23)
+SPEED_TOL = 1e-7                         # --speed: the peers' eigsh tol = fem_squeal's default (REAL_MODE_TOL)
+# fem_squeal before issue #23: MUMPS LDLᵀ, tol 1e-10, purified eigenvectors (the --speed reference)
+OLD_DEFAULTS = {"real_st_pc_factor_mat_solver_type": "mumps", "real_eps_purify": True}
 SKFEM_4PT = (2, 2)
 
 
@@ -142,7 +154,7 @@ def make_mesh(h: float, folder: str, n_modes: int) -> dict:
             "t_gmsh": t1 - t0, "t_convert": time.perf_counter() - t1}
 
 
-def scene_text(msh_name: str, n_modes: int, quadrature: int) -> str:
+def scene_text(msh_name: str, n_modes: int, quadrature: int, petsc_options: dict | None = None) -> str:
     return f"""title = "clamped annular disc (benchmarks/modal_peers.py)"
 [geometry]
 builder = "mesh_file"
@@ -164,13 +176,16 @@ quadrature_degree = {quadrature}
 n_modes = {n_modes}
 target_hz = 0.0
 tol = {EIG_TOL!r}
-"""
+""" + ("[solver.petsc_options]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in petsc_options.items())
+       if petsc_options else "")
 
 
 # ---------------------------------------------------------------- the three codes
 
-def run_fem(scene_file: str) -> dict:
-    """fem_squeal on the scene's mesh file: read + distribute, assemble, eigensolve (timed apart)."""
+def run_fem(scene_file: str, tol: str = "scene") -> dict:
+    """fem_squeal on the scene's mesh file: read + distribute, assemble, eigensolve (timed apart).
+    ``tol``: "scene" (the scene's ``analyses.real_modes.tol``), "default" (solve_real_modes' own
+    defaults: its tolerance and solver options) or a number."""
     import resource
 
     from mpi4py import MPI
@@ -192,8 +207,9 @@ def run_fem(scene_file: str) -> dict:
     ops = assemble_operators(md, spec)
     comm.barrier()
     t2 = time.perf_counter()
-    rm = solve_real_modes(ops.K, ops.M, rm_opts["n_modes"], rm_opts["target_hz"], tol=rm_opts["tol"],
-                          options=scene["solver"]["petsc_options"])
+    kw = {} if tol == "default" else {"tol": rm_opts["tol"] if tol == "scene" else float(tol)}
+    rm = solve_real_modes(ops.K, ops.M, rm_opts["n_modes"], rm_opts["target_hz"],
+                          options=scene["solver"]["petsc_options"], **kw)
     comm.barrier()
     t3 = time.perf_counter()
     bs, im = ops.V.dofmap.index_map_bs, ops.V.dofmap.index_map
@@ -202,11 +218,15 @@ def run_fem(scene_file: str) -> dict:
     return {"code": "fem_squeal", "quadrature": spec.quadrature_degree or "auto", "parallel": comm.size,
             "dofs": im.size_global * bs, "free_dofs": im.size_global * bs - clamped,
             "t_read": t1 - t0, "t_assembly": t2 - t1, "t_eig": t3 - t2, "t_e2e": t3 - t0,
+            "t_factor": rm.seconds.get("factor", float("nan")), "solver": rm.solver, "tol": tol,
             "freqs": rm.freqs_hz.tolist(), "max_residual": float(np.max(rm.residuals)), "rss_mb": rss}
 
 
-def run_skfem(msh: str, n_modes: int, q_stiffness: int, q_mass: int) -> dict:
-    """scikit-fem: P2 on the quadratic mesh, K and M with the given intorders, eigsh shift-invert."""
+def run_skfem(msh: str, n_modes: int, q_stiffness: int, q_mass: int, tol: float = EIG_TOL,
+              factor: str = "auto") -> dict:
+    """scikit-fem: P2 on the quadratic mesh, K and M with the given intorders, eigsh shift-invert
+    with an explicit factor of K: ``factor`` "cholmod" (scikit-sparse), "superlu" or "auto" (CHOLMOD
+    when scikit-sparse is installed)."""
     import logging
     import resource
 
@@ -243,9 +263,17 @@ def run_skfem(msh: str, n_modes: int, q_stiffness: int, q_mass: int) -> dict:
     D = bk.get_dofs(facets=facets).all()
     Kc, Mc = condense(K, M, D=D, expand=False)
     t2 = time.perf_counter()
-    lu = splu(Kc.tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
-    op = LinearOperator(Kc.shape, matvec=lu.solve, dtype=float)
-    w, X = eigsh(Kc, n_modes, Mc, sigma=0.0, which="LM", tol=EIG_TOL, OPinv=op)
+    if factor == "auto":
+        factor = "cholmod" if have_module("sksparse") else "superlu"
+    if factor == "cholmod":
+        from sksparse.cholmod import cholesky
+
+        solve = cholesky(Kc.tocsc())
+    else:
+        solve = splu(Kc.tocsc(), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True}).solve
+    tf = time.perf_counter()
+    op = LinearOperator(Kc.shape, matvec=solve, dtype=float)
+    w, X = eigsh(Kc, n_modes, Mc, sigma=0.0, which="LM", tol=tol, OPinv=op)
     t3 = time.perf_counter()
     order = np.argsort(w)
     w, X = w[order], X[:, order]
@@ -253,7 +281,67 @@ def run_skfem(msh: str, n_modes: int, q_stiffness: int, q_mass: int) -> dict:
     res = [np.linalg.norm(Kc @ x - lam * (Mc @ x)) / (normK * np.linalg.norm(x)) for lam, x in zip(w, X.T)]
     return {"code": "scikit-fem", "quadrature": f"{q_stiffness}/{q_mass}", "parallel": 1,
             "dofs": K.shape[0], "free_dofs": Kc.shape[0], "t_read": t1 - t0, "t_assembly": t2 - t1,
-            "t_eig": t3 - t2, "t_e2e": t3 - t0, "freqs": (np.sqrt(w) / (2 * np.pi)).tolist(),
+            "t_eig": t3 - t2, "t_factor": tf - t2, "t_e2e": t3 - t0, "freqs": (np.sqrt(w) / (2 * np.pi)).tolist(),
+            "solver": f"{factor} + eigsh", "tol": tol,
+            "max_residual": float(max(res)), "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def run_getfem(msh: str, n_modes: int, tol: float) -> dict:
+    """GetFEM (Debian python3-getfem): the gmsh file imported, classical P2 vector FEM on the curved
+    P2 geometry, ``asm_linear_elasticity`` with IM_TETRAHEDRON(5) (degree 5, as fem_squeal's K) and
+    ``asm_mass_matrix`` with IM_TETRAHEDRON(8) (GetFEM has no degree-7 rule; both integrate the
+    degree-7 mass exactly); the clamped DOFs removed; CHOLMOD (scikit-sparse) factor of K and scipy
+    ``eigsh`` shift-invert (σ = 0) with that factor as ``OPinv``: the configuration of issue #23."""
+    import resource
+
+    import getfem as gf
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import LinearOperator, eigsh
+    from sksparse.cholmod import cholesky
+
+    t0 = time.perf_counter()
+    m = gf.Mesh("import", "gmsh", msh)
+
+    def radii(region):
+        p = m.pts()[:, m.pid_in_faces(m.region(region))]
+        return np.hypot(p[0], p[1])
+
+    # GetFEM numbers the imported regions by gmsh entity; the clamp is the one on r = R_IN
+    inner = [r for r in m.regions() if np.allclose(radii(r), R_IN, rtol=0.0, atol=1e-9)]
+    if len(inner) != 1:
+        raise RuntimeError(f"getfem: {len(inner)} regions on r = {R_IN}")
+    t1 = time.perf_counter()
+    mfu = gf.MeshFem(m, 3)
+    mfu.set_classical_fem(2)
+    mfd = gf.MeshFem(m, 1)
+    mfd.set_classical_fem(0)
+    lam, mu = E * NU / ((1 + NU) * (1 - 2 * NU)), E / (2 * (1 + NU))
+    nd = mfd.nbdof()
+    Kg = gf.asm_linear_elasticity(gf.MeshIm(m, gf.Integ("IM_TETRAHEDRON(5)")), mfu, mfd,
+                                  np.full(nd, lam), np.full(nd, mu))
+    Mg = gf.asm_mass_matrix(gf.MeshIm(m, gf.Integ("IM_TETRAHEDRON(8)")), mfu)
+
+    def csc(A):
+        A.to_csc()
+        jc, ir = A.csc_ind()
+        return sp.csc_matrix((A.csc_val(), ir, jc), shape=A.size())
+
+    K, M = csc(Kg), RHO * csc(Mg)
+    free = np.setdiff1d(np.arange(mfu.nbdof()), mfu.basic_dof_on_region(inner[0]))
+    Kc, Mc = K[free][:, free].tocsc(), M[free][:, free].tocsc()
+    t2 = time.perf_counter()
+    factor = cholesky(Kc)
+    tf = time.perf_counter()
+    w, X = eigsh(Kc, n_modes, Mc, sigma=0.0, which="LM", tol=tol,
+                 OPinv=LinearOperator(Kc.shape, matvec=factor, dtype=float))
+    t3 = time.perf_counter()
+    order = np.argsort(w)
+    w, X = w[order], X[:, order]
+    normK = abs(Kc).sum(axis=1).max()
+    res = [np.linalg.norm(Kc @ x - lmb * (Mc @ x)) / (normK * np.linalg.norm(x)) for lmb, x in zip(w, X.T)]
+    return {"code": "GetFEM", "quadrature": "5/8", "parallel": 1, "dofs": mfu.nbdof(), "free_dofs": len(free),
+            "t_read": t1 - t0, "t_assembly": t2 - t1, "t_factor": tf - t2, "t_eig": t3 - t2, "t_e2e": t3 - t0,
+            "freqs": (np.sqrt(w) / (2 * np.pi)).tolist(), "solver": "cholmod + eigsh", "tol": tol,
             "max_residual": float(max(res)), "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
@@ -498,12 +586,14 @@ def plot(meshes: list[dict], runs: dict, ranks: int, quick: bool, n_par: int) ->
 
 # ---------------------------------------------------------------- driver
 
+def have_module(name: str) -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec(name) is not None
+
+
 def have_skfem() -> bool:
-    try:
-        import skfem  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    return have_module("skfem")
 
 
 def fem_case(workdir: Path, s: str, n_modes: int, quadrature: int, ranks: int) -> dict:
@@ -550,6 +640,120 @@ def run_all(sizes: list[float], n_modes: int, n_par: int, workdir: Path) -> tupl
     return meshes, runs
 
 
+def speed_cases(workdir: Path, mesh: dict, n_modes: int) -> dict[str, object]:
+    """--speed: each code's timed run on one mesh, as a function of no arguments, one thread each."""
+    s, msh = mesh["stem"], str(workdir / f"{mesh['stem']}.msh")
+    old = workdir / f"{s}_old.toml"
+    old.write_text(scene_text(f"{s}.msh", n_modes, AUTO, OLD_DEFAULTS))
+    new = workdir / f"{s}_q{AUTO}.toml"
+    new.write_text(scene_text(f"{s}.msh", n_modes, AUTO))
+    cases = {"fem_squeal": lambda: spawn(["fem", new, "default"]),
+             "fem_squeal before": lambda: spawn(["fem", old, "1e-10"])}
+    if have_module("getfem") and have_module("sksparse"):
+        cases["GetFEM"] = lambda: spawn(["getfem", msh, n_modes, SPEED_TOL])
+    if have_skfem() and have_module("sksparse"):
+        cases["scikit-fem"] = lambda: spawn(["skfem", msh, n_modes, *SKFEM_AUTO, SPEED_TOL, "cholmod"])
+    if shutil.which("ccx") is not None:
+        t_read = ccx_read_time(workdir, s)
+
+        def ccx():
+            r = run_ccx(workdir, s, n_modes, 1)
+            r.update(t_read=t_read, t_assembly=float("nan"), t_factor=float("nan"), t_eig=r["t_e2e"] - t_read,
+                     solver="SPOOLES + ARPACK")
+            return r
+        cases["CalculiX"] = ccx
+    return cases
+
+
+def run_speed(sizes: list[float], n_modes: int, repeats: int, workdir: Path) -> tuple[list[dict], dict]:
+    """Every code on every mesh, ``repeats`` times, interleaved (code after code, then again), so that
+    a change of the machine's load hits all codes alike; the fastest repeat of each code is kept."""
+    meshes = [spawn(["mesh", h, workdir, n_modes]) for h in sizes]
+    fem_case(workdir, meshes[0]["stem"], n_modes, AUTO, 1)       # warm the JIT cache
+    runs: dict[str, list[dict]] = {}
+    for mesh in meshes:
+        cases = speed_cases(workdir, mesh, n_modes)
+        got: dict[str, list[dict]] = {name: [] for name in cases}
+        for rep in range(repeats):
+            for name, case in cases.items():
+                r = case()
+                r["name"], r["h"], r["dofs"], r["rep"] = name, mesh["h"], mesh["dofs"], rep
+                if r["free_dofs"] != mesh["free_dofs"]:
+                    raise RuntimeError(f"{name} on {mesh['stem']}: {r['free_dofs']} free DOFs, the mesh has "
+                                       f"{mesh['free_dofs']}: not the same problem")
+                got[name].append(r)
+                print(f"{mesh['stem']} #{rep} {name}: {speed_total(r):.2f} s", file=sys.stderr, flush=True)
+        runs[mesh["stem"]] = [r for rs in got.values() for r in rs]
+    return meshes, runs
+
+
+def _s(v: float) -> str:
+    return "—" if v != v else f"{v:.2f}"
+
+
+def speed_total(r: dict) -> float:
+    """assembly + factorisation + eigensolve (ccx: its process minus its parse-only run)."""
+    return r["t_eig"] if r["code"] == "CalculiX" else r["t_assembly"] + r["t_eig"]
+
+
+def render_speed(meshes: list[dict], runs: dict, n_modes: int, repeats: int) -> None:
+    """The --speed tables: per mesh and code the fastest repeat's times, its frequency difference
+    against fem_squeal before #23 (tol 1e-10) on the same mesh, and the ratios to the fastest peer."""
+    L = [f"## Real modes against the fastest peer: clamped disc, {n_modes} modes, curved P2, 1 thread each", "",
+         f"Same gmsh meshes for every code; {repeats} interleaved repeats, the fastest kept (spread in brackets: "
+         "slowest/fastest total).  Times in s.  factor: the factorisation of K (σ = 0); eigensolve: the "
+         "iterations after it (ccx: its process minus its parse-only run, not separable).  total = assembly + "
+         "factor + eigensolve (reading the mesh excluded).  Δf: max relative frequency difference against "
+         "fem_squeal before #23 (MUMPS LDLᵀ, tol 1e-10, purified) on the same mesh; \"same frequencies\" is "
+         f"Δf ≤ {SAME:g}.  Peers' eigsh tol {SPEED_TOL:g} (fem_squeal's default; both are relative Ritz "
+         "residuals of the shift-inverted operator).  Ratio: the fastest agreeing peer's time / fem_squeal's.", "",
+         "| free DOFs | code | solver | assembly | factor | eigensolve | factor + eigensolve | total | Δf | "
+         "peak RSS [MB] |", "|---|---|---|---|---|---|---|---|---|---|"]
+    rows, summary = [], []
+    for mesh in meshes:
+        rs = runs[mesh["stem"]]
+        ref = min((r for r in rs if r["name"] == "fem_squeal before"), key=speed_total)
+        best = {}
+        for name in dict.fromkeys(r["name"] for r in rs):
+            mine = [r for r in rs if r["name"] == name]
+            b = dict(min(mine, key=speed_total))
+            b["spread"] = max(map(speed_total, mine)) / speed_total(b)
+            b["t_eig_min"] = min(r["t_eig"] for r in mine)   # factor + eigensolve: its own fastest repeat
+            b["df"] = rel_diff(b["freqs"], ref["freqs"])
+            best[name] = b
+            eig = b["t_eig"] - (0.0 if b["code"] == "CalculiX" else b["t_factor"])
+            L.append(f"| {mesh['free_dofs']} | {name} | {b['solver']} | {_s(b['t_assembly'])} | "
+                     f"{_s(b['t_factor'])} | {eig:.2f} | {b['t_eig']:.2f} | {speed_total(b):.2f} "
+                     f"({b['spread']:.2f}) | {b['df']:.1e} | {b['rss_mb']:.0f} |")
+        fem = best["fem_squeal"]
+        peers = [b for n, b in best.items() if not n.startswith("fem_squeal") and b["df"] <= SAME]
+        row = {"free_dofs": mesh["free_dofs"], "fem_total": speed_total(fem), "fem_eig": fem["t_eig_min"],
+               "before_total": speed_total(best["fem_squeal before"]), "fem_df": fem["df"]}
+        if peers:
+            p_tot, p_eig = min(peers, key=speed_total), min(peers, key=lambda b: b["t_eig_min"])
+            row.update(peer_total=p_tot["name"], peer_total_s=speed_total(p_tot),
+                       peer_eig=p_eig["name"], peer_eig_s=p_eig["t_eig_min"])
+        summary.append(row)
+        rows += [{"kind": "run", **r} for r in rs]
+    L += ["", "### Ratios (fastest agreeing peer / fem_squeal; target ≥ 2)", "",
+          "Each time the fastest of its code's repeats (factor + eigensolve: its own fastest repeat).", "",
+          "| free DOFs | fem_squeal total (before #23) | fastest peer, total | ratio total | ratio before | "
+          "fem_squeal factor + eigensolve | fastest peer, factor + eigensolve | ratio | fem_squeal Δf |",
+          "|---|---|---|---|---|---|---|---|---|"]
+    for row in summary:
+        if "peer_total" not in row:
+            L.append(f"| {row['free_dofs']} | {row['fem_total']:.2f} ({row['before_total']:.2f}) | no peer agrees "
+                     "| — | — | — | — | — | — |")
+            continue
+        L.append(f"| {row['free_dofs']} | {row['fem_total']:.2f} ({row['before_total']:.2f}) | "
+                 f"{row['peer_total']} {row['peer_total_s']:.2f} | "
+                 f"{row['peer_total_s'] / row['fem_total']:.2f}× | "
+                 f"{row['peer_total_s'] / row['before_total']:.2f}× | {row['fem_eig']:.2f} | {row['peer_eig']} "
+                 f"{row['peer_eig_s']:.2f} | {row['peer_eig_s'] / row['fem_eig']:.2f}× | {row['fem_df']:.1e} |")
+    rows += [{"kind": "mesh", **m} for m in meshes] + [{"kind": "summary", **r} for r in summary]
+    casework.save("modal_peers_speed", L, rows, 1, False)
+
+
 def render(meshes: list[dict], runs: dict, n_modes: int, n_par: int, ranks: int, quick: bool) -> None:
     """Tables (printed and saved), JSON rows and the plot."""
     ref_mesh = min(meshes, key=lambda m: m["h"])
@@ -588,20 +792,41 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help=f"one mesh ({QUICK_SIZES[0]} m), {QUICK_MODES} modes")
     ap.add_argument("--workdir", help="keep the meshes and solver files here (default: a temporary folder)")
     ap.add_argument("--render", metavar="JSON", help="only re-write the tables and plot from a saved .json")
+    ap.add_argument("--speed", action="store_true", help="real modes against the fastest peer (issue #23): "
+                    "26k, 87k, 260k DOFs, every code on 1 thread, interleaved repeats")
+    ap.add_argument("--repeats", type=int, default=3, help="--speed: repeats of each code")
+    ap.add_argument("--sizes", type=float, nargs="+", help=f"--speed: mesh sizes [m] (default {SPEED_SIZES})")
     a = ap.parse_args()
     if a.case:
         kind, *args = a.case
         if kind == "mesh":
             casework.report(make_mesh(float(args[0]), args[1], int(args[2])))
         elif kind == "fem":
-            casework.report(run_fem(args[0]))
+            casework.report(run_fem(*args))
         elif kind == "skfem":
-            casework.report(run_skfem(args[0], int(args[1]), int(args[2]), int(args[3])))
+            casework.report(run_skfem(args[0], int(args[1]), int(args[2]), int(args[3]),
+                                      *([float(args[4]), args[5]] if len(args) > 4 else [])))
+        elif kind == "getfem":
+            casework.report(run_getfem(args[0], int(args[1]), float(args[2])))
         else:
             raise SystemExit(f"unknown case {kind}")
         return
     n_modes = QUICK_MODES if a.quick else N_MODES
     t_start = time.perf_counter()
+    if a.speed and a.render:
+        rows = json.loads(Path(a.render).read_text())
+        meshes = [{k: v for k, v in r.items() if k != "kind"} for r in rows if r["kind"] == "mesh"]
+        runs = {m["stem"]: [r for r in rows if r["kind"] == "run" and r["h"] == m["h"]] for m in meshes}
+        render_speed(meshes, runs, n_modes, 1 + max(r["rep"] for rs in runs.values() for r in rs))
+        return
+    if a.speed:
+        with contextlib.ExitStack() as stack:
+            workdir = Path(a.workdir or stack.enter_context(tempfile.TemporaryDirectory(prefix="modal_speed_")))
+            workdir.mkdir(parents=True, exist_ok=True)
+            meshes, runs = run_speed(list(a.sizes or SPEED_SIZES), n_modes, a.repeats, workdir.resolve())
+        render_speed(meshes, runs, n_modes, a.repeats)
+        print(json.dumps({"wall_s": time.perf_counter() - t_start}), file=sys.stderr)
+        return
     if a.render:
         rows = json.loads(Path(a.render).read_text())
         meshes = [{k: v for k, v in r.items() if k != "kind"} for r in rows if r["kind"] == "mesh"]

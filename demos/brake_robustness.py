@@ -65,7 +65,9 @@ def nearest(lam: np.ndarray, target: complex) -> complex:
 
 worst_fd = 0.0
 for p, v in values.items():
-    h = 1e-6 * abs(v) if v else 1e-6
+    if v == 0:   # k_t, η at 0: the check is relative to p (p ∂λ/∂p = 0), and η, k_t < 0 are not allowed
+        continue
+    h = 1e-6 * abs(v)
     lp = solve_points(model, {p: np.array([v + h])})[0]
     lm = solve_points(model, {p: np.array([v - h])})[0]
     for r in sens:

@@ -9,8 +9,10 @@
 #            report.html in tests/test_pipeline.py) and Sphinx with the MyST parser (the user guide,
 #            built by tests/test_docs.py through scripts/docs.sh).  scripts/test.sh passes it.
 #   --docs:  also Sphinx with the MyST parser (scripts/docs.sh passes it).
-#   --bench: also the peers of the benchmark suite: CalculiX (Debian calculix-ccx) and scikit-fem
-#            (pure Python, pip-installed into the venv without dependencies: numpy/scipy stay Debian's).
+#   --bench: also the peers of the benchmark suite: CalculiX (Debian calculix-ccx), GetFEM (Debian
+#            python3-getfem), scikit-fem (pure Python, pip-installed into the venv without dependencies:
+#            numpy/scipy stay Debian's) and scikit-sparse (CHOLMOD for GetFEM's and scikit-fem's eigsh:
+#            built by pip against Debian's libsuitesparse-dev, cython3 and numpy, without dependencies).
 #   --packages-only: only the Debian packages and the OpenBLAS selection; no venv, and nothing of
 #            the project is read but this script (docker/Dockerfile runs it before copying the
 #            sources, so that the package layer survives source edits).  Prints nothing on stdout.
@@ -37,7 +39,7 @@ pkgs=(python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh python3-mes
       python3-hypothesis openmpi-bin libopenblas0-pthread)
 [ "$tests" -eq 1 ] && pkgs+=(chromium) && docs=1
 [ "$docs" -eq 1 ] && pkgs+=(python3-sphinx python3-myst-parser)
-[ "$bench" -eq 1 ] && pkgs+=(calculix-ccx)
+[ "$bench" -eq 1 ] && pkgs+=(calculix-ccx python3-getfem libsuitesparse-dev cython3 python3-dev gcc)
 
 missing=()
 for p in "${pkgs[@]}"; do
@@ -82,5 +84,9 @@ fi
 if [ "$bench" -eq 1 ] && ! "$venv/bin/python" -c "import skfem" >/dev/null 2>&1; then
   echo "[setup] installing scikit-fem (benchmark peer) into $venv" >&2
   "$venv/bin/python" -m pip install -q --no-deps "scikit-fem==12.0.2" >&2
+fi
+if [ "$bench" -eq 1 ] && ! "$venv/bin/python" -c "import sksparse.cholmod" >/dev/null 2>&1; then
+  echo "[setup] building scikit-sparse (CHOLMOD, benchmark peers) into $venv" >&2
+  "$venv/bin/python" -m pip install -q --no-deps --no-build-isolation "scikit-sparse==0.4.16" >&2
 fi
 echo "$venv/bin/python"

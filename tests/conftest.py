@@ -43,6 +43,22 @@ def clean_env() -> dict[str, str]:
     return env
 
 
+def two_rank_signature(mpirun: list[str], module: str, out) -> dict:
+    """``module.signature()`` (a test module's dict of numbers) computed by an ``mpirun -n 2`` child,
+    as rank 0 wrote it to the JSON file ``out``."""
+    import json
+    import subprocess
+    import sys
+
+    code = ("import json, sys; sys.path.insert(0, 'tests'); from mpi4py import MPI; "
+            f"import {module} as t; "
+            f"s = t.signature(); MPI.COMM_WORLD.rank == 0 and open({str(out)!r}, 'w').write(json.dumps(s))")
+    p = subprocess.run(mpirun + [sys.executable, "-c", code], capture_output=True, text=True, timeout=900,
+                       env=clean_env(), cwd=ROOT)
+    assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
+    return json.loads(Path(out).read_text())
+
+
 @pytest.fixture(scope="session")
 def mpirun():
     """Command prefix for 2 MPI ranks, or skip when mpirun is missing."""

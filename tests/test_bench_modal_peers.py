@@ -49,8 +49,17 @@ def disc(tmp_path_factory):
     return d, mesh, fem
 
 
+def needs(*modules: str) -> None:
+    """Skip unless the peers' modules are installed: looked up, never imported here (getfem links a
+    sequential MUMPS whose symbols, once loaded into the test process, break PETSc's parallel MUMPS
+    in later tests: the process exited with status 49 in a later CEA)."""
+    missing = [m for m in modules if not mp.have_module(m)]
+    if missing:
+        pytest.skip(f"not installed: {', '.join(missing)}")
+
+
 def skfem_run(d, mesh, orders):
-    pytest.importorskip("skfem")
+    needs("skfem")
     r = mp.spawn(["skfem", d / f"{mesh['stem']}.msh", N, *orders])
     assert r["free_dofs"] == mesh["free_dofs"] and r["max_residual"] < 1e-8
     return r
@@ -71,6 +80,26 @@ def test_skfem_four_point_is_fem_four_point(disc):
     d, mesh, fem = disc
     r = skfem_run(d, mesh, mp.SKFEM_4PT)
     assert mp.rel_diff(r["freqs"], fem[mp.FOUR_POINT]["freqs"]) < 1e-10
+
+
+def test_getfem_agrees_with_fem_default(disc):
+    """GetFEM: mass with IM_TETRAHEDRON(8) (exact, as fem_squeal's degree 7), stiffness with its
+    own degree-5 rule: the same kind of difference as scikit-fem's (1e-7 measured).  Tolerance 1e-6."""
+    needs("getfem", "sksparse")
+    d, mesh, fem = disc
+    r = mp.spawn(["getfem", d / f"{mesh['stem']}.msh", N, mp.SPEED_TOL])
+    assert r["free_dofs"] == mesh["free_dofs"] and r["max_residual"] < 1e-8
+    assert mp.rel_diff(r["freqs"], fem[mp.AUTO]["freqs"]) < 1e-6
+
+
+def test_skfem_cholmod_is_skfem_superlu(disc):
+    """scikit-fem with the CHOLMOD factor (the --speed peer) solves the same problem as with SuperLU:
+    both at eigsh tol 1e-10, so the frequencies agree to round-off (1e-12 is 1e4 × eps)."""
+    needs("sksparse")
+    d, mesh, _ = disc
+    a, b = (skfem_run(d, mesh, (*mp.SKFEM_AUTO, mp.EIG_TOL, f)) for f in ("cholmod", "superlu"))
+    assert a["solver"] == "cholmod + eigsh" and b["solver"] == "superlu + eigsh"
+    assert mp.rel_diff(a["freqs"], b["freqs"]) < 1e-12
 
 
 def test_calculix_is_fem_with_its_quadrature(disc):

@@ -265,21 +265,11 @@ def _close(a, b, rel):
 
 @pytest.mark.mpi
 def test_two_ranks_give_the_same_numbers(mpirun, tmp_path):
-    import json
-    import subprocess
-    import sys
-
-    from conftest import ROOT, clean_env
+    from conftest import two_rank_signature
 
     if COMM.size > 1:
         pytest.skip("compares a serial run with an mpirun -n 2 child")
-    out = tmp_path / "sig.json"
-    code = ("import json, sys; sys.path.insert(0, 'tests'); from mpi4py import MPI; import test_contact_kt as t; "
-            f"s = t.signature(); MPI.COMM_WORLD.rank == 0 and open({str(out)!r}, 'w').write(json.dumps(s))")
-    p = subprocess.run(mpirun + [sys.executable, "-c", code], capture_output=True, text=True, timeout=900,
-                       env=clean_env(), cwd=ROOT)
-    assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
-    par, ser = json.loads(out.read_text()), signature()
+    par, ser = two_rank_signature(mpirun, "test_contact_kt", tmp_path / "sig.json"), signature()
     for key in ("ring_xKx", "ring_xKfx", "ring_w2", "blocks_w2"):
         assert _close(par[key], ser[key], 1e-8), key
     assert _close(par["normal_force"], ser["normal_force"], 1e-8) and _close(par["u_norm"], ser["u_norm"], 1e-8)

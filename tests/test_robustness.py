@@ -200,6 +200,73 @@ def test_scene_errors_name_the_key(override, message):
         load_scene(ROOT / "scenes" / "brake_robustness.toml", [override])
 
 
+@pytest.mark.parametrize("override, message", [
+    ('analyses.robustness.parameters.kn.piston_seal.distribution="uniform"',
+     r"^analyses\.robustness\.parameters\.kn\.piston_seal: 'kn\.piston_seal': interface 'piston_seal' is a "
+     r"spring; per-interface parameters exist for contact interfaces \(\['pad_inner', 'pad_outer'\]\)"),
+    ('analyses.robustness.parameters.kt.pad_rear.distribution="uniform"',
+     r"^analyses\.robustness\.parameters\.kt\.pad_rear: unknown parameter 'kt\.pad_rear'; parameters are 'mu', "
+     r"'E\.<part>' and 'eta\.<part>' with a part of \[.*\], 'mu\.<contact>', 'kn\.<contact>' and 'kt\.<contact>' "
+     r"with a contact interface of \['pad_inner', 'pad_outer'\]"),
+    ('analyses.sensitivity.parameters=["eta.caliper"]',
+     r"^analyses\.sensitivity\.parameters\[0\]: the reduced basis does not carry 'eta\.caliper'.*"
+     r"materials\.caliper\.eta > 0"),
+    ("analyses.robustness.parameters.kn.pad_inner={distribution='normal', mean=5e11, std=1e11}",
+     r"^analyses\.robustness\.parameters\.kn\.pad_inner: a contact stiffness must stay > 0"),
+    ("analyses.robustness.parameters.kt.pad_inner={distribution='uniform', lower=-1e9, upper=1e9}",
+     r"^analyses\.robustness\.parameters\.kt\.pad_inner: a tangential stiffness must stay >= 0"),
+    ("materials.disc.eta=-0.01", r"^materials\.disc\.eta: must be >= 0"),
+])
+def test_scene_errors_for_the_interface_and_loss_parameters(override, message):
+    from fem_squeal.app.scene import load_scene
+    from fem_squeal.util.errors import SceneError
+
+    with pytest.raises(SceneError, match=message):
+        load_scene(ROOT / "scenes" / "brake_robustness.toml", [override])
+
+
+def test_scene_accepts_the_interface_and_loss_parameters():
+    """kn.<contact>, kt.<contact> (0 allowed), mu.<contact>, and eta.<part> of a part with a loss factor
+    (the basis carries its stiffness: analyses.reduced.basis_design)."""
+    from fem_squeal.app.analyses.reduced import basis_design
+    from fem_squeal.app.analyses.robustness import distributions
+    from fem_squeal.app.scene import load_scene, model_spec
+
+    s = load_scene(ROOT / "scenes" / "brake_robustness.toml", [
+        "analyses.robustness.parameters.kn.pad_inner={distribution='lognormal', mean=5e11, std=1e11}",
+        "analyses.robustness.parameters.kt.pad_outer={distribution='uniform', lower=0.0, upper=1e11}",
+        "analyses.robustness.parameters.mu.pad_outer={distribution='uniform', lower=0.3, upper=0.5}",
+        "materials.lining_inner.eta=0.1",
+        "analyses.robustness.parameters.eta.lining_inner={distribution='uniform', lower=0.05, upper=0.15}",
+        'analyses.sensitivity.parameters=["mu", "kn.pad_inner", "kt.pad_outer", "mu.pad_outer", '
+        '"eta.lining_inner"]'])
+    d = distributions(s["analyses"]["robustness"])
+    assert {"kn.pad_inner", "kt.pad_outer", "mu.pad_outer", "eta.lining_inner"} <= set(d)
+    assert "lining_inner" in basis_design(s, model_spec(s))[3]
+
+
+def test_robustness_E_distributions_go_into_the_basis_design():
+    """A robustness distribution of E.<part> samples the part's modes at its range (uniform bounds,
+    mean ± 3 std) and checks the reduced model there; the bundled scene's E sweep covers the same range,
+    so its design is unchanged."""
+    from fem_squeal.app.analyses.reduced import basis_design
+    from fem_squeal.app.scene import load_scene, model_spec
+
+    s = load_scene(ROOT / "scenes" / "brake_robustness.toml")
+    base = load_scene(ROOT / "scenes" / "brake_robustness.toml",
+                      ["analyses.robustness.parameters.E.disc.lower=1.2e11"])
+    mu0, checks, samples, parts = basis_design(s, model_spec(s))
+    assert samples == [{"E.disc": 112.5e9}, {"E.disc": 137.5e9}] and parts == ["disc"]
+    _, _, samples_b, _ = basis_design(base, model_spec(base))
+    assert {"E.disc": 1.2e11} in samples_b                   # the robustness range, beside the sweep's
+    s = load_scene(ROOT / "scenes" / "brake_robustness.toml", [
+        "analyses.robustness.parameters.E.caliper={distribution='normal', mean=1.7e11, std=1e10}",
+        'analyses.sensitivity.parameters=["E.caliper"]'])
+    _, checks, samples, parts = basis_design(s, model_spec(s))
+    assert "caliper" in parts and {"E.caliper": 1.4e11} in samples and {"E.caliper": 2.0e11} in samples
+    assert {"mu": mu0, "E.caliper": 1.4e11} in checks
+
+
 def test_bundled_scene_loads():
     from fem_squeal.app.analyses.robustness import distributions
     from fem_squeal.app.pipeline import required
@@ -217,9 +284,12 @@ class _Comm:
 
 
 def _ctx(model, analyses: dict):
+    from fem_squeal.app.fields import freeze
     from fem_squeal.app.stage import Context
 
-    scene = {"title": "test", "analyses": {"reduced": {"band_hz": list(BAND), "growth_tol": 1e-6}, **analyses}}
+    sections = {"reduced": {"band_hz": list(BAND), "growth_tol": 1e-6}, **analyses}
+    analyses = {n: freeze(t, None, n) for n, t in sections.items()}
+    scene = freeze({"title": "test", "analyses": analyses}, None, "scene")
     ctx = Context(scene, None, _Comm(), lambda *a: None, False, None, {})
     ctx.products["reduced"] = model
     return ctx
@@ -274,3 +344,23 @@ def test_monotone_driver_interval_contains_rho():
         assert d["rho"] == pytest.approx(sign, abs=1e-12)
         assert d["ci95"][0] <= d["rho"] <= d["ci95"][1]
 
+
+
+def test_sobol_first_order_of_an_additive_model():
+    """Y = 3X₁ + X₂ + 0·X₃ with independent X: S₁ = 9/10, S₂ = 1/10, S₃ = 0 (Var Xᵢ = 1); a non-monotone
+    driver (Y = X₁², ρ ≈ 0) has S₁ = 1."""
+    from fem_squeal.reduced.robustness import sobol_first_order
+
+    rng = np.random.default_rng(7)
+    n = 8000
+    X = rng.standard_normal((3, n))
+    y = 3 * X[0] + X[1]
+    s = [sobol_first_order(x, y) for x in X]
+    for si, ref in zip(s, (0.9, 0.1, 0.0)):
+        assert si["ci95"][0] - 0.01 <= ref <= si["ci95"][1] + 0.01   # bootstrap interval (+ binning bias ~1e-2)
+        assert abs(si["S1"] - ref) < 0.03                          # sampling + binning error at N = 8000
+    u = rng.uniform(-1, 1, n)
+    assert sobol_first_order(u, u ** 2)["S1"] > 0.95 and abs(spearman(u, u ** 2)["rho"]) < 0.05
+    assert sobol_first_order(np.ones(n), y)["constant"]
+    with pytest.raises(ModelError, match=r"^bins: must be in 2\.\.4000"):
+        sobol_first_order(X[0], y, bins=1)

@@ -257,3 +257,38 @@ def test_override_syntax_errors():
 def test_masa_needs_a_nonlinear_preload():
     with pytest.raises(SceneError, match=r"^analyses\.masa: needs preload\.mode = 'nonlinear'"):
         load_scene(BRAKE, ["analyses.masa.n_amplitudes=10", "preload.mode=all_closed"])
+
+
+def test_scene_is_typed_frozen_and_hashes_its_plain_content():
+    """validate returns frozen typed sections: attribute and key access give the same value, nothing
+    can be changed after validation, "not set" reads None (also in the older spelling 0), and the
+    cache key and results.json see exactly the plain tables (json of the section == json of the dict)."""
+    import dataclasses
+    import json
+
+    from fem_squeal.app.fields import Section, plain
+
+    raw = read_scene(ROOT / "scenes" / "ryzhik_ring.toml")
+    s = validate(copy.deepcopy(raw))
+    assert isinstance(s, Section) and isinstance(s.preload, Section)
+    assert s.preload.tol == s["preload"]["tol"] == 1e-9
+    assert s.interfaces["top_plate"].mu == raw["interfaces"]["top_plate"]["mu"]
+    assert s.discretisation.quadrature_degree is None
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        s.preload.tol = 1.0
+    with pytest.raises(TypeError):
+        s.preload["tol"] = 1.0
+    assert s.preload.replace(tol=1e-6).tol == 1e-6 and s.preload.tol == 1e-9
+    legacy = validate(apply_overrides(raw, ["discretisation.quadrature_degree=0"]))
+    assert legacy.discretisation.quadrature_degree is None
+    six = validate(apply_overrides(raw, ["discretisation.quadrature_degree=6"]))
+    assert six.discretisation.quadrature_degree == 6
+    with pytest.raises(SceneError, match=r"^discretisation\.quadrature_degree: must be > 0 \(got -1\)"):
+        validate(apply_overrides(raw, ["discretisation.quadrature_degree=-1"]))
+    p = plain(s)
+    assert type(p) is dict and type(p["preload"]) is dict and p["preload"] == dict(s.preload)
+    # the cache key hashes the tables' content, never a repr of the section objects
+    from fem_squeal.app.pipeline import _canonical
+    assert _canonical(s) == json.dumps(p, sort_keys=True, separators=(",", ":"))
+    assert "Preload(" not in _canonical({"inputs": s.preload})
+    assert "geometry" in s and "geometry" not in validate({"analyses": {"segmented_pad": {}}})

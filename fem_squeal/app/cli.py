@@ -176,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "mesh":
             from fem_squeal.app.convert import write_geometry  # heavy: MPI (see the module docstring)
 
-            for w in write_geometry(comm, scene["geometry"], args.output, args.scale):
+            for w in write_geometry(comm, scene.geometry, args.output, args.scale):
                 say(f"[fem_squeal] warning: {w}")
             say(f"[fem_squeal] wrote {args.output}")
             return 0

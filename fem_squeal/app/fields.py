@@ -4,14 +4,21 @@ in :mod:`fem_squeal.app.scene`, each analysis's section in its module of :mod:`f
 
 A check returns ``None`` when the value is fine, else the reason (``"must be > 0 (got -1)"``); the
 table checker prefixes the key path, so every error reads ``analyses.sweep.n: must be >= 2 (got 1)``.
+
+A validated table becomes a typed section (:func:`freeze`): a frozen dataclass made from its field
+table (:func:`section_type`), read by attribute (``scene.preload.tol``) or, as the dict it replaces,
+by key (``scene["preload"]["tol"]``).  ``None`` means "not set" (the field's documented fallback
+applies); a field's ``unset`` names the value that meant "not set" in the older scene format (``0``),
+which still reads as ``None``.
 """
 from __future__ import annotations
 
 import copy
 import dataclasses
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
+from functools import cache
 from typing import Any
 
 from fem_squeal.util.errors import SceneError
@@ -25,6 +32,8 @@ class Field:
     default: Any = ...           # ... = required
     check: Callable[[Any], str | None] | None = None
     doc: str = ""
+    #: the value that meant "not set" before None did (e.g. ``0`` for "automatic"): it reads as None
+    unset: Any = ...
 
 
 def positive(v):
@@ -96,6 +105,9 @@ def check_fields(table: Any, fields: dict[str, Field], path: str) -> dict:
             out[name] = copy.deepcopy(f.default)
             continue
         v = table[name]
+        if f.unset is not ... and not isinstance(v, bool) and v == f.unset:
+            out[name] = None
+            continue
         kinds = f.kind if isinstance(f.kind, tuple) else (f.kind,)
         if (isinstance(v, bool) and bool not in kinds) or not isinstance(v, kinds):
             want = " or ".join(k.__name__ for k in kinds)
@@ -108,3 +120,60 @@ def check_fields(table: Any, fields: dict[str, Field], path: str) -> dict:
                 raise SceneError(f"{key}: {msg}")
         out[name] = v
     return out
+
+
+class Section(Mapping):
+    """A validated scene table: a frozen dataclass (made by :func:`section_type`) that also reads as
+    the read-only mapping it replaces, so ``section.key`` and ``section["key"]`` are the same value."""
+
+    __slots__ = ()
+
+    def __getitem__(self, key: str) -> Any:
+        if key not in self.__dataclass_fields__:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.__dataclass_fields__)
+
+    def __len__(self) -> int:
+        return len(self.__dataclass_fields__)
+
+    def replace(self, **changes) -> Section:
+        """A copy with ``changes`` (the section itself is immutable)."""
+        return dataclasses.replace(self, **changes)
+
+    def as_dict(self) -> dict:
+        """The section as plain nested dicts (what the cache keys and results.json hold)."""
+        return plain(self)
+
+
+@cache
+def _section_type(name: str, names: tuple[str, ...]) -> type[Section]:
+    return dataclasses.make_dataclass(name, [(n, Any) for n in names], bases=(Section,), frozen=True,
+                                      eq=False)     # equality as mappings (Mapping.__eq__), like the dicts
+
+
+def section_type(fields: dict[str, Field], name: str = "Section") -> type[Section]:
+    """The frozen dataclass of a field table (one class per table and name)."""
+    return _section_type(name, tuple(fields))
+
+
+def _class_name(path: str) -> str:
+    return "".join(p[:1].upper() + p[1:] for p in path.replace("_", ".").split(".") if p) or "Section"
+
+
+def freeze(values: Mapping[str, Any], fields: dict[str, Field] | None = None, path: str = "") -> Section:
+    """A checked table (from :func:`check_fields`) as its typed section; nested plain tables
+    (name -> table maps such as ``boundary.fixed``) stay mappings of their values."""
+    names = tuple(fields) if fields is not None else tuple(values)
+    return _section_type(_class_name(path), names)(**{n: values[n] for n in names})
+
+
+def plain(obj: Any) -> Any:
+    """Sections and mappings as plain nested dicts (lists and scalars as they are)."""
+    if isinstance(obj, Mapping):
+        return {k: plain(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [plain(v) for v in obj]
+    return obj

@@ -45,6 +45,7 @@ from typing import Any, NamedTuple
 from mpi4py import MPI
 
 from fem_squeal.app.analyses import STAGES
+from fem_squeal.app.fields import plain
 from fem_squeal.app.scene import model_spec
 from fem_squeal.util.errors import PipelineError
 
@@ -61,7 +62,7 @@ def required(scene: dict) -> list[str]:
             for n in STAGES[name].needs:
                 pull(n)
 
-    for name in scene["analyses"]:
+    for name in scene.analyses:
         pull(name)
     return [n for n in STAGES if n in want]
 
@@ -87,7 +88,8 @@ def code_version() -> str:
 
 
 def _canonical(obj: Any) -> str:
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=repr)
+    """JSON of what a key hashes: typed scene sections as the plain tables they hold."""
+    return json.dumps(plain(obj), sort_keys=True, separators=(",", ":"), default=repr)
 
 
 def stage_keys(scene: dict, stages: list[str], *, write_fields: bool = True,

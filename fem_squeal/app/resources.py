@@ -1,11 +1,28 @@
 """Checks before any stage runs: the size of the model and the memory of its largest solve, and the
 output folder.
 
-Memory model (measured by ``benchmarks/mpi_scaling.py`` on the brake corner CEA with its preload,
-peak RSS summed over the ranks): 9.0 GiB at 347,853 P2 DOFs and 22.7 GiB at 711,351, i.e. memory ∝
-DOFs^(4/3) (the fill-in of a nested-dissection factorisation in 3D; the two points give 1.30):
+Memory model M(N, ranks, kind) of the brake corner CEA with its preload (the peak RSS summed over
+the ranks; ``benchmarks/memory_model.py``): a part linear in the DOFs (mesh, matrices, Krylov vectors)
+and the factor's fill-in, ∝ N^(4/3) for nested dissection in 3D, fitted through two one-rank runs of
+each factorisation kind (``exact`` in-core MUMPS, ``blr`` block low-rank, ``ooc`` out-of-core);
+r ranks hold r^γ times the one-rank memory (duplicated halos and fronts):
 
-    M(N) = 9.0 GiB · (N / 347,853)^(4/3).
+    M(N, r, kind) = (a_kind · N + b_kind · N^(4/3)) · r^γ.
+
+exact: 1.568 GiB at 88,869 DOFs and 7.456 GiB at 347,853 (one rank); γ = log₂(9.0/7.456) = 0.27 from
+the 9.0 GiB the same 347,853-DOF model took on two ranks (``benchmarks/mpi_scaling.py``; only r = 2 is
+measured, the power beyond it is an assumption).  Checked against the 711,351-DOF two-rank run
+(22.7 GiB measured, 20.8 predicted).  "How many machines": :func:`machines_needed`.
+
+ooc (MUMPS ICNTL(22) = 1 for the preload and the CEA: the factors go to files in $MUMPS_OOC_TMPDIR,
+frequencies equal to the in-core run's to 2e-11): 1.080 GiB at 88,869 DOFs and 4.214 GiB at 347,853,
+so b ≈ 0 and the memory is the linear part, 12.8 KB per DOF (matrices, vectors, mesh): 14.5 GiB at
+1.2M DOFs on one rank against 32 GiB in core.  Checked by a 184,506-DOF run: 2.31 GiB measured, 2.24
+predicted.  blr (ICNTL(35) = 2, CNTL(7) = 1e-8, one refinement
+step: frequencies within 1e-11) lowered no peak: 1.60 against 1.57 GiB at 88,869 DOFs, and above the
+in-core 7.46 GiB at 347,853 (MUMPS still touches its full-rank workspace), so it uses the exact fit.
+The DOFs come from the cell estimate of ``geometry.estimate``, which is high for fine brake meshes
+(650k estimated for the 347,853 of mesh_size 0.0056): the check errs on the safe side there.
 
 A run is refused (:class:`~fem_squeal.util.errors.ResourceError`, exit 2, before gmsh or any solver
 starts) when M exceeds 90 % of the memory of the machines it runs on, and warned about above 60 %.
@@ -27,13 +44,39 @@ GIB = 2.0 ** 30
 #: P2/P1 displacement DOFs per tetrahedron: measured 6.3 (ring), 5.7-5.9 (brake) for P2; P1 has about
 #: one vertex per 5 cells in the bulk and more in thin parts
 DOFS_PER_CELL = {1: 0.9, 2: 5.8}
-MEMORY_REF_DOFS, MEMORY_REF_BYTES, MEMORY_EXPONENT = 347_853, 9.0 * GIB, 4.0 / 3.0
 REFUSE_SHARE, WARN_SHARE = 0.9, 0.6
+#: one-rank peak memory [GiB] measured at two sizes (DOFs) per factorisation kind (benchmarks/memory_model.py)
+MEMORY_POINTS = {"exact": ((88_869, 1.568), (347_853, 7.456)), "ooc": ((88_869, 1.080), (347_853, 4.214))}
+#: memory ∝ ranks^γ at a fixed size: 9.0 GiB on 2 ranks against 7.456 GiB on 1 at 347,853 DOFs
+RANK_EXPONENT = math.log2(9.0 / 7.456)
+FILL_EXPONENT = 4.0 / 3.0
 
 
-def solve_memory(dofs: float) -> float:
-    """Bytes the largest solve of an N-DOF model needs, summed over the ranks (module docstring)."""
-    return MEMORY_REF_BYTES * (dofs / MEMORY_REF_DOFS) ** MEMORY_EXPONENT
+def _fit(kind: str) -> tuple[float, float]:
+    """(a, b) [bytes] of a N + b N^(4/3) through the two measured points of ``kind``."""
+    (n1, m1), (n2, m2) = MEMORY_POINTS[kind]
+    p = FILL_EXPONENT
+    b = (m2 - m1 * n2 / n1) / (n2 ** p - n1 ** (p - 1) * n2)
+    return (m1 - b * n1 ** p) / n1 * GIB, b * GIB
+
+
+def solve_memory(dofs: float, ranks: int = 1, kind: str = "exact") -> float:
+    """Bytes the largest solve of an N-DOF model needs, summed over ``ranks`` MPI ranks, with the
+    factorisation ``kind`` (module docstring)."""
+    a, b = _fit(kind if kind in MEMORY_POINTS else "exact")     # blr: no lower peak measured (module docstring)
+    return (a * dofs + b * dofs ** FILL_EXPONENT) * max(ranks, 1) ** RANK_EXPONENT
+
+
+def factorisation_kind(scene: dict) -> str:
+    """``ooc`` or ``blr`` when the scene's PETSc options ask MUMPS for them in both factorisations of
+    the run (``preload_mat_mumps_icntl_22`` and ``cea_st_mat_mumps_icntl_22``, or ``..._icntl_35``), as
+    measured; else ``exact`` (a factorisation left in-core sets the peak)."""
+    opts = {k.lstrip("-"): str(v).lower() for k, v in scene.get("solver", {}).get("petsc_options", {}).items()}
+
+    def both(icntl: int) -> bool:
+        return all(opts.get(f"{p}mat_mumps_icntl_{icntl}", "0") not in ("0", "false")
+                   for p in ("preload_", "cea_st_"))
+    return "ooc" if both(22) else "blr" if both(35) else "exact"
 
 
 def machine_memory() -> float:
@@ -46,9 +89,9 @@ class Estimate:
     """What a scene's model will take: cells, DOFs, memory of the largest solve, and what is there."""
     cells: float
     dofs: float
-    memory_gib: float          # of the largest solve, summed over the ranks
+    memory_gib: float          # of the largest solve on one rank (r ranks: r^γ times this, solve_memory)
     available_gib: float       # physical memory of the machines of this run
-    machines: int              # machines like this one the model needs (90 % of each usable)
+    machines: int              # machines like this one the model needs, one rank each (90 % of each usable)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -56,16 +99,24 @@ class Estimate:
 
 def estimate(scene: dict, nodes: int = 1) -> Estimate | None:
     """The size of ``scene``'s model before its mesh is built (None for a mesh file or a lumped scene:
-    the file fixes the size, the mesh stage reports it)."""
+    the file fixes the size, the mesh stage reports it).  Independent of the run's rank count."""
     geo = scene.get("geometry")
     if geo is None or geo["builder"] not in ESTIMATORS:
         return None
     params = {k: v for k, v in geo.items() if k != "builder"}
     cells = sum(ESTIMATORS[geo["builder"]](**params).values())
-    dofs = cells * DOFS_PER_CELL[scene["discretisation"]["degree"]]
-    memory, machine = solve_memory(dofs), machine_memory()
-    return Estimate(cells, dofs, memory / GIB, nodes * machine / GIB,
-                    max(1, math.ceil(memory / (REFUSE_SHARE * machine))))
+    dofs = cells * DOFS_PER_CELL[scene.discretisation.degree]
+    kind, machine = factorisation_kind(scene), machine_memory()
+    return Estimate(cells, dofs, solve_memory(dofs, 1, kind) / GIB, nodes * machine / GIB,
+                    machines_needed(dofs, machine, 1, kind))
+
+
+def machines_needed(dofs: float, machine: float, ranks_per_machine: int = 1, kind: str = "exact") -> int:
+    """The fewest machines of ``machine`` bytes each (90 % usable) an N-DOF model fits on under MPI,
+    with ``ranks_per_machine`` ranks on each (every further rank adds its share of memory)."""
+    # M₁ (m k)^γ ≤ 0.9 m·machine  ⇔  m ≥ (M₁ k^γ / (0.9 machine))^(1/(1−γ))
+    one = solve_memory(dofs, ranks_per_machine, kind)
+    return max(1, math.ceil((one / (REFUSE_SHARE * machine)) ** (1.0 / (1.0 - RANK_EXPONENT)) * (1 - 1e-12)))
 
 
 def check_resources(scene: dict, comm) -> tuple[Estimate | None, list[str]]:
@@ -75,15 +126,16 @@ def check_resources(scene: dict, comm) -> tuple[Estimate | None, list[str]]:
     est = comm.bcast(estimate(scene, nodes) if comm.rank == 0 else None, root=0)
     if est is None:
         return None, []
-    geo = scene["geometry"]
+    geo = scene.geometry
+    need = solve_memory(est.dofs, comm.size, factorisation_kind(scene)) / GIB
     what = (f"geometry.mesh_size: {geo['mesh_size']:g} m gives about {est.cells:.3g} elements and "
-            f"{est.dofs:.3g} DOFs (P{scene['discretisation']['degree']}); its largest solve needs about "
-            f"{est.memory_gib:.3g} GiB (memory ∝ DOFs^(4/3), 9 GiB at 348k DOFs)")
-    if est.memory_gib > REFUSE_SHARE * est.available_gib:
+            f"{est.dofs:.3g} DOFs (P{scene.discretisation['degree']}); its largest solve needs about "
+            f"{need:.3g} GiB on {comm.size} rank(s) (7.5 GiB at 348k DOFs on one rank, fill-in ∝ DOFs^(4/3))")
+    if need > REFUSE_SHARE * est.available_gib:
         raise ResourceError(f"{what}, more than {100 * REFUSE_SHARE:.0f} % of the {est.available_gib:.3g} GiB of "
                             f"the {nodes} machine(s) of this run: it needs {est.machines} such machines under "
                             "MPI; use a larger mesh_size")
-    if est.memory_gib > WARN_SHARE * est.available_gib:
+    if need > WARN_SHARE * est.available_gib:
         return est, [f"{what}: close to the {est.available_gib:.3g} GiB of this run's machine(s)"]
     return est, []
 

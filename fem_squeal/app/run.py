@@ -19,6 +19,7 @@ estimate         (when the mesh is built) cells, dofs, memory_gib of the largest
 preload          (models with contact interfaces) mode, iterations, history [[closed points,
                  ‖R‖/‖f‖]], and per interface: normal_force [N], friction_force [N],
                  contact_area [m²], area [m²], peak_pressure [Pa], closed_share
+friction_damping (interfaces with friction_damping) norm (‖C_d‖), speed [rad/s]
 real_modes       [{freq_hz, residual, in_plane_share, nodal_diameter, nodal_share}] (nodal_share: the
                  projection on the uniform harmonic ±k, not an energy share: fem_squeal.fe.descriptors)
 complex_modes    [{index, freq_hz, real_part [1/s], damping_ratio, residual, unstable,
@@ -26,7 +27,10 @@ complex_modes    [{index, freq_hz, real_part [1/s], damping_ratio, residual, uns
                    travelling_direction, energy_shares {component: share}}]
                  (Im λ > 0, inside analyses.cea.band_hz; descriptors of describe_part;
                  energy_shares only for models with several parts)
-n_unstable       number of complex modes with Re λ > 0
+n_unstable       number of complex modes with Re λ > analyses.cea.growth_tol·|λ| (their ``unstable``)
+cea_method       "linear" (undamped: EPS) or "pep" (damping, friction damping or the turning disc)
+cea_rotation     (operating.gyroscopic or preload.geometric_stiffness) speed and the norms of the added
+                 terms
 reduced          size, parameters, mu0, rounds [{cut_hz, modes, sampled_modes, static, dropped,
                  size, change, seconds}], converged, tol, estimated_error, lifted_residuals
                  [{point, freq_hz, real_part, backward_error}], verification [{point,
@@ -37,11 +41,14 @@ sweep            parameter, values, critical [{branch, partner, value, bracket, 
 map              parameter, points, seconds, seconds_per_point, axes, bands_hz, counts, total
 sensitivity      [{index, freq_hz, real_part, unstable, d_real_part {parameter: ∂Re λ/∂p}, d_freq_hz
                    {parameter: ∂f/∂p}, rel_d_real_part, rel_d_freq_hz (p·∂/∂p), kappa_local, kappa,
-                   near_coalescence (then the derivatives are None), ranking}] (reduced model)
+                   near_coalescence (then the derivatives are None), ranking, full (with
+                   analyses.sensitivity.full: the same derivatives from the full CEA's right and left
+                   eigenvectors)}] (reduced model)
 robustness       n_samples, seed, ranks, seconds, seconds_per_sample, parameters {name: distribution},
                  probability {p, stderr, wilson95}, bands [{band_hz, p, stderr, ...}], families
                  [{label, freq_hz, nominal_real_part, p, stderr, growth {mean, std, min, q05,
                  median, q95, max}, drivers}], drivers {parameter: Spearman ρ and its 95 % interval},
+                 sobol {parameter: first-order Sobol' index and its bootstrap interval},
                  family_assignment, spot_checks [{point, max_rel_error, ...}] (full CEA)
 masa             cases [{mu, equilibrium, elements, basis, instabilities [{freq_hz, real_part,
                  stationary_amplitudes, stationary_in_unit, broke_at, steps}], seconds}]
@@ -177,11 +184,12 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
         results["timings_s"] = timings
         if "model" in results:
             results["model"]["ranks"] = comm.size
-        if rank0:
+        def write_outputs() -> None:
             write_json_atomic(outdir / "results.json", results)
             if report:
                 write_report(outdir, results)
-        comm.barrier()
+
+        on_root(comm, write_outputs)      # a failure there (a report section) is raised on every rank
         return results
     finally:
         if temporary:

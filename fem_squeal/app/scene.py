@@ -1,4 +1,9 @@
-"""Scene files: TOML → validated, defaulted dictionary → model description.
+"""Scene files: TOML → validated, defaulted, typed sections → model description.
+
+:func:`validate` returns the scene as frozen sections (:class:`fem_squeal.app.fields.Section`), made
+from the field tables below: ``scene.preload.tol`` (or ``scene["preload"]["tol"]``, the same value);
+``scene.materials``, ``scene.interfaces`` and ``scene.analyses`` map names to their sections.  A field
+that is not set reads ``None`` and its documented fallback applies.
 
 The model sections' schema below and the analyses' sections (``fem_squeal.app.analyses``) are the one
 place where keys, types, bounds and defaults are defined.  Errors
@@ -28,6 +33,15 @@ interfaces.<name> type = "rigid_plate": face, kn [N/m³], mu, sliding (+1 forwar
                  sliding direction only (t₂ = n × s; sliding = 0: both tangents); default 0 (seed
                  001).  CalculiX: kt = λ/F (stick slope λ, F = μ_static/μ); ANSYS: FKT × kn;
                  Abaqus: the elastic-slip stiffness of the penalty friction law
+                 friction (contact, rigid_plate): "constant" (mu) or "stribeck" (μ(V) of seed 004
+                 eq. 4 with mu_s, mu_d, v_s [m/s], v_d [m/s], as analyses.transient; the law of
+                 reduced.laws.friction) at V = operating.speed·r, used by the preload and K_f too;
+                 the interface's nominal μ (a μ sweep scales it) is then mu_d
+                 friction_damping (contact, rigid_plate; default false): the velocity terms of the
+                 linearised friction force (Abaqus FRICTION DAMPING=YES) in C about the preload:
+                 p μ/V t₂t₂ᵀ + p dμ/dV ssᵀ per area (p the preload pressure; a plate's is k_n (u·n)
+                 of the static displacement); needs operating.speed > 0, sliding ≠ 0, mu > 0 or a
+                 μ(V) law, preload.mode = "nonlinear" (contact) or loads.pressure (plate)
                  type = "spring": slave, master, kn, kt [N/m³];  type = "bonded": slave, master, kn
 boundary         clamped = [face names] (all displacement components fixed);
                  fixed.<name>: face, components = subset of ["x", "y", "z"] (global axes fixed);
@@ -35,8 +49,17 @@ boundary         clamped = [face names] (all displacement components fixed);
 loads            pressure.<name>: face, p [Pa] (pushes the face inwards)
 preload          mode ("nonlinear": active-set Newton then linearise about the closed points;
                  "all_closed": every contact point closed, no static solve), friction (sliding
-                 friction in the static step), tol, max_iterations
-discretisation   degree (1 or 2), quadrature_degree (0 = automatic), interface_quadrature_degree
+                 friction in the static step), tol, max_iterations, geometric_stiffness (default
+                 false: the CEA adds K_σ = ∫ σ₀_ij ∂_i u_k ∂_j v_k of the static stress σ₀ of the
+                 preload, plus the centrifugal prestress with operating.gyroscopic)
+operating        speed [rad/s] (default 0: the disc speed Ω; V = Ω r at each contact point for the μ(V)
+                 laws and friction_damping of the interfaces; > 0 with nothing using it is an error),
+                 gyroscopic (default false: the rotating_parts turn at speed Ω about z under fixed
+                 observers; the CEA gains Ω G₁ in C and −Ω² K_L in K, transport form, see
+                 fem_squeal.fe.forms), rotating_parts = [part names] (default ["disc"]); gyroscopic
+                 and preload.geometric_stiffness enter analyses.cea only (real_modes: at rest;
+                 reduced-model studies are refused with them)
+discretisation   degree (1 or 2), quadrature_degree (not set: automatic), interface_quadrature_degree
 analyses.<name>  one section per analysis, declared by its module in fem_squeal.app.analyses (the
                  registry): fields, defaults and cross-checks.  The full reference of every key, model
                  and analyses alike, is generated from these tables:
@@ -55,9 +78,11 @@ from fem_squeal.app.analyses import ANALYSES, STAGES
 from fem_squeal.app.fields import (
     REAL,
     Field,
+    Section,
     at_least,
     check_fields,
     dataclass_fields,
+    freeze,
     non_negative,
     nonempty_str,
     one_of,
@@ -65,6 +90,7 @@ from fem_squeal.app.fields import (
     positive,
 )
 from fem_squeal.fe.model import FixedFace, GroundSpring, Interface, Material, ModelSpec, Pressure, RigidPlate
+from fem_squeal.reduced.laws.friction import FRICTION_LAWS
 from fem_squeal.util.errors import SceneError
 from geometry.brake_corner import BrakeCornerParams
 from geometry.mesh_file import MeshImportError, file_format
@@ -155,6 +181,9 @@ MATERIAL = {
     "E_axial": Field(REAL, None, positive, "transversely isotropic: modulus along the axis [Pa]"),
     "nu_axial": Field(REAL, None, None, "transversely isotropic: in-plane contraction under axial stress"),
     "G_axial": Field(REAL, None, positive, "transversely isotropic: shear modulus of axial planes [Pa]"),
+    "eta": Field(REAL, 0.0, non_negative, "loss factor η: structural damping K(1 + iη) of the part, in the "
+                 "reduced model (whose basis then carries the part's stiffness) and its full-order checks (the "
+                 "real problem of twice the size); analyses.cea, with real arithmetic, leaves it out"),
 }
 _TYPE = Field(str, "rigid_plate", one_of("rigid_plate", "contact", "spring", "bonded"))
 _PAIR = {"slave": Field(str, check=nonempty_str, doc="slave face (quadrature side: the lining)"),
@@ -162,12 +191,26 @@ _PAIR = {"slave": Field(str, check=nonempty_str, doc="slave face (quadrature sid
 _FRICTION = {"mu": Field(REAL, 0.0, non_negative, "friction coefficient"),
              "sliding": Field(int, 1, one_of(-1, 0, 1), "+1 forward (+e_θ), -1 backward, 0 none")}
 _KT = Field(REAL, 0.0, non_negative, "tangential penalty across the sliding direction [N/m³] (0: seed 001)")
+#: the friction law of a sliding contact or plate and its velocity terms (names as in analyses.transient)
+_SPEED_LAWS = ("constant", "stribeck")
+_FRICTION_LAW = {
+    "friction": Field(str, "constant", one_of(*_SPEED_LAWS),
+                      "constant: mu; stribeck: μ(V) of seed 004 eq. 4 at V = operating.speed·r (mu_s, mu_d, "
+                      "v_s, v_d), in the preload and K_f too"),
+    "mu_s": Field(REAL, None, positive, "static μ (stribeck); not set: mu", unset=0),
+    "mu_d": Field(REAL, None, positive, "dynamic μ (stribeck; the nominal μ a μ sweep scales); not set: mu",
+                  unset=0),
+    "v_s": Field(REAL, 1e-3, positive, "Stribeck static transition velocity [m/s]"),
+    "v_d": Field(REAL, 1e-2, positive, "Stribeck dynamic transition velocity [m/s]"),
+    "friction_damping": Field(bool, False, None, "velocity terms of the linearised friction force (Abaqus "
+                              "FRICTION DAMPING=YES): p μ/V t₂t₂ᵀ + p dμ/dV ssᵀ in C; needs operating.speed > 0"),
+}
 INTERFACES = {
     "rigid_plate": {"type": _TYPE, "face": Field(str, check=nonempty_str, doc="face name of the geometry"),
                     "kn": Field(REAL, check=non_negative, doc="penalty stiffness per area [N/m³]"), **_FRICTION,
-                    "kt": _KT},
+                    "kt": _KT, **_FRICTION_LAW},
     "contact": {"type": _TYPE, **_PAIR, "kn": Field(REAL, check=positive, doc="penalty [N/m³]"), **_FRICTION,
-                "kt": _KT},
+                "kt": _KT, **_FRICTION_LAW},
     "spring": {"type": _TYPE, **_PAIR, "kn": Field(REAL, check=positive, doc="normal stiffness [N/m³]"),
                "kt": Field(REAL, 0.0, non_negative, "tangential stiffness [N/m³]")},
     "bonded": {"type": _TYPE, **_PAIR, "kn": Field(REAL, 1e14, positive, "tie penalty [N/m³]")},
@@ -194,11 +237,21 @@ SECTIONS = {
         "friction": Field(bool, True, None, "sliding friction in the static step"),
         "tol": Field(REAL, 1e-9, positive, "Newton tolerance on ‖R‖/‖f‖"),
         "max_iterations": Field(int, 25, positive),
+        "geometric_stiffness": Field(bool, False, None, "stress stiffening K_σ(σ₀) of the static stress in the "
+                                     "CEA (preload, and the centrifugal prestress with operating.gyroscopic)"),
     },
     "discretisation": {
         "degree": Field(int, 2, one_of(1, 2), "Lagrange degree (P1 locks in bending)"),
-        "quadrature_degree": Field(int, 0, non_negative, "0 = estimated by the form compiler"),
+        "quadrature_degree": Field(int, None, positive, "not set: estimated by the form compiler", unset=0),
         "interface_quadrature_degree": Field(int, 4, positive, "slave-surface quadrature of interfaces"),
+    },
+    "operating": {
+        "speed": Field(REAL, 0.0, non_negative, "disc speed Ω [rad/s] (sliding speed V = Ω r at each contact "
+                       "point); 0 = no velocity terms"),
+        "gyroscopic": Field(bool, False, None, "the disc's rotation in the space-fixed frame (gyroscopic and "
+                            "convective terms; needs speed > 0)"),
+        "rotating_parts": Field(list, ["disc"], None, "parts that turn at operating.speed about z (with "
+                                "gyroscopic = true)"),
     },
     "solver": {"petsc_options": Field(dict, {}, None, "PETSc options, with their solver prefix")},
 }
@@ -305,8 +358,85 @@ def validate(raw: dict) -> dict:
                          "(or set preload.mode = 'all_closed')")
 
     scene["analyses"] = _check_analyses(ana)
-    _cross_check(scene, volumes)
-    return scene
+    _check_speed_terms(scene)
+    _check_rotation(scene, volumes)
+    typed = _typed(scene)
+    _cross_check(typed, volumes)
+    return typed
+
+
+def _check_rotation(scene: dict, volumes) -> None:
+    """operating.rotating_parts: a list of part names (checked against the geometry's parts when
+    gyroscopic is true; then it must not be empty) and gyroscopic = true needs speed > 0.  The rotation
+    and the stress stiffening enter the CEA only (real_modes stay the modes at rest): the reduced-model
+    studies are refused with them."""
+    op = scene["operating"]
+    parts = op["rotating_parts"]
+    if not isinstance(parts, list) or not all(isinstance(p, str) for p in parts):
+        raise SceneError(f"operating.rotating_parts: must be a list of part names (got {parts!r})")
+    if len(set(parts)) != len(parts):
+        raise SceneError(f"operating.rotating_parts: a part is listed twice (got {parts!r})")
+    terms = [k for k, on in (("operating.gyroscopic", op["gyroscopic"]),
+                             ("preload.geometric_stiffness", scene["preload"]["geometric_stiffness"])) if on]
+    studies = sorted(set(scene["analyses"]) - {"cea", "real_modes"})
+    if terms and studies:
+        raise SceneError(f"{terms[0]}: only analyses.cea includes it, not the reduced model of "
+                         f"analyses.{studies[0]} (remove that analysis or set {terms[0]} = false)")
+    if not op["gyroscopic"]:
+        return
+    if not parts:
+        raise SceneError("operating.rotating_parts: must name at least one part when operating.gyroscopic "
+                         f"is true; parts: {sorted(volumes)}")
+    for i, p in enumerate(parts):
+        if p not in volumes:
+            raise SceneError(f"operating.rotating_parts[{i}]: unknown part {p!r}; parts: {sorted(volumes)}")
+    if not op["speed"] > 0:
+        raise SceneError(f"operating.speed: must be > 0 when operating.gyroscopic is true (got {op['speed']})")
+
+
+def _check_speed_terms(scene: dict) -> None:
+    """operating.speed against the friction laws and friction damping of the interfaces: a μ(V) law and
+    friction damping need speed > 0, a sliding interface with μ, the preload pressure they scale with,
+    and no nonlinear study (transient, masa: their friction laws carry the velocity terms themselves);
+    a speed > 0 that nothing uses is an error."""
+    speed = scene["operating"]["speed"]
+    used = bool(scene["operating"].get("gyroscopic", False))
+    for name, t in scene["interfaces"].items():
+        if "friction" not in t:
+            continue
+        key = f"interfaces.{name}"
+        law = t["friction"] != "constant"
+        if law:
+            if not speed > 0:
+                raise SceneError(f"operating.speed: must be > 0 when {key}.friction = {t['friction']!r} "
+                                 f"(μ(V) at V = speed·r; got {speed})")
+            if not (t["mu_d"] or t["mu"]) > 0:
+                raise SceneError(f"{key}.mu_d: must be > 0 with friction = {t['friction']!r} (or give mu)")
+            if t["v_d"] <= t["v_s"]:
+                raise SceneError(f"{key}.v_d: must be > v_s = {t['v_s']} (got {t['v_d']})")
+            used = True
+        if not t["friction_damping"]:
+            continue
+        if not speed > 0:
+            raise SceneError(f"operating.speed: must be > 0 when {key}.friction_damping is true (got {speed})")
+        if t["sliding"] == 0:
+            raise SceneError(f"{key}.friction_damping: needs sliding = +1 or -1 (got 0: nothing slides)")
+        if t["mu"] == 0 and not law:
+            raise SceneError(f"{key}.friction_damping: needs mu > 0 or a μ(V) law (friction = 'stribeck')")
+        if t["type"] == "contact" and scene["preload"]["mode"] != "nonlinear":
+            raise SceneError(f"{key}.friction_damping: needs preload.mode = 'nonlinear' (the damping scales "
+                             "with the preload contact pressure)")
+        if t["type"] == "rigid_plate" and not scene["loads"]["pressure"]:
+            raise SceneError(f"{key}.friction_damping: needs loads.pressure (a plate's pressure k_n (u·n) "
+                             "comes from the static preload)")
+        for study in ("transient", "masa"):
+            if study in scene["analyses"]:
+                raise SceneError(f"{key}.friction_damping: not with analyses.{study} (its friction law and "
+                                 "contact state carry the velocity terms themselves)")
+        used = True
+    if speed > 0 and not used:
+        raise SceneError(f"operating.speed: {speed} but nothing uses it: set interfaces.<name>.friction_damping "
+                         "= true, a friction = 'stribeck' law or operating.gyroscopic = true (or speed = 0)")
 
 
 def _check_analyses(ana: dict) -> dict:
@@ -331,8 +461,8 @@ def _check_analyses(ana: dict) -> dict:
     return out
 
 
-def _cross_check(scene: dict, volumes) -> None:
-    """Each analysis's cross-checks against the rest of the scene, in the registry's order."""
+def _cross_check(scene: Section, volumes) -> None:
+    """Each analysis's cross-checks against the rest of the (typed) scene, in the registry's order."""
     for name in scene["analyses"]:
         if ANALYSES[name].check is not None:
             ANALYSES[name].check(scene, volumes)
@@ -346,8 +476,36 @@ def _validate_lumped(raw: dict, scene: dict) -> dict:
                          "finite-element model); remove it")
     scene["solver"] = check_fields(raw.get("solver", {}), SECTIONS["solver"], "solver")
     scene["analyses"] = _check_analyses(raw["analyses"])
-    _cross_check(scene, {})
-    return scene
+    typed = _typed(scene)
+    _cross_check(typed, {})
+    return typed
+
+
+#: the name -> table maps inside model sections, with the fields of their tables
+_SUBTABLES = {("boundary", "fixed"): FIXED, ("boundary", "ground_springs"): GROUND_SPRING,
+              ("loads", "pressure"): PRESSURE}
+
+
+def _typed(scene: dict) -> Section:
+    """The validated scene as typed, frozen sections (:func:`fem_squeal.app.fields.freeze`): the
+    top level holds the sections present (a lumped scene has no geometry), ``materials``,
+    ``interfaces`` and ``analyses`` map names to their sections."""
+    out: dict[str, Any] = {"title": scene["title"]}
+    if "geometry" in scene:
+        geo = scene["geometry"]
+        out["geometry"] = freeze(geo, GEOMETRY[geo["builder"]], f"geometry.{geo['builder']}")
+        out["materials"] = {p: freeze(m, MATERIAL, "material") for p, m in scene["materials"].items()}
+        out["interfaces"] = {n: freeze(t, INTERFACES[t["type"]], f"interface.{t['type']}")
+                             for n, t in scene["interfaces"].items()}
+    for sec, fields in SECTIONS.items():
+        if sec in scene:
+            table = dict(scene[sec])
+            for (s, sub), sub_fields in _SUBTABLES.items():
+                if s == sec:
+                    table[sub] = {n: freeze(t, sub_fields, f"{sec}.{sub}") for n, t in table[sub].items()}
+            out[sec] = freeze(table, fields, sec)
+    out["analyses"] = {n: freeze(t, ANALYSES[n].section, f"analyses.{n}") for n, t in scene["analyses"].items()}
+    return freeze(out, None, "scene")
 
 
 def _check_fixed(boundary: dict, known_face) -> None:
@@ -442,14 +600,38 @@ def load_scene(path: str | Path, overrides: list[str] | None = None) -> dict:
     return validate(apply_overrides(read_scene(path), overrides or []))
 
 
+def _friction_law(t):
+    """The μ(V) law of an interface table (None: the constant mu), made by the registry of
+    :mod:`fem_squeal.reduced.laws.friction` that the transient uses too."""
+    if t.get("friction", "constant") == "constant":
+        return None
+    return FRICTION_LAWS[t["friction"]].make(float(t["mu"]), t["mu_s"], t["mu_d"], float(t["v_s"]),
+                                             float(t["v_d"]), 1.0, 0.0)
+
+
+def _nominal_mu(t) -> float:
+    """The interface's μ: mu, or with a μ(V) law its dynamic level μ_d (what a μ sweep scales)."""
+    law = _friction_law(t)
+    return float(t.get("mu", 0.0)) if law is None else float(law.mu_d)
+
+
+def _speed_terms(t, speed: float) -> dict:
+    """The friction law, friction damping and disc speed of an interface table (fe.model fields)."""
+    if "friction" not in t:
+        return {}
+    return {"law": _friction_law(t), "friction_damping": bool(t["friction_damping"]), "speed": speed}
+
+
 def model_spec(scene: dict) -> ModelSpec:
     """The physics description of a validated scene."""
     mats = {p: Material(**m) for p, m in scene["materials"].items()}
-    plates = tuple(RigidPlate(t["face"], float(t["kn"]), float(t["mu"]), int(t["sliding"]), float(t["kt"]))
+    speed = float(scene["operating"]["speed"]) if "operating" in scene else 0.0
+    plates = tuple(RigidPlate(t["face"], float(t["kn"]), _nominal_mu(t), int(t["sliding"]), float(t["kt"]),
+                              **_speed_terms(t, speed))
                    for t in scene["interfaces"].values() if t["type"] == "rigid_plate")
     interfaces = tuple(
         Interface(name, t["slave"], t["master"], t["type"], float(t["kn"]), float(t.get("kt", 0.0)),
-                  float(t.get("mu", 0.0)), int(t.get("sliding", 0)))
+                  _nominal_mu(t), int(t.get("sliding", 0)), **_speed_terms(t, speed))
         for name, t in scene["interfaces"].items() if t["type"] != "rigid_plate")
     springs = tuple(GroundSpring(t["face"], float(t["k_axial"]), float(t["k_transverse"]))
                     for t in scene["boundary"]["ground_springs"].values())
@@ -458,6 +640,6 @@ def model_spec(scene: dict) -> ModelSpec:
     fixed = tuple(FixedFace(t["face"], tuple(t["components"]))
                   for t in scene["boundary"].get("fixed", {}).values())
     return ModelSpec(mats, plates, tuple(scene["boundary"]["clamped"]), d["degree"],
-                     d["quadrature_degree"] or None, interfaces=interfaces, ground_springs=springs,
+                     d.quadrature_degree, interfaces=interfaces, ground_springs=springs,
                      pressures=pressures, interface_quadrature_degree=d["interface_quadrature_degree"],
                      fixed=fixed)

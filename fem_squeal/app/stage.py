@@ -66,4 +66,4 @@ class Stage:
 
     def key_inputs(self, scene: dict, spec) -> Any:
         """The part of the validated scene that this stage reads (hashed into its cache key)."""
-        return self.inputs(scene, spec) if self.inputs is not None else scene["analyses"][self.name]
+        return self.inputs(scene, spec) if self.inputs is not None else scene.analyses[self.name]

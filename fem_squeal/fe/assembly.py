@@ -20,10 +20,13 @@ import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from petsc4py import PETSc
+from ufl.algorithms.map_integrands import map_integrand_dags
+from ufl.corealg.multifunction import MultiFunction
 
 from fem_squeal.fe import forms
 from fem_squeal.fe import interface as itf
-from fem_squeal.fe.model import Interface, ModelSpec
+from fem_squeal.fe.eigen import set_options
+from fem_squeal.fe.model import Interface, ModelSpec, sliding_speed, speed_friction
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
 # The JIT's compiler driver logs INFO lines through the root logger: keep only warnings from it.
@@ -46,6 +49,7 @@ class Operators(NamedTuple):
     contacts: tuple = ()                             # ((Interface, InterfaceOperator), ...)
     K_parts: dict | None = None                      # part -> elastic stiffness (no BC rows)
     M_parts: dict | None = None                      # part -> (M, M_axial) of that part
+    Cd: PETSc.Mat | None = None                      # friction damping (already in C; fe.preload.friction_damping)
 
     def K_total(self) -> PETSc.Mat:
         """K + K_f as a new matrix (K itself when there is no friction)."""
@@ -58,12 +62,30 @@ class Operators(NamedTuple):
         return A
 
 
+class _LiftFloats(MultiFunction):
+    """Each real literal of a form (material values, k_n, μ, ... given as Python floats) becomes a
+    ``fem.Constant`` holding it: the form's signature, which keys FFCx's compiled-form cache
+    (``~/.cache/fenics``, or ``$XDG_CACHE_HOME/fenics``), then depends on the form's structure only, so
+    a scene run with another E or μ, in this process or another, reuses the compiled code."""
+
+    expr = MultiFunction.reuse_if_untouched
+
+    def __init__(self, domain):
+        super().__init__()
+        self.domain = domain
+
+    def float_value(self, o):
+        return fem.Constant(self.domain, PETSc.ScalarType(float(o)))
+
+
 def _compile(a, quadrature_degree):
     """JIT-compile ``a``; ``quadrature_degree`` (``discretisation.quadrature_degree``) goes into each
-    integral's metadata: FFCx 0.5 ignores it as a form-compiler parameter (it was silently unused)."""
+    integral's metadata: FFCx 0.5 ignores it as a form-compiler parameter (it was silently unused).
+    Real literals are lifted into constants (:class:`_LiftFloats`): compiled once per form structure."""
     if quadrature_degree is not None:
         a = ufl.Form([itg.reconstruct(metadata={"quadrature_degree": quadrature_degree, **itg.metadata()})
                       for itg in a.integrals()])
+    a = map_integrand_dags(_LiftFloats(a.ufl_domain()), a)
     return fem.form(a, form_compiler_params={}, jit_params=JIT_PARAMS)
 
 
@@ -125,7 +147,8 @@ def contact_matrices(ops: Operators, stiffness: dict[str, np.ndarray] | None = N
             T = itf.tangential_stiffness(op, it.kt * closed, it.sliding != 0)
             _add(mats[0], T)
             T.destroy()
-        mats.append(itf.friction_stiffness(op, k, it.mu) if friction and it.has_friction else None)
+        mu = it.mu if it.law is None else it.friction_coefficient(op.x)    # μ(V) at V = Ω r per point
+        mats.append(itf.friction_stiffness(op, k, mu) if friction and it.has_friction else None)
         for j, A in enumerate(mats):
             if A is None:
                 continue
@@ -136,6 +159,18 @@ def contact_matrices(ops: Operators, stiffness: dict[str, np.ndarray] | None = N
                 _add(total[j], A)
                 A.destroy()
     return total[0], total[1]
+
+
+def plate_friction_fields(V, plate) -> tuple[fem.Function, fem.Function]:
+    """μ(V) and dμ/dV of a rigid plate's friction law at V = Ω r, interpolated into the scalar
+    Lagrange space of V's degree (the law's own ``coefficient``, not a second UFL copy of it)."""
+    S = fem.FunctionSpace(V.mesh, ("Lagrange", V.ufl_element().degree()))
+    out = []
+    for j in (0, 1):
+        f = fem.Function(S)
+        f.interpolate(lambda x, j=j: speed_friction(plate.mu, plate.law, sliding_speed(x.T, plate.speed))[j])
+        out.append(f)
+    return out[0], out[1]
 
 
 def linearise(ops: Operators, active: dict[str, np.ndarray] | None = None,
@@ -283,7 +318,8 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
             if plate.mu > 0 and plate.sliding != 0:
                 s = forms.circumferential_direction(x, float(plate.sliding))
                 # the traction μ k_n (u·n) s is a load: it enters the operator as −a_f
-                f = -forms.friction_form(u, v, plate.kn, plate.mu, n, s, ds(ftag))
+                mu = plate.mu if plate.law is None else plate_friction_fields(V, plate)[0]
+                f = -forms.friction_form(u, v, plate.kn, mu, n, s, ds(ftag))
                 a_f = f if a_f is None else a_f + f
     for gs in spec.ground_springs:
         ftag = _face_tag(mesh_data, gs.face, present_faces, "boundary.ground_springs")
@@ -344,3 +380,164 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
     if timings is not None:
         timings.update(volume_forms=t1 - t0 + time.perf_counter() - t2, interfaces=t2 - t1)
     return Operators(V, K, Kf, M, C, Mz, bc_dofs, f, tuple(contacts), K_parts, M_parts)
+
+
+class RotationMatrices(NamedTuple):
+    """Per-unit-speed operators of the parts spinning about z (:mod:`fem_squeal.fe.forms`, rotation):
+    the damping matrix is Ω G, the stiffness gains −Ω² S, the centrifugal load is Ω² f."""
+
+    G: PETSc.Mat    # skew: transport G₁ (frame "fixed") or Coriolis G_c (frame "rotating")
+    S: PETSc.Mat    # symmetric positive semi-definite: K_L ("fixed") or M_r ("rotating")
+    f: PETSc.Vec    # centrifugal load per unit Ω², 0 on the clamped DOFs
+
+
+def _part_measure(mesh_data, spec: ModelSpec, parts, where: str):
+    dx = ufl.Measure("dx", domain=mesh_data.mesh, subdomain_data=mesh_data.cell_tags)
+    for p in parts:
+        if p not in mesh_data.volumes or p not in spec.materials:
+            raise UnknownNameError(f"{where}: no part {p!r}; parts: {sorted(mesh_data.volumes)}")
+    return [(spec.materials[p], dx(mesh_data.volumes[p])) for p in parts]
+
+
+def rotation_matrices(ops: Operators, mesh_data, spec: ModelSpec, parts, frame: str = "fixed") -> RotationMatrices:
+    """G, S and f of the spinning ``parts`` (about z through the origin), per unit Ω and Ω².
+
+    ``frame`` "fixed": the transport form of a part turning under stationary observers (the disc under
+    the pads): G₁ = ∫ρ [(L u)·v − u·(L v)], S = K_L = ∫ρ (L u)·(L v), L = x ∂_y − y ∂_x.
+    ``frame`` "rotating": the co-rotating frame (CalculiX ``*COMPLEX FREQUENCY, CORIOLIS``):
+    G_c = 2∫ρ (e_z × u)·v, S = M_r = ∫ρ (u − u_z e_z)·(v − v_z e_z).  Both: f = ∫ρ (x − x_z e_z)·v.
+    Rows and columns of the clamped DOFs are zero."""
+    if frame not in ("fixed", "rotating"):
+        raise ModelError(f"frame: must be 'fixed' or 'rotating' (got {frame!r})")
+    V = ops.V
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    x = ufl.SpatialCoordinate(V.mesh)
+    a = fem.Constant(V.mesh, np.array([0.0, 0.0, 1.0], dtype=PETSc.ScalarType))
+    a_G = a_S = L = None
+    for mat, dxp in _part_measure(mesh_data, spec, parts, "operating.rotating_parts"):
+        if frame == "fixed":
+            g, s = forms.gyroscopic_form(u, v, mat.rho, x, dxp), forms.convective_form(u, v, mat.rho, x, dxp)
+        else:
+            g, s = forms.coriolis_form(u, v, mat.rho, a, dxp), forms.spin_softening_form(u, v, mat.rho, a, dxp)
+        lc = forms.centrifugal_load_form(v, mat.rho, x, a, dxp)
+        a_G, a_S, L = (g, s, lc) if a_G is None else (a_G + g, a_S + s, L + lc)
+    if a_G is None:
+        raise ModelError("operating.rotating_parts: no part rotates")
+    bc_rows = _owned_global_rows(ops.K, V, ops.bc_dofs)
+    mats = []
+    for form in (a_G, a_S):
+        c = _compile(form, spec.quadrature_degree)
+        A = _assemble(c, c, [], 0.0)
+        A.zeroRowsColumns(bc_rows, diag=0.0)
+        mats.append(A)
+    f = fem_petsc.assemble_vector(_compile(L, spec.quadrature_degree))
+    f.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    f.setValues(bc_rows, np.zeros(len(bc_rows)))
+    f.assemble()
+    return RotationMatrices(mats[0], mats[1], f)
+
+
+def static_displacement(K: PETSc.Mat, f: PETSc.Vec, options: dict | None = None,
+                        prefix: str = "prestress_") -> PETSc.Vec:
+    """u with K u = f (direct LU; K with the clamped rows as identity and f zero there).  Raises
+    :class:`ModelError` when the solve fails or its residual exceeds 1e-6‖f‖ (a part not held against
+    rigid-body motion under a load that is not self-equilibrated).  A free body under a self-equilibrated
+    load (the centrifugal load of a free disc) gets one solution: its rigid part carries no stress."""
+    ksp = PETSc.KSP().create(K.getComm())
+    ksp.setOptionsPrefix(prefix)
+    set_options(prefix, options, {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"})
+    ksp.setOperators(K)
+    ksp.setFromOptions()
+    u = K.createVecRight()
+    r = K.createVecLeft()
+    try:
+        ksp.solve(f, u)
+        K.mult(u, r)
+        r.axpy(-1.0, f)
+        fn = f.norm()
+        bad = ksp.getConvergedReason() < 0 or not np.isfinite(u.norm()) or (fn > 0 and r.norm() > 1e-6 * fn)
+    except PETSc.Error:
+        bad = True
+    finally:
+        ksp.destroy()
+        r.destroy()
+    if bad:
+        u.destroy()
+        raise ModelError("prestress: the static problem K u = f has no unique solution (is every part held "
+                         "against rigid-body motion? the centrifugal and preload stresses need it)")
+    return u
+
+
+def geometric_stiffness(ops: Operators, mesh_data, spec: ModelSpec, u0: PETSc.Vec) -> PETSc.Mat:
+    """K_σ = Σ_parts ∫ σ₀_ij ∂_i u_k ∂_j v_k dx with σ₀ = C ε(u₀) of each part's material (the initial
+    stress of the static displacement u₀); zero rows and columns on the clamped DOFs."""
+    V = ops.V
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    u0h = fem.Function(V)
+    n = u0.getLocalSize()
+    u0h.x.array[:n] = u0.array_r
+    u0h.x.scatter_forward()
+    a = None
+    for mat, dxp in _part_measure(mesh_data, spec, list(spec.materials), "materials"):
+        k = forms.geometric_stiffness_form(u, v, forms.material_stress(u0h, mat), dxp)
+        a = k if a is None else a + k
+    c = _compile(a, spec.quadrature_degree)
+    A = _assemble(c, c, [], 0.0)
+    A.zeroRowsColumns(_owned_global_rows(ops.K, V, ops.bc_dofs), diag=0.0)
+    return A
+
+
+def operating_operators(ops: Operators, mesh_data, spec: ModelSpec, *, speed: float = 0.0,
+                        gyroscopic: bool = False, rotating_parts=("disc",), stress_stiffening: bool = False,
+                        u_static: PETSc.Vec | None = None, options: dict | None = None
+                        ) -> tuple[PETSc.Mat, PETSc.Mat | None, dict]:
+    """K and C of the CEA with the disc's rotation and the stress stiffening (issue 20 items 4, 5):
+
+        C = C₀ + Ω G₁,   K = K₀ + K_f − Ω² K_L + K_σ(σ₀),   σ₀ = C ε(u_static + Ω² u_c),
+
+    G₁, K_L of the ``rotating_parts`` in the transport form (:func:`rotation_matrices`, frame "fixed")
+    when ``gyroscopic``; K_σ (:func:`geometric_stiffness`) when ``stress_stiffening``, with u_static the
+    preload displacement (None: K_total u = f when there is a load) and u_c the static response
+    K_total u_c = f_c to the centrifugal load (gyroscopic only).  Both off: K_total() and C unchanged.
+    ``info``: norms of the added matrices, for the results."""
+    K, C, info = ops.K_total(), ops.C, {}
+    if not (gyroscopic or stress_stiffening):
+        return K, C, info
+    if K is ops.K:
+        K = K.copy()
+    u0 = None
+    if stress_stiffening:
+        if u_static is not None:
+            u0 = u_static.copy()
+        elif ops.f is not None and ops.f.norm() > 0:
+            u0 = static_displacement(K, ops.f, options)
+    if gyroscopic:
+        rot = rotation_matrices(ops, mesh_data, spec, list(rotating_parts), "fixed")
+        if stress_stiffening:
+            rot.f.scale(speed ** 2)
+            uc = static_displacement(K, rot.f, options)
+            info["centrifugal_displacement_max"] = uc.norm(PETSc.NormType.INFINITY)
+            if u0 is None:
+                u0 = uc
+            else:
+                u0.axpy(1.0, uc)
+                uc.destroy()
+        _add(K, rot.S, -speed ** 2)
+        info["convective_stiffness_norm"] = speed ** 2 * rot.S.norm(PETSc.NormType.FROBENIUS)
+        info["gyroscopic_norm"] = speed * rot.G.norm(PETSc.NormType.FROBENIUS)
+        if C is None:
+            C = rot.G
+            C.scale(speed)
+        else:
+            C = C.copy()
+            _add(C, rot.G, speed)
+            rot.G.destroy()
+        rot.S.destroy()
+        rot.f.destroy()
+    if u0 is not None:
+        Ks = geometric_stiffness(ops, mesh_data, spec, u0)
+        info["geometric_stiffness_norm"] = Ks.norm(PETSc.NormType.FROBENIUS)
+        _add(K, Ks)
+        Ks.destroy()
+        u0.destroy()
+    return K, C, info

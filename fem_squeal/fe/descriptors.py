@@ -49,7 +49,8 @@ class CircumferentialBasis:
         M.mult(ones, w)
         self.mass = w.sum()  # 1ᵀ M 1 over the x component = total mass (0 rows of clamped DOFs aside)
         self.k = np.arange(0, kmax + 1)
-        self.phase = np.exp(-1j * np.outer(self.k, self.theta))  # (k, node)
+        kt = np.outer(self.k, self.theta)
+        self.cs = np.concatenate([np.cos(kt), np.sin(kt)])      # (2 (k), node): e^{−ikθ} = cos kθ − i sin kθ
         ones.destroy()
         w.destroy()
 
@@ -60,26 +61,37 @@ class CircumferentialBasis:
 
     def describe(self, xr: PETSc.Vec, xi: PETSc.Vec | None = None) -> ModeDescriptors:
         """Descriptors of x = xr + i xi (xi None for a real mode)."""
-        t = xr.duplicate()
-        self.M.mult(xr, t)
-        mxr = self._cyl(t.array)
-        e_tot = xr.dot(t)
-        self.Mz.mult(xr, t)
-        e_ax = xr.dot(t)
-        if xi is not None:
-            self.M.mult(xi, t)
-            mxi = self._cyl(t.array)
-            e_tot += xi.dot(t)
-            self.Mz.mult(xi, t)
-            e_ax += xi.dot(t)
-        else:
-            mxi = np.zeros_like(mxr)
-        t.destroy()
-        mu = mxr + 1j * mxi                          # (component, node)
-        cp = self.phase @ mu.T                        # c_{+k} * m, (k, component)
-        cm = np.conj(self.phase) @ mu.T               # c_{−k} * m
-        cp = self.comm.allreduce(cp, op=MPI.SUM) / self.mass
-        cm = self.comm.allreduce(cm, op=MPI.SUM) / self.mass
+        return self.describe_all([(xr, xi)])[0]
+
+    def describe_all(self, modes: list[tuple[PETSc.Vec, PETSc.Vec | None]]) -> list[ModeDescriptors]:
+        """Descriptors of each x = xr + i xi of ``modes`` (xi None for a real mode): M X and M_z X by one
+        sparse-times-dense product per block of modes instead of a MatMult per vector, the harmonic
+        sums c_{±k} of a block by one dense product."""
+        sums, energies = [], []
+        for j in range(0, len(modes), BLOCK_MODES):
+            X, cols = _dense_block(self.M, modes[j:j + BLOCK_MODES])
+            mx, e = _products(self.M, X)
+            e_ax = _products(self.Mz, X, keep=False)[1]
+            X.destroy()
+            # μ = a + ib (a, b: cylindrical components of M xr, M xi; node x (component, mode)) and
+            # e^{∓ikθ} = C ∓ iS: c_{±k} m = (C a ± S b) + i (C b ∓ S a), from one real product [C; S] [a b]
+            ab = np.zeros((len(self.theta), 2, 3, len(cols)))
+            for n, (re, im) in enumerate(cols):
+                ab[:, 0, :, n] = self._cyl(mx[:, re]).T
+                if im is not None:
+                    ab[:, 1, :, n] = self._cyl(mx[:, im]).T
+                energies.append((e[re] + (e[im] if im is not None else 0.0),
+                                 e_ax[re] + (e_ax[im] if im is not None else 0.0)))
+            p = (self.cs @ ab.reshape(len(self.theta), -1)).reshape(2, len(self.k), 2, 3, len(cols))
+            (ca, cb), (sa, sb) = p[0].transpose(1, 0, 2, 3), p[1].transpose(1, 0, 2, 3)
+            sums.append((ca + sb + 1j * (cb - sa), ca - sb + 1j * (cb + sa)))   # c_{±k} m: (k, comp, mode)
+        if not sums:
+            return []
+        cp = self.comm.allreduce(np.concatenate([c for c, _ in sums], axis=2), op=MPI.SUM) / self.mass
+        cm = self.comm.allreduce(np.concatenate([c for _, c in sums], axis=2), op=MPI.SUM) / self.mass
+        return [self._summary(cp[:, :, n], cm[:, :, n], e_tot, e_ax) for n, (e_tot, e_ax) in enumerate(energies)]
+
+    def _summary(self, cp: np.ndarray, cm: np.ndarray, e_tot: float, e_ax: float) -> ModeDescriptors:
         pp, pm = (np.abs(cp) ** 2).sum(axis=1), (np.abs(cm) ** 2).sum(axis=1)
         power = self.mass * (pp + pm)
         power[0] = self.mass * pp[0]
@@ -90,23 +102,58 @@ class CircumferentialBasis:
         return ModeDescriptors(float(1.0 - e_ax / e_tot), k, share, tau, direction)
 
 
+#: modes per sparse-times-dense product: bounds the dense blocks (3 of n × 2·16 values) at any size
+BLOCK_MODES = 16
+
+
+def _dense_block(A: PETSc.Mat, modes) -> tuple[PETSc.Mat, list[tuple[int, int | None]]]:
+    """The owned rows of the vectors of ``modes`` ((xr, xi or None) pairs) as columns of a dense
+    matrix, and the column of each mode's real and imaginary part (None for a real mode)."""
+    vecs, cols = [], []
+    for xr, xi in modes:
+        cols.append((len(vecs), None if xi is None else len(vecs) + 1))
+        vecs += [xr] if xi is None else [xr, xi]
+    n_local, n_global = A.getLocalSize()[1], A.getSize()[1]
+    data = np.empty((n_local, len(vecs)), order="F")
+    for c, v in enumerate(vecs):
+        data[:, c] = v.array_r
+    X = PETSc.Mat().createDense(((n_local, n_global), (PETSc.DECIDE, len(vecs))), array=data, comm=A.getComm())
+    X.assemble()
+    return X, cols
+
+
+def _products(A: PETSc.Mat, X: PETSc.Mat, keep: bool = True) -> tuple[np.ndarray | None, np.ndarray]:
+    """A X (owned rows; None unless ``keep``) and the column energies xᵀ A x (summed over the ranks)."""
+    AX = A.matMult(X)
+    ax, x = AX.getDenseArray(), X.getDenseArray()
+    local = np.einsum("ij,ij->j", x, ax)
+    ax = ax.copy() if keep else None
+    AX.destroy()
+    return ax, A.getComm().tompi4py().allreduce(local, op=MPI.SUM)
+
+
 def strain_energy_shares(K_parts: dict[str, PETSc.Mat], xr: PETSc.Vec, xi: PETSc.Vec | None = None,
                          groups: dict[str, tuple[str, ...]] | None = None) -> dict[str, float]:
     """Share of each part (or group of parts) in the strain energy of a mode.
 
     For x = xr + i xi and symmetric part stiffnesses K_p: E_p = xrᵀK_p xr + xiᵀK_p xi (twice the
     time-averaged strain energy of Re(x e^{iωt})); shares are E_p / Σ_q E_q."""
-    t = xr.duplicate()
-    energy = {}
-    for part, Kp in K_parts.items():
-        Kp.mult(xr, t)
-        e = xr.dot(t)
-        if xi is not None:
-            Kp.mult(xi, t)
-            e += xi.dot(t)
-        energy[part] = e
-    t.destroy()
-    total = sum(energy.values())
-    if groups:
-        energy = {g: sum(energy[p] for p in parts if p in energy) for g, parts in groups.items()}
-    return {k: (float(v / total) if total > 0 else 0.0) for k, v in energy.items()}
+    return strain_energy_shares_all(K_parts, [(xr, xi)], groups)[0]
+
+
+def strain_energy_shares_all(K_parts: dict[str, PETSc.Mat], modes: list[tuple[PETSc.Vec, PETSc.Vec | None]],
+                             groups: dict[str, tuple[str, ...]] | None = None) -> list[dict[str, float]]:
+    """:func:`strain_energy_shares` of each mode, one K_p X product per part and block of modes."""
+    out = []
+    A = next(iter(K_parts.values()))
+    for j in range(0, len(modes), BLOCK_MODES):
+        X, cols = _dense_block(A, modes[j:j + BLOCK_MODES])
+        e = {part: _products(Kp, X, keep=False)[1] for part, Kp in K_parts.items()}
+        X.destroy()
+        for re, im in cols:
+            energy = {part: ep[re] + (ep[im] if im is not None else 0.0) for part, ep in e.items()}
+            total = sum(energy.values())
+            if groups:
+                energy = {g: sum(energy[p] for p in parts if p in energy) for g, parts in groups.items()}
+            out.append({k: (float(v / total) if total > 0 else 0.0) for k, v in energy.items()})
+    return out

@@ -12,10 +12,12 @@ them to cover the band.
 """
 from __future__ import annotations
 
+import time
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 from slepc4py import SLEPc
 
@@ -33,6 +35,21 @@ DIRECT_SOLVER_OPTIONS = {
     "st_pc_type": "lu",
     "st_pc_factor_mat_solver_type": "mumps",
 }
+# Real modes (K, M symmetric; benchmarks/modal_peers.py --speed, clamped P2 disc, 20 modes, 1 rank).
+# - CHOLMOD (SuiteSparse, in Debian's PETSc; serial) factorises K − σM faster than MUMPS' LDLᵀ and
+#   its triangular solves take 0.4–0.6 of MUMPS' time (METIS ordering: MUMPS here falls back to PORD);
+#   it needs K − σM positive definite (σ below the lowest mode), else MUMPS LDLᵀ takes over.
+# - No purification: it costs one more solve per returned pair and only removes components in
+#   null(M), which K⁻¹M never creates here (M's clamped rows are zero, K's are identity).
+# - The tolerance: the Ritz value of a symmetric pencil is accurate to the square of its relative
+#   residual (over the relative gap), so 1e-7 leaves the frequencies within 1e-12 of tol 1e-10's
+#   (measured: 8e-14, 4e-14, 4e-13 at 26k, 87k, 260k DOFs) and saves the restart that 1e-8 needs on
+#   some meshes (54 shift-invert solves instead of 66; 1e-10 with purification: 91).  1e-5 fails the
+#   1e-8 residual check at 26k DOFs.
+REAL_MODE_TOL = 1e-7
+REAL_MODE_OPTIONS = {"st_ksp_type": "preonly", "st_pc_type": "cholesky", "eps_purify": False,
+                     "st_mat_cholmod_print": 0}   # CHOLMOD's own "not positive definite" line: we fall back
+_NOT_DEFINITE: dict[tuple[int, int], float] = {}  # (K, M) handles -> lowest shift CHOLMOD failed at
 
 
 
@@ -43,6 +60,8 @@ class RealModes:
     omega2: np.ndarray            # ω² [rad²/s²], ascending
     vectors: list[PETSc.Vec]
     residuals: np.ndarray         # ‖Kφ − ω²Mφ‖ / (‖K‖ ‖φ‖)
+    solver: str = ""              # the factorisation used: "cholmod" or "mumps"
+    seconds: dict[str, float] = field(default_factory=dict)   # "factor", "solve" (wall, rank 0)
 
     @property
     def freqs_hz(self) -> np.ndarray:
@@ -170,22 +189,24 @@ def _shift_invert_eps(A: PETSc.Mat, B: PETSc.Mat, problem_type, nev: int, target
     return eps
 
 
-def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, tol: float = 1e-10,
+def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, tol: float = REAL_MODE_TOL,
                      max_residual: float = 1e-8, options: dict | None = None,
                      prefix: str = "real_", progress: bool = False) -> RealModes:
     """Real modes nearest ``target_hz``: K φ = ω² M φ by Krylov–Schur, shift-and-invert at ω_t².
     ``progress``: draw converged/requested pairs on rank 0's stderr."""
     if nev < 1:
         raise ModelError(f"n_modes: must be >= 1 (got {nev})")
-    # K and M are symmetric (GHEP): MUMPS LDLᵀ factorises K − σM in ~60 % of the LU time and memory
     for A in (K, M):
         A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-    set_options(prefix, options, {**DIRECT_SOLVER_OPTIONS, "st_pc_type": "cholesky"})
-    eps = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GHEP, nev, (TWO_PI * target_hz) ** 2, tol, prefix)
+    set_options(prefix, options, REAL_MODE_OPTIONS)
+    Ms = drop_zeros(M)
+    eps, solver, t_factor = _factorised_eps(K, Ms, nev, (TWO_PI * target_hz) ** 2, tol, prefix,
+                                            (K.handle, M.handle))
     try:
-        eps.setFromOptions()
+        t0 = time.perf_counter()
         with _progress(eps, nev, "real modes", progress):
             eps.solve()
+        t_solve = time.perf_counter() - t0
         nconv = eps.getConverged()
         vals, vecs, res = [], [], []
         normK = _norm_inf(K)
@@ -193,10 +214,11 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
             x = K.createVecRight()
             lam = eps.getEigenpair(i, x).real
             Mx, r = x.duplicate(), x.duplicate()
-            M.mult(x, Mx)
-            x.scale(1.0 / np.sqrt(x.dot(Mx)))
+            Ms.mult(x, Mx)
+            scale = 1.0 / np.sqrt(x.dot(Mx))
+            x.scale(scale)
+            Mx.scale(scale)
             K.mult(x, r)
-            M.mult(x, Mx)
             r.axpy(-lam, Mx)
             res.append(r.norm() / (normK * x.norm()))
             vals.append(lam)
@@ -205,10 +227,73 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
             r.destroy()
     finally:
         eps.destroy()
+        if Ms is not M:
+            Ms.destroy()
     res = np.array(res)
     _check(nconv, nev, res, max_residual, "real-mode EPS", np.sqrt(np.abs(vals)) / TWO_PI)
     order = np.argsort(vals)
-    return RealModes(np.array(vals)[order], [vecs[i] for i in order], res[order])
+    return RealModes(np.array(vals)[order], [vecs[i] for i in order], res[order], solver,
+                     {"factor": t_factor, "solve": t_solve})
+
+
+def drop_zeros(A: PETSc.Mat) -> PETSc.Mat:
+    """A copy of the AIJ matrix ``A`` without its stored zeros (``A`` itself if it has none or is
+    not AIJ).  A vector mass matrix is assembled on the stiffness pattern, whole 3×3 blocks of which
+    two thirds are zero: without them each product with M in the Krylov iteration (two per step:
+    the operator and the M-inner product) reads a third of the memory."""
+    if "aij" not in A.getType():
+        return A
+    ai, aj, av = A.getValuesCSR()
+    keep = av != 0.0
+    if A.getComm().tompi4py().allreduce(bool(keep.all()), op=MPI.LAND):
+        return A
+    counts = np.concatenate([[0], np.cumsum(keep)])
+    B = PETSc.Mat().createAIJ(A.getSizes(), csr=(counts[ai].astype(PETSc.IntType), aj[keep], av[keep]),
+                              comm=A.getComm())
+    known, symmetric = A.isSymmetricKnown()
+    if known:
+        B.setOption(PETSc.Mat.Option.SYMMETRIC, symmetric)
+    return B
+
+
+def _factorised_eps(K: PETSc.Mat, M: PETSc.Mat, nev: int, shift: float, tol: float, prefix: str,
+                    key: tuple[int, int]) -> tuple[SLEPc.EPS, str, float]:
+    """The real-mode EPS with K − σM factorised (``eps.setUp``): by the solver named in the options
+    (``<prefix>st_pc_factor_mat_solver_type``), else CHOLMOD on one rank, falling back to MUMPS
+    LDLᵀ when K − σM is not positive definite, and MUMPS on more ranks.  Returns the EPS, the
+    solver's name and the factorisation's wall time.  ``key``: the handles of the caller's K and M."""
+    db = PETSc.Options()
+    name = f"{prefix}st_pc_factor_mat_solver_type"
+    chosen = db.getString(name, "")
+    if chosen:
+        solvers = [chosen]
+    elif (K.getComm().getSize() == 1 and PETSc.Sys.hasExternalPackage("suitesparse")
+          and shift < _NOT_DEFINITE.get(key, np.inf)):
+        solvers = ["cholmod", "mumps"]
+    else:
+        solvers = ["mumps"]
+    t0 = time.perf_counter()       # a failed CHOLMOD attempt counts in the factorisation time
+    for k, solver in enumerate(solvers):
+        eps = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GHEP, nev, shift, tol, prefix)
+        if not chosen:     # a default for this solve only, not left in the options database
+            db[name] = solver
+        try:
+            eps.setFromOptions()
+        finally:
+            if not chosen:
+                db.delValue(name)
+        try:
+            eps.setUp()    # the factorisation of K − σM
+        except PETSc.Error:
+            eps.destroy()
+            if k + 1 == len(solvers):
+                raise
+            # CHOLMOD: K − σM not positive definite (σ above the lowest mode, free bodies); then
+            # neither is it for any larger σ: later solves on the same K, M go to MUMPS directly
+            _NOT_DEFINITE[key] = min(shift, _NOT_DEFINITE.get(key, np.inf))
+            continue
+        return eps, solver, time.perf_counter() - t0
+    raise AssertionError("unreachable")
 
 
 @contextmanager
@@ -326,3 +411,56 @@ def _zero_like(M: PETSc.Mat) -> PETSc.Mat:
     Z = M.duplicate()
     Z.zeroEntries()
     return Z
+
+
+@dataclass
+class LeftVectors:
+    """Left eigenvectors y (yᴴQ(λ) = 0) of given eigenvalues, as z = ȳ = zr + i zi (Q(λ)ᵀz = 0)."""
+
+    eigenvalues: np.ndarray       # the eigenvalues of the transposed problem matched to the given ones
+    vectors_re: list[PETSc.Vec]
+    vectors_im: list[PETSc.Vec]
+    mismatch: np.ndarray          # |λ_transposed − λ| / |λ| of each match
+
+
+def solve_left_vectors(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, eigenvalues: np.ndarray,
+                       target_hz: float, *, band_hz: tuple[float, float] | None = None, extra: int = 2,
+                       options: dict | None = None, prefix: str = "left_", progress: bool = False) -> LeftVectors:
+    """Left eigenvectors of (λ²M + λC + K) at ``eigenvalues`` (Im λ > 0, e.g. a CEA's own).
+
+    For real matrices yᴴQ(λ) = 0 ⇔ Q(λ)ᵀ ȳ = 0: z = ȳ is a right eigenvector of the transposed
+    problem λ²Mᵀ + λCᵀ + Kᵀ at the same λ, which :func:`solve_complex_modes` finds with the same
+    shift (len(eigenvalues) + ``extra`` pairs near ``target_hz``; the linear EPS when C is None,
+    PEP otherwise).  Each given λ is matched to the nearest eigenvalue of the transposed problem;
+    the match is reported (``mismatch``: round-off of the two solves, ~1e-10, for a simple
+    eigenvalue).  With x the CEA's right vector, dλ/dp = −zᵀ(λ²∂M + λ∂C + ∂K)x / zᵀ(2λM + C)x
+    (no conjugation: zᵀ = yᴴ)."""
+    lam = np.asarray(eigenvalues, complex)
+    # petsc4py's A.transpose() with no argument transposes A in place: ask for a new matrix
+    mats = [None if A is None else A.transpose(PETSc.Mat()) for A in (K, M, C)]
+    nev = len(lam) + extra
+    try:
+        for attempt in range(4):   # more pairs until each λ has its own match (a band with modes between)
+            cm = solve_complex_modes(mats[0], mats[1], mats[2], nev, target_hz, band_hz=band_hz,
+                                     options=options, prefix=prefix, progress=progress)
+            pick = [int(np.argmin(np.abs(cm.eigenvalues - x))) for x in lam] if cm.eigenvalues.size else []
+            mism = np.array([abs(cm.eigenvalues[j] - x) / abs(x) for j, x in zip(pick, lam)])
+            if (len(pick) == len(lam) and len(set(pick)) == len(pick) and np.all(mism < 1e-6)) or attempt == 3:
+                break
+            for v in (*cm.vectors_re, *cm.vectors_im):
+                v.destroy()
+            nev *= 2
+    finally:
+        for A in mats:
+            if A is not None:
+                A.destroy()
+    if len(pick) < len(lam) or len(set(pick)) < len(pick):
+        raise EigenSolveError(f"left eigenvectors (prefix {prefix!r}): no distinct eigenvalue of the transposed "
+                              f"problem for each of {len(lam)} eigenvalues with {nev} pairs near "
+                              f"{target_hz:.0f} Hz (a multiple eigenvalue?)")
+    out = LeftVectors(cm.eigenvalues[pick], [cm.vectors_re[j] for j in pick], [cm.vectors_im[j] for j in pick],
+                      mism)
+    for j in set(range(len(cm.eigenvalues))) - set(pick):
+        cm.vectors_re[j].destroy()
+        cm.vectors_im[j].destroy()
+    return out

@@ -8,8 +8,12 @@ Notation: u trial, v test, n outward unit normal of the body's face, s unit slid
 * friction       a_f(u, v) = ∫ μ k_n (u·n)(s·v) ds      (asymmetric)
 * tangential     a_t(u, v) = ∫ k_t (u·t₂)(v·t₂) ds,  t₂ = n × s/|n × s|   (sliding: across s only)
   penalty                  = ∫ k_t (u − (u·n)n)·(v − (v·n)n) ds            (sticking, no sliding)
+* fric. damping  a_d(u, v) = ∫ p [μ/V (u·t₂)(v·t₂) + dμ/dV (u·s)(v·s)] ds  (C: sliding speed V, preload p)
 * ground spring  a_g(u, v) = ∫ k_a (u·a)(v·a) + k_t (u − (u·a)a)·(v − (v·a)a) ds
 * pressure load  L_p(v)    = −∫ p (v·n) ds
+* rotation       G₁(u, v)  = ∫ρ [(L u)·v − u·(L v)],  K_L(u, v) = ∫ρ (L u)·(L v),  L = x ∂_y − y ∂_x
+  (transport form; rotating frame: G_c = 2∫ρ (e_z × u)·v, M_r; centrifugal load f_c; see below)
+* geometric      K_σ(u, v) = ∫ σ₀_ij ∂_i u_k ∂_j v_k dx   (stress stiffening by an initial stress σ₀)
 
 The friction *traction* on the body is t_f = μ k_n (u·n) s: a closure u·n > 0 into the plate raises
 the pressure by k_n u·n and the friction force by μ times that, along the direction in which the
@@ -89,6 +93,15 @@ def tangential_penalty_form(u, v, kt, n, s, ds):
     return kt * ufl.dot(u, t2) * ufl.dot(v, t2) * ds
 
 
+def friction_damping_form(u, v, p, mu, dmu, speed_V, n, s, ds):
+    """a_d(u, v) = ∫ p [μ/V (u·t₂)(v·t₂) + dμ/dV (u·s)(v·s)] ds, t₂ = n × s/|n × s| (the friction
+    damping of a body under a plate sliding at V s; derivation: :func:`fem_squeal.fe.preload.friction_damping`).
+    ``p`` the preload pressure, ``mu``, ``dmu`` μ(V) and dμ/dV, ``speed_V`` = V = Ω r (UFL expressions)."""
+    c = ufl.cross(n, s)
+    t2 = c / ufl.sqrt(ufl.dot(c, c))
+    return p * (mu / speed_V * ufl.dot(u, t2) * ufl.dot(v, t2) + dmu * ufl.dot(u, s) * ufl.dot(v, s)) * ds
+
+
 def circumferential_direction(x, sign: float = 1.0, axis: str = "z"):
     """Unit field sign·e_θ about the z axis: e_θ = (−y, x, 0)/r."""
     if axis != "z":
@@ -120,3 +133,63 @@ def material_stiffness_form(u, v, mat, dx):
         return stiffness_form(u, v, mat.E, mat.nu, dx)
     C = ufl.as_matrix(mat.voigt_stiffness().tolist())
     return ufl.dot(C * voigt_strain(u), voigt_strain(v)) * dx
+
+
+# --- rotation of a part about the z axis (issue 20 item 4) and stress stiffening (item 5) -------------
+#
+# Transport (space-fixed) form: a part spinning at Ω about e_z carries a displacement field u(x, t) in
+# fixed Cartesian components; a particle's velocity is Ω e_z × x + Du/Dt with D/Dt = ∂/∂t + Ω L and
+# L u = (e_z × x)·∇u = x ∂_y u − y ∂_x u (each Cartesian component differentiated along the circle).
+# The kinetic energy ½∫ρ|u̇ + Ω L u|² gives, by Lagrange's equations and without integration by parts,
+#     M ü + Ω G₁ u̇ + (K − Ω² K_L) u = Ω² f_c,
+#     G₁(u, v) = ∫ρ [(L u)·v − u·(L v)]   (exactly skew; = 2∫ρ (L u)·v on an axisymmetric domain),
+#     K_L(u, v) = ∫ρ (L u)·(L v)            (symmetric, positive semi-definite: −Ω²K_L softens),
+#     f_c(v)    = ∫ρ (x − (x·e_z)e_z)·v     (the centrifugal load, from the cross term of ½∫ρ|Ω e_z × x|²).
+# Rotating (co-rotating Cartesian) frame, for comparison: M ü + Ω G_c u̇ + (K − Ω² M_r) u = Ω² f_c with
+#     G_c(u, v) = 2∫ρ (e_z × u)·v and M_r(u, v) = ∫ρ (u − (u·e_z)e_z)·(v − (v·e_z)e_z).
+# L acting on Cartesian components is ∂_θ on cylindrical components plus e_z ×, so for a k-diameter
+# mode the two frames' eigenvalues differ by ∓ikΩ (λ_fixed = λ_rot − ikΩ for the harmonic e^{ikθ}).
+
+def circumferential_derivative(u, x):
+    """L u = (e_z × x)·∇u = x ∂_y u − y ∂_x u (Cartesian components): ∂u/∂θ at fixed Cartesian basis."""
+    w = ufl.as_vector((-x[1], x[0], 0.0))
+    return ufl.grad(u) * w
+
+
+def gyroscopic_form(u, v, rho, x, dx):
+    """G₁(u, v) = ∫ρ [(L u)·v − u·(L v)] per unit Ω (transport form; exactly skew, G = Ω G₁ multiplies u̇)."""
+    return rho * (ufl.dot(circumferential_derivative(u, x), v) - ufl.dot(u, circumferential_derivative(v, x))) * dx
+
+
+def convective_form(u, v, rho, x, dx):
+    """K_L(u, v) = ∫ρ (L u)·(L v) per unit Ω² (enters the stiffness as −Ω² K_L)."""
+    return rho * ufl.dot(circumferential_derivative(u, x), circumferential_derivative(v, x)) * dx
+
+
+def coriolis_form(u, v, rho, axis, dx):
+    """G_c(u, v) = 2∫ρ (a × u)·v per unit Ω (rotating frame; multiplies u̇)."""
+    return 2 * rho * ufl.dot(ufl.cross(axis, u), v) * dx
+
+
+def spin_softening_form(u, v, rho, axis, dx):
+    """M_r(u, v) = ∫ρ (u − (u·a)a)·(v − (v·a)a) per unit Ω² (rotating frame; enters as −Ω² M_r)."""
+    return rho * ufl.dot(u - ufl.dot(u, axis) * axis, v - ufl.dot(v, axis) * axis) * dx
+
+
+def centrifugal_load_form(v, rho, x, axis, dx):
+    """f_c(v) = ∫ρ (x − (x·a)a)·v per unit Ω² (the axis a through the origin)."""
+    return rho * ufl.dot(x - ufl.dot(x, axis) * axis, v) * dx
+
+
+def material_stress(u, mat):
+    """σ(u) = C ε(u) as a tensor: isotropic, or the Voigt stiffness of a transversely isotropic material."""
+    if not getattr(mat, "transversely_isotropic", False):
+        return stress(u, mat.E, mat.nu)
+    s = ufl.as_matrix(mat.voigt_stiffness().tolist()) * voigt_strain(u)
+    return ufl.as_matrix([[s[0], s[5], s[4]], [s[5], s[1], s[3]], [s[4], s[3], s[2]]])
+
+
+def geometric_stiffness_form(u, v, sigma0, dx):
+    """K_σ(u, v) = ∫ σ₀_ij ∂_i u_k ∂_j v_k dx = ∫ (∇u σ₀) : ∇v dx (initial-stress stiffness; symmetric
+    for a symmetric σ₀, zero for σ₀ = 0)."""
+    return ufl.inner(ufl.grad(u) * sigma0, ufl.grad(v)) * dx

@@ -359,6 +359,24 @@ def tangential_stiffness(op: InterfaceOperator, kt, across_only: bool = True) ->
     return S
 
 
+def friction_damping_matrix(op: InterfaceOperator, p: np.ndarray, mu: np.ndarray, dmu: np.ndarray,
+                            speed_V: np.ndarray) -> PETSc.Mat:
+    """Friction damping of a sliding contact (derivation: :func:`fem_squeal.fe.preload.friction_damping`):
+
+        C_d = G_t₂ᵀ diag(w p μ/V) G_t₂ + G_t₁ᵀ diag(w p dμ/dV) G_t₁
+
+    per point: p the preload pressure, V the sliding speed, μ, dμ/dV the friction law at V."""
+    p, speed_V = np.asarray(p, float), np.asarray(speed_V, float)
+    C = weighted_product(op.Gt2, op.Gt2, op.weight * p * np.asarray(mu, float) / speed_V)
+    d = op.weight * p * np.asarray(dmu, float)
+    comm = op.Gt1.getComm().tompi4py()
+    if comm.allreduce(bool(np.any(d != 0)), op=MPI.LOR):   # collective: every rank takes the same branch
+        P = weighted_product(op.Gt1, op.Gt1, d)
+        C.axpy(1.0, P, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        P.destroy()
+    return C
+
+
 def spring_stiffness(op: InterfaceOperator, kn: float, kt: float) -> PETSc.Mat:
     """Elastic layer: G_nᵀ k_n W G_n + k_t (G_t₁ᵀ W G_t₁ + G_t₂ᵀ W G_t₂) (bonded: large k_n = k_t)."""
     S = weighted_product(op.Gn, op.Gn, kn * op.weight)

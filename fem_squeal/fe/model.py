@@ -5,10 +5,43 @@ These are validated values (the scene loader builds them); the assembly turns th
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from fem_squeal.util.errors import ModelError
+
+
+def sliding_speed(x: np.ndarray, speed: float) -> np.ndarray:
+    """V = Ω r at the points ``x`` (n, 3): the disc speed Ω times the distance r to the z axis."""
+    x = np.asarray(x, float).reshape(-1, 3)
+    return speed * np.hypot(x[:, 0], x[:, 1])
+
+
+def speed_friction(mu: float, law: Any, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """μ(V) and dμ/dV at the sliding speeds V: the constant ``mu`` (dμ/dV = 0) when ``law`` is None,
+    else the speed-dependent law of :mod:`fem_squeal.reduced.laws.friction` (its ``coefficient``:
+    the one definition of μ(V) the transient uses too)."""
+    V = np.asarray(V, float)
+    if law is None:
+        return np.full(V.shape, float(mu)), np.zeros(V.shape)
+    m, dm = law.coefficient(V)
+    return np.broadcast_to(m, V.shape).astype(float), np.broadcast_to(dm, V.shape).astype(float)
+
+
+def _check_speed_terms(obj) -> None:
+    """Shared checks of the friction law and friction damping of a plate or a contact."""
+    if not obj.speed >= 0:
+        raise ModelError(f"speed: must be >= 0 (got {obj.speed})")
+    if obj.law is not None and not hasattr(obj.law, "coefficient"):
+        raise ModelError(f"law: a speed-dependent friction law with coefficient(V) (got {type(obj.law).__name__})")
+    if obj.law is not None and not obj.speed > 0:
+        raise ModelError("speed: must be > 0 with a speed-dependent friction law (μ(V) at V = speed·r)")
+    if obj.friction_damping:
+        if not obj.speed > 0:
+            raise ModelError("speed: must be > 0 with friction_damping")
+        if obj.sliding == 0 or (obj.mu == 0 and obj.law is None):
+            raise ModelError("friction_damping: needs sliding = ±1 and mu > 0 or a μ(V) law")
 
 
 @dataclass(frozen=True)
@@ -28,6 +61,7 @@ class Material:
     E_axial: float | None = None
     nu_axial: float | None = None
     G_axial: float | None = None
+    eta: float = 0.0      # loss factor η: structural damping K(1 + iη) (reduced model; fe.projection.full_modes)
 
     @property
     def transversely_isotropic(self) -> bool:
@@ -56,6 +90,8 @@ class Material:
             raise ModelError(f"rho: must be > 0 (got {self.rho})")
         if self.rayleigh_alpha < 0 or self.rayleigh_beta < 0:
             raise ModelError("rayleigh_alpha, rayleigh_beta: must be >= 0")
+        if not self.eta >= 0:
+            raise ModelError(f"eta: must be >= 0 (got {self.eta})")
         ti = (self.E_axial, self.nu_axial, self.G_axial)
         if any(v is not None for v in ti):
             if any(v is None for v in ti):
@@ -81,6 +117,11 @@ class RigidPlate:
     only across the sliding direction, along t₂ = n × s; never along s, where the friction force
     stays μ p.  ``sliding`` = 0 (sticking): on the whole tangent plane.  0 (the default) is the
     seed 001 model.
+
+    ``speed`` [rad/s]: the disc speed Ω (sliding speed V = Ω r); ``law``: a speed-dependent friction
+    law μ(V) (a :class:`~fem_squeal.reduced.laws.friction.StribeckFriction`; None: the constant
+    ``mu``), which then gives μ at every point; ``friction_damping``: the velocity terms of the
+    linearised friction force (:func:`fem_squeal.fe.preload.friction_damping`).
     """
 
     face: str
@@ -88,8 +129,12 @@ class RigidPlate:
     mu: float = 0.0
     sliding: int = 1
     kt: float = 0.0
+    friction_damping: bool = False
+    law: Any = None
+    speed: float = 0.0
 
     def __post_init__(self):
+        _check_speed_terms(self)
         if not self.kn >= 0:
             raise ModelError(f"kn: must be >= 0 (got {self.kn})")
         if not self.kt >= 0:
@@ -112,7 +157,8 @@ class Interface:
         0 (the default) is the seed 001 model;
       * ``spring``: elastic layer k_n normal, k_t [N/m³] in both tangential directions;
       * ``bonded``: a tie, a spring layer with k_n = k_t (large).
-    The slave face carries the quadrature points (the finer or softer side: the lining)."""
+    The slave face carries the quadrature points (the finer or softer side: the lining).
+    ``speed``, ``law``, ``friction_damping``: as for :class:`RigidPlate` (contacts only)."""
 
     name: str
     slave: str
@@ -122,8 +168,14 @@ class Interface:
     kt: float = 0.0
     mu: float = 0.0
     sliding: int = 1
+    friction_damping: bool = False
+    law: Any = None
+    speed: float = 0.0
 
     def __post_init__(self):
+        _check_speed_terms(self)
+        if self.kind != "contact" and (self.friction_damping or self.law is not None):
+            raise ModelError(f"friction_damping, law: only contact interfaces have friction (kind {self.kind!r})")
         if self.kind not in ("contact", "spring", "bonded"):
             raise ModelError(f"kind: must be 'contact', 'spring' or 'bonded' (got {self.kind!r})")
         if not self.kn > 0:
@@ -138,6 +190,10 @@ class Interface:
     @property
     def has_friction(self) -> bool:
         return self.kind == "contact" and self.mu > 0 and self.sliding != 0
+
+    def friction_coefficient(self, x: np.ndarray) -> np.ndarray:
+        """μ at the points ``x``: ``mu``, or μ(V) of the law at V = speed·r."""
+        return speed_friction(self.mu, self.law, sliding_speed(x, self.speed))[0]
 
 
 AXES = ("x", "y", "z")

@@ -23,11 +23,17 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fem_squeal.fe.assembly import Operators, _owned_global_rows, contact_matrices
+from fem_squeal.fe import forms
+from fem_squeal.fe import interface as itf
+from fem_squeal.fe.assembly import Operators, _compile, _owned_global_rows, contact_matrices, plate_friction_fields
 from fem_squeal.fe.eigen import set_options
+from fem_squeal.fe.model import ModelSpec, sliding_speed, speed_friction
 from fem_squeal.reduced.laws.contact import UnilateralLaw
 from fem_squeal.util.errors import ModelError, PreloadError
 
@@ -104,8 +110,12 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
             gn.array[:] = op.weight * sig
             op.Gn.multTransposeAdd(gn, R, R)
             if friction and it.has_friction:
-                op.Gt1.multTranspose(gn, t)
-                R.axpy(it.mu, t)
+                if it.law is None:
+                    op.Gt1.multTranspose(gn, t)
+                    R.axpy(it.mu, t)
+                else:                      # μ(V) per point, V = Ω r
+                    gn.array[:] *= it.friction_coefficient(op.x)
+                    op.Gt1.multTransposeAdd(gn, R, R)
             if it.kt > 0:   # tangential penalty on the closed points: G_t₂ᵀ W k_t (G_t₂ u) (+ t₁ if stuck)
                 rows = [op.Gt2] if it.sliding != 0 else [op.Gt2, op.Gt1]
                 for Gt in rows:
@@ -158,7 +168,115 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     for it, op in ops.contacts:
         pressure[it.name] = p = UnilateralLaw(k_l=it.kn, k_nl=k3).force(-gaps[it.name])
         normal[it.name] = comm.allreduce(float(op.weight @ p), op=MPI.SUM)
-        fric[it.name] = it.mu * normal[it.name] if it.has_friction and friction else 0.0
+        if not (it.has_friction and friction):
+            fric[it.name] = 0.0
+        elif it.law is None:
+            fric[it.name] = it.mu * normal[it.name]
+        else:                              # ∫ μ(V) p dA
+            fric[it.name] = comm.allreduce(float(op.weight @ (it.friction_coefficient(op.x) * p)), op=MPI.SUM)
         area[it.name] = comm.allreduce(float(op.weight @ (gaps[it.name] < 0)), op=MPI.SUM)
     active = {n: g < 0.0 for n, g in gaps.items()}
     return PreloadResult(u, active, gaps, pressure, normal, fric, area, len(history) - 1, history)
+
+
+def static_displacement(ops: Operators, options: dict | None = None, prefix: str = "preload_") -> PETSc.Vec:
+    """The linear static displacement K u = f (rigid plates are bilateral springs in K): the preload of a
+    model without contact interfaces, whose plates' pressure k_n (u·n) the friction damping needs."""
+    if ops.f is None:
+        raise ModelError("loads: the preload needs a load (e.g. loads.pressure on the piston)")
+    ksp = _lu(ops.K, options, prefix)
+    u = ops.K.createVecRight()
+    try:
+        ksp.solve(ops.f, u)
+        reason = ksp.getConvergedReason()
+    except PETSc.Error as e:          # a singular K (zero pivot in the factorisation)
+        reason = -e.ierr
+    finally:
+        ksp.destroy()
+    if reason < 0:
+        raise PreloadError(f"preload: linear static solve failed (reason {reason}); a free body needs "
+                           "boundary conditions that hold its rigid-body motions")
+    return u
+
+
+def friction_damping(ops: Operators, mesh_data, spec: ModelSpec, u: PETSc.Vec | None,
+                     pressure: dict[str, np.ndarray] | None) -> PETSc.Mat | None:
+    """The friction-damping matrix C_d of the sliding contacts and plates with ``friction_damping``
+    (Abaqus ``FRICTION DAMPING=YES``), about the preload: displacement ``u`` (the plates' pressure
+    p = k_n max(u·n, 0)) and the contacts' quadrature-point pressures ``pressure`` (PreloadResult).
+
+    Derivation.  At a point with preload pressure p the counter-face (disc, plate) moves at V s
+    relative to the body (V = Ω r, s the unit sliding direction, t₂ = n × s); the body's velocity
+    relative to the counter-face is v_rel = −V s + a s + b t₂ (a, b: the tangential components of
+    the vibration velocity, slave minus master for a contact).  The friction force on the body is
+
+        F = −μ(|v_rel|) p v_rel/|v_rel|.
+
+    To first order in (a, b): |v_rel| = V − a and v_rel/|v_rel| = −s + (b/V) t₂, so
+
+        F = μ(V) p s − p μ'(V) a s − (μ(V) p/V) b t₂.
+
+    The first term is the steady friction force (its pressure variation is K_f); the others are
+    forces proportional to the relative velocity.  On the left-hand side of M ü + C u̇ + K u = 0 they
+    give the damping per unit area
+
+        C = p μ'(V) s sᵀ + (μ(V) p/V) t₂ t₂ᵀ,
+
+    i.e. C_d = G_t₁ᵀ diag(w p μ') G_t₁ + G_t₂ᵀ diag(w p μ/V) G_t₂ for a contact (the rows G_t₁, G_t₂
+    of the interface operator, w the area weights) and the facet form
+    ∫ p [μ/V (u·t₂)(v·t₂) + μ' (u·s)(v·s)] ds for a plate.  A transverse velocity turns the friction
+    force away from it (μ p/V > 0: positive damping); along s a rising μ(V) damps and a falling
+    branch (μ' < 0, Stribeck between v_s and v_d) feeds energy in: negative damping.  μ, μ' come from
+    the interface's law (:func:`fem_squeal.fe.model.speed_friction`).  Zero on the clamped DOFs;
+    None if no interface asks for it.  The app adds C_d to the operators' C after the preload, so the
+    CEA solves the damped PEP and the reduced model projects it into C₀; a μ sweep of the reduced
+    model scales K_f, not C_d (frozen at the scene's μ and speed)."""
+    bc_rows = _owned_global_rows(ops.K, ops.V, ops.bc_dofs)
+    total: PETSc.Mat | None = None
+
+    def add(A: PETSc.Mat) -> None:
+        nonlocal total
+        A.zeroRowsColumns(bc_rows, diag=0.0)
+        if total is None:
+            total = A
+        else:
+            total.axpy(1.0, A, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+            A.destroy()
+
+    for it, op in ops.contacts:
+        if not it.friction_damping:
+            continue
+        if pressure is None or it.name not in pressure:
+            raise ModelError(f"interfaces.{it.name}.friction_damping: needs the contact pressure of the "
+                             "nonlinear preload (preload.mode = 'nonlinear')")
+        V = sliding_speed(op.x, it.speed)
+        mu, dmu = speed_friction(it.mu, it.law, V)
+        add(itf.friction_damping_matrix(op, pressure[it.name], mu, dmu, V))
+    plates = [pl for pl in spec.plates if pl.friction_damping and pl.kn > 0]
+    if plates:
+        if u is None:
+            raise ModelError("friction_damping: a rigid plate's pressure comes from the static preload "
+                             "displacement (loads.pressure)")
+        Vh = ops.V
+        mesh = Vh.mesh
+        uh = fem.Function(Vh)
+        uh.x.array[: u.getLocalSize()] = u.array_r
+        uh.x.scatter_forward()
+        tr, te = ufl.TrialFunction(Vh), ufl.TestFunction(Vh)
+        n, x = ufl.FacetNormal(mesh), ufl.SpatialCoordinate(mesh)
+        qdeg = spec.quadrature_degree or 4 * spec.degree    # u, v, p, μ: four P_k traces
+        ds = ufl.Measure("ds", domain=mesh, subdomain_data=mesh_data.facet_tags,
+                         metadata={"quadrature_degree": qdeg})
+        a = None
+        for pl in plates:
+            s = forms.circumferential_direction(x, float(pl.sliding))
+            p = pl.kn * ufl.max_value(ufl.dot(uh, n), 0.0)
+            speed_V = pl.speed * ufl.sqrt(x[0] ** 2 + x[1] ** 2)
+            mu, dmu = (pl.mu, 0.0) if pl.law is None else plate_friction_fields(Vh, pl)
+            term = forms.friction_damping_form(tr, te, p, mu, dmu, speed_V, n, s, ds(mesh_data.faces[pl.face]))
+            a = term if a is None else a + term
+        form = _compile(a, None)
+        A = fem_petsc.assemble_matrix(form)
+        A.assemble()
+        add(A)
+    return total

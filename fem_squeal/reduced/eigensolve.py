@@ -4,7 +4,9 @@
 m eigenvalues θ of K give λ = i√θ (principal root, Im λ ≥ 0; a flutter pair θ, θ̄ gives the two
 roots ±σ + iω); a real θ < 0 (divergence) gives the unstable root +√|θ|.  Damped: the companion
 form [[0, I], [−K, −C]] of size 2m; the m roots with the largest imaginary parts are kept (one of
-each conjugate pair).  Either way every point returns m eigenvalues, sorted by frequency, and
+each conjugate pair).  K may be complex (a loss factor η: K(1 + iη)); the roots are then no longer
+in conjugate pairs and the m kept are those of the positive frequencies (module docstring of
+:mod:`fem_squeal.reduced.model`).  Either way every point returns m eigenvalues, sorted by frequency, and
 (optionally) the m-vectors y, unit 2-norm (= unit mass norm of the lifted Φy).
 """
 from __future__ import annotations
@@ -35,7 +37,7 @@ def quadratic_eigs(K: np.ndarray, C: np.ndarray | None = None, vectors: bool = F
         lam = _roots_from_theta(theta)
     else:
         shape = K.shape[:-2]
-        A = np.zeros(shape + (2 * m, 2 * m))
+        A = np.zeros(shape + (2 * m, 2 * m), np.result_type(K, np.asarray(C), float))
         A[..., :m, m:] = np.eye(m)
         A[..., m:, :m] = -K
         A[..., m:, m:] = -np.asarray(C)
@@ -67,11 +69,13 @@ def unstable(lam: np.ndarray, growth_tol: float = 1e-6) -> np.ndarray:
 def eig_left_right(K: np.ndarray, C: np.ndarray | None = None):
     """Eigenvalues λ (m, sorted as :func:`~fem_squeal.reduced.eigensolve.quadratic_eigs`) of
     λ²I + λC + K with right and left eigenvectors X, Y (columns), from the companion form
-    (right vector [x; λx], left vector [(λI + C)ᴴy; y] of A = [[0, I], [−K, −C]])."""
-    K = np.asarray(K, float)
+    (right vector [x; λx], left vector [(λI + C)ᴴy; y] of A = [[0, I], [−K, −C]]).  K may be
+    complex (a loss factor): the m roots with the largest Im λ are kept, as in quadratic_eigs."""
+    K = np.asarray(K)
+    K = K.astype(np.result_type(K, float))
     m = K.shape[0]
-    Cm = np.zeros_like(K) if C is None else np.asarray(C, float)
-    A = np.zeros((2 * m, 2 * m))
+    Cm = np.zeros_like(K) if C is None else np.asarray(C)
+    A = np.zeros((2 * m, 2 * m), np.result_type(K, Cm))
     A[:m, m:] = np.eye(m)
     A[m:, :m] = -K
     A[m:, m:] = -Cm
@@ -93,8 +97,9 @@ def condition_numbers(K: np.ndarray, C: np.ndarray | None = None) -> tuple[np.nd
     eigenvalue of a normal problem and grows as |μ − μ_c|^(−1/2) towards an exceptional point
     (two eigenvalues and their eigenvectors coalesce, yᴴ(2λI + C)x → 0); there the eigenvalue
     error of a backward-stable solve is ~κ ε."""
-    K = np.asarray(K, float)
-    Cm = np.zeros_like(K) if C is None else np.asarray(C, float)
+    K = np.asarray(K)
+    K = K.astype(np.result_type(K, float))
+    Cm = np.zeros_like(K) if C is None else np.asarray(C)
     lam, X, Y = eig_left_right(K, C)
     nK, nC = np.linalg.norm(K, 2), np.linalg.norm(Cm, 2)
     al = np.abs(lam)

@@ -1,6 +1,8 @@
 """Parametric (affine) reduced model of λ²M + λC + K on a mass-orthonormal basis.
 
 K(p) = K₀ + Σᵢ (θᵢ − 1) Kᵢ + μ K_f¹          θᵢ = Eᵢ / Eᵢ⁰ (part i's Young's modulus scale)
+       + i Σᵢ ηᵢ θᵢ Kᵢ                          ηᵢ part i's loss factor (structural damping Kᵢ(1 + iη))
+       + Σ_c [(s_c − 1) K_c,c + (k_t,c − k_t,c⁰) K_t,c¹ + (μ_c s_c − μ_c^μ) K_f,c¹]
 C(p) = C₀ + Σᵢ βᵢ (θᵢ − 1) Kᵢ                 (stiffness-proportional damping follows E)
 M    = I                                       (the basis is M-orthonormal)
 
@@ -8,6 +10,30 @@ K₀ is the frictionless stiffness at the nominal parameters (elasticity, spring
 Kᵢ the elastic stiffness of part i at its nominal modulus, K_f¹ the friction stiffness for μ = 1
 in the scene's sliding direction, so that a signed μ (sign(v)μ, seed 001 Fig. 8) covers forward
 (> 0) and backward (< 0) sliding.  Scaling "E" of a part scales its whole elasticity tensor.
+
+**Parameters** (:attr:`ReducedModel.parameters`): ``mu`` (every interface that has friction at
+the nominal point, together: the signed sweep parameter), ``E.<part>`` (the parts whose
+stiffness Kᵢ the model carries), ``eta.<part>`` (those of them listed in ``eta0``, with their
+nominal loss factor: :func:`fem_squeal.fe.projection.reduce` lists every carried part), and per
+contact interface c: ``mu.<c>`` (its own
+signed friction coefficient; it overrides ``mu`` for that interface), ``kn.<c>`` (its normal
+penalty: s_c = k_n,c/k_n,c⁰ scales its closed-contact stiffness K_c,c and its friction stiffness,
+which is μ k_n), ``kt.<c>`` (its tangential penalty, 0 allowed).  The interface matrices are
+formed from the interface's restricted operators (:class:`ContactRestriction`) at the preload's
+closed points: K_c,c = (G_nΦ)ᵀ diag(k_n w a) (G_nΦ), K_f,c¹ = (G_sΦ)ᵀ diag(k_n w a) (G_nΦ),
+K_t,c¹ = (G_t₂Φ)ᵀ diag(w a) (G_t₂Φ) (+ the same along t₁ for a contact that does not slide), w the
+quadrature weights and a the closed points: the contact state of the preload is kept (a change
+of k_n does not re-solve the preload; the full-order check of
+:class:`fem_squeal.fe.projection.ParametricOperators` makes the same assumption).
+μ_c^μ = μ·μ_c⁰/μ⁰ is what ``mu`` gives interface c (μ_c⁰ its nominal coefficient), and μ_c =
+``mu.<c>`` where given, else μ_c^μ: the terms vanish at the nominal point and where the interface
+parameters are not given, so these models reproduce the μ/E model exactly.
+
+**Loss factor.**  η ≥ 0 makes K complex: the eigenvalues of λ²I + K(1 + iη) (one part, undamped)
+are λ = iω√(1 + iη) (Im λ > 0: Re λ = −ω Im√(1 + iη) < 0, the physical branch; the roots with
+Im λ < 0 belong to K(1 − iη), the other sign of the frequency, and are not kept by
+:func:`~fem_squeal.reduced.eigensolve.quadratic_eigs`).  It is exact complex arithmetic here; a
+scene's nominal ``materials.<part>.eta`` is the model's ``eta0``.
 """
 from __future__ import annotations
 
@@ -20,11 +46,25 @@ from fem_squeal.util.atomic import write_npz_atomic
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
 MU = "mu"
+#: prefixes of the per-part and per-interface parameters: ``<prefix>.<part or interface>``
+PART_PREFIXES = ("E", "eta")
+INTERFACE_PREFIXES = ("mu", "kn", "kt")
 
 
 def e_param(part: str) -> str:
     """Name of the parameter that sets part ``part``'s Young's modulus [Pa]."""
     return f"E.{part}"
+
+
+def eta_param(part: str) -> str:
+    """Name of the parameter that sets part ``part``'s loss factor η (structural damping K(1 + iη))."""
+    return f"eta.{part}"
+
+
+def split_param(name: str) -> tuple[str, str | None]:
+    """('mu', None) for ``mu``, (prefix, target) for ``<prefix>.<part or interface>``."""
+    prefix, dot, target = name.partition(".")
+    return (prefix, target) if dot else (prefix, None)
 
 
 def format_point(point: Mapping[str, float]) -> str:
@@ -36,6 +76,12 @@ def format_point(point: Mapping[str, float]) -> str:
             out.append(f"sign(v)μ = {value:+.3f}")
         elif name.startswith("E."):
             out.append(f"E({name[2:]}) = {value / 1e9:.4g} GPa")
+        elif name.startswith("mu."):
+            out.append(f"sign(v)μ({name[3:]}) = {value:+.3f}")
+        elif name.startswith(("kn.", "kt.")):
+            out.append(f"{name[:2]}({name[3:]}) = {value:.4g} N/m³")
+        elif name.startswith("eta."):
+            out.append(f"η({name[4:]}) = {value:.4g}")
         else:
             out.append(f"{name} = {value:.4g}")
     return ", ".join(out)
@@ -57,6 +103,29 @@ class ContactRestriction:
     gap0: np.ndarray | None = None   # (n_points,) gap of the undeformed geometry
     x: np.ndarray | None = None      # (n_points, 3) slave point coordinates
     pressure: np.ndarray | None = None  # (n_points,) contact pressure at the preload [Pa]
+    Gt2: np.ndarray | None = None    # (n_points, m) across the sliding direction (t₂ = n × t₁)
+    kt: float = 0.0                  # tangential penalty [N/m³]
+
+    def closed_weight(self) -> np.ndarray:
+        """w a: the quadrature weights of the points closed at the preload (0 at the open ones)."""
+        return self.weight * np.asarray(self.active, bool)
+
+    def normal_stiffness(self) -> np.ndarray:
+        """K_c = (G_nΦ)ᵀ diag(k_n w a) (G_nΦ): the closed-contact stiffness at the nominal k_n."""
+        return self.Gn.T @ ((self.kn * self.closed_weight())[:, None] * self.Gn)
+
+    def friction_stiffness(self) -> np.ndarray:
+        """K_f¹ = (G_sΦ)ᵀ diag(k_n w a) (G_nΦ): the friction stiffness for μ = 1 at the nominal k_n."""
+        return self.Gt.T @ ((self.kn * self.closed_weight())[:, None] * self.Gn)
+
+    def tangential_stiffness(self) -> np.ndarray | None:
+        """K_t¹ for k_t = 1: (G_t₂Φ)ᵀ diag(w a) (G_t₂Φ), + (G_t₁Φ)ᵀ diag(w a) (G_t₁Φ) without sliding
+        (None when G_t₂Φ was not stored: a model saved before k_t became a parameter)."""
+        if self.Gt2 is None:
+            return None
+        wa = self.closed_weight()[:, None]
+        T = self.Gt2.T @ (wa * self.Gt2)
+        return T if self.sliding != 0 else T + self.Gt.T @ (wa * self.Gt)
 
 
 @dataclass
@@ -74,6 +143,7 @@ class ReducedModel:
     info: dict = field(default_factory=dict)                  # basis description (sizes, timings)
     f: np.ndarray | None = None                               # Φᵀ f: the static load (preload)
     q_static: np.ndarray | None = None                        # ΦᵀM u_s: the preload displacement
+    eta0: dict[str, float] = field(default_factory=dict)      # parts with a loss-factor parameter: nominal η
 
     def __post_init__(self):
         m = self.K0.shape[0]
@@ -85,6 +155,13 @@ class ReducedModel:
         missing = sorted(set(self.K_parts) - set(self.E0))
         if missing:
             raise ModelError(f"E0: no nominal modulus for part(s) {missing}")
+        stray = sorted(p for p in self.eta0 if p not in self.K_parts)
+        if stray:
+            raise ModelError(f"eta0: loss factor of part(s) {stray} whose stiffness the model does not carry")
+        for p, v in self.eta0.items():
+            if not v >= 0:
+                raise ModelError(f"{eta_param(p)}: must be >= 0 (got {v})")
+        self._interface_cache: dict[str, tuple] = {}
 
     @property
     def size(self) -> int:
@@ -92,8 +169,44 @@ class ReducedModel:
 
     @property
     def parameters(self) -> list[str]:
-        """Names of the parameters this model can vary."""
-        return ([MU] if self.Kf1 is not None else []) + [e_param(p) for p in self.K_parts]
+        """Names of the parameters this model can vary (module docstring): ``mu``, ``E.<part>``,
+        ``mu.<contact>`` (sliding contacts), ``kn.<contact>``, ``kt.<contact>``, ``eta.<part>``."""
+        out = ([MU] if self.Kf1 is not None else []) + [e_param(p) for p in self.K_parts]
+        out += [f"mu.{c}" for c, r in self.contacts.items() if r.sliding != 0]
+        out += [f"kn.{c}" for c in self.contacts]
+        out += [f"kt.{c}" for c, r in self.contacts.items() if r.Gt2 is not None]
+        return out + [eta_param(p) for p in self.K_parts if p in self.eta0]
+
+    def nominal(self) -> dict[str, float]:
+        """The value of every parameter at the nominal point."""
+        vals = {MU: float(self.mu0)} if self.Kf1 is not None else {}
+        vals.update({e_param(p): float(self.E0[p]) for p in self.K_parts})
+        for c, r in self.contacts.items():
+            if r.sliding != 0:
+                vals[f"mu.{c}"] = float(r.mu)
+            vals[f"kn.{c}"] = float(r.kn)
+            if r.Gt2 is not None:
+                vals[f"kt.{c}"] = float(r.kt)
+        vals.update({eta_param(p): float(self.eta0[p]) for p in self.K_parts if p in self.eta0})
+        return {k: vals[k] for k in self.parameters}
+
+    @property
+    def complex_stiffness(self) -> bool:
+        """K is complex at the nominal point (a part has a loss factor η > 0)."""
+        return any(v != 0 for v in self.eta0.values())
+
+    def interface_matrices(self, name: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """(K_c, K_f¹ or None without sliding, K_t¹ or None) of contact ``name`` (module docstring)."""
+        if name not in self._interface_cache:
+            c = self.contacts[name]
+            self._interface_cache[name] = (c.normal_stiffness(),
+                                           c.friction_stiffness() if c.sliding != 0 else None,
+                                           c.tangential_stiffness())
+        return self._interface_cache[name]
+
+    def _mu_share(self, c: ContactRestriction) -> float:
+        """μ_c⁰/μ⁰: what a unit ``mu`` gives contact c (0 for a contact without friction at nominal)."""
+        return c.mu / self.mu0 if self.mu0 != 0 and c.sliding != 0 and self.Kf1 is not None else 0.0
 
     @property
     def damped(self) -> bool:
@@ -122,6 +235,92 @@ class ReducedModel:
             cc[:, j] = self.beta.get(part, 0.0) * ck[:, 2 + j]
         return ck, cc
 
+    def extra_terms(self, points: Mapping[str, np.ndarray], n: int
+                    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Coefficients (n, t) (complex with a loss factor) and matrices (t, m, m) of the loss-factor
+        and interface terms of K for ``n`` points; None when none applies (only μ and E vary and no
+        part has a loss factor: K is then the μ/E model's, bit for bit)."""
+        def vec(name, default):
+            return np.broadcast_to(np.asarray(points.get(name, default), float), (n,))
+
+        coefs, mats = [], []
+        for part, Kp in self.K_parts.items():
+            name = eta_param(part)
+            if name in points or self.eta0.get(part, 0.0) != 0:
+                eta = vec(name, self.eta0.get(part, 0.0))
+                if np.any(~(eta >= 0)):
+                    raise ModelError(f"{name}: must be >= 0 (got {eta.min()})")
+                coefs.append(1j * eta * vec(e_param(part), self.E0[part]) / self.E0[part])
+                mats.append(Kp)
+        mu = vec(MU, self.mu0)
+        for cname, c in self.contacts.items():
+            mu_key, kn_key, kt_key = f"mu.{cname}", f"kn.{cname}", f"kt.{cname}"
+            if not any(k in points for k in (mu_key, kn_key, kt_key)):
+                continue
+            Kc, Kf, Kt = self.interface_matrices(cname)
+            kn = vec(kn_key, c.kn)
+            if np.any(~(kn > 0)):
+                raise ModelError(f"{kn_key}: must be > 0 (got {kn.min()})")
+            s = kn / c.kn
+            if kn_key in points:
+                coefs.append(s - 1.0)
+                mats.append(Kc)
+            if Kf is not None and (kn_key in points or mu_key in points):
+                mu_default = mu * self._mu_share(c)
+                coefs.append(vec(mu_key, 0.0) * s - mu_default if mu_key in points else mu_default * (s - 1.0))
+                mats.append(Kf)
+            if kt_key in points:
+                kt = vec(kt_key, c.kt)
+                if np.any(~(kt >= 0)):
+                    raise ModelError(f"{kt_key}: must be >= 0 (got {kt.min()})")
+                coefs.append(kt - c.kt)
+                mats.append(Kt)
+        if not coefs:
+            return None
+        return np.stack(coefs, axis=1), np.stack(mats)
+
+    def derivative(self, name: str, point: Mapping[str, float] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray | None]:
+        """(∂K/∂p, ∂C/∂p or None) at ``point`` (nominal where not given) for parameter ``name``:
+        ∂K/∂μ = K_f¹ (− μ_c⁰/μ⁰ K_f,c¹ for a contact whose ``mu.<c>`` is given, + μ_c⁰/μ⁰ (s_c − 1)
+        K_f,c¹ for one whose k_n is changed); ∂K/∂E_i = (1 + iη_i) K_i/E_i⁰, ∂C/∂E_i = β_i K_i/E_i⁰;
+        ∂K/∂η_i = i θ_i K_i; ∂K/∂μ_c = s_c K_f,c¹; ∂K/∂k_n,c = (K_c,c + μ_c K_f,c¹)/k_n,c⁰;
+        ∂K/∂k_t,c = K_t,c¹."""
+        point = dict(point or {})
+        self._check([name, *point])
+        val = {**self.nominal(), **{k: float(v) for k, v in point.items()}}
+        prefix, target = split_param(name)
+        if name == MU:
+            dK = self.Kf1.copy()
+            for cname, c in self.contacts.items():
+                share = self._mu_share(c)
+                if share == 0 or (f"mu.{cname}" not in point and f"kn.{cname}" not in point):
+                    continue
+                Kf = self.interface_matrices(cname)[1]
+                if f"mu.{cname}" in point:
+                    dK = dK - share * Kf
+                else:
+                    dK = dK + share * (val[f"kn.{cname}"] / c.kn - 1.0) * Kf
+            return dK, None
+        if prefix in PART_PREFIXES:
+            Kp, E0 = self.K_parts[target], self.E0[target]
+            eta = val.get(eta_param(target), 0.0)
+            if prefix == "eta":
+                return 1j * (val[e_param(target)] / E0) * Kp, None
+            Ki = Kp / E0
+            beta = self.beta.get(target, 0.0)
+            return (Ki if eta == 0 else (1.0 + 1j * eta) * Ki), (beta * Ki if beta else None)
+        c = self.contacts[target]
+        Kc, Kf, Kt = self.interface_matrices(target)
+        s = val[f"kn.{target}"] / c.kn
+        if prefix == "kt":
+            return Kt.copy(), None
+        mu_c = val.get(f"mu.{target}", 0.0) if f"mu.{target}" in point else \
+            (val.get(MU, 0.0) * self._mu_share(c))
+        if prefix == "mu":
+            return s * Kf, None
+        return (Kc + mu_c * Kf if Kf is not None else Kc) / c.kn, None
+
     def stiffness_terms(self) -> np.ndarray:
         """(2 + n_parts, m, m): K0, K_f¹ (zero when frictionless), K_i."""
         m = self.size
@@ -130,10 +329,14 @@ class ReducedModel:
 
     def matrices(self, points: Mapping[str, np.ndarray] | None = None, n: int = 1
                  ) -> tuple[np.ndarray, np.ndarray | None]:
-        """K(p) and C(p) (None if undamped) as (n, m, m) stacks for ``n`` points."""
+        """K(p) and C(p) (None if undamped) as (n, m, m) stacks for ``n`` points (K complex when
+        a part has a loss factor)."""
         points = points or {}
         ck, cc = self.coefficients(points, n)
         K = np.tensordot(ck, self.stiffness_terms(), axes=1)
+        extra = self.extra_terms(points, n)
+        if extra is not None:
+            K = K + np.tensordot(extra[0], extra[1], axes=1)
         if not self.damped:
             return K, None
         C = np.broadcast_to(self.C0 if self.C0 is not None else np.zeros((self.size,) * 2),
@@ -162,26 +365,32 @@ class ReducedModel:
             arrays[f"K_part/{p}"] = A
             arrays[f"E0/{p}"] = np.array(self.E0[p])
             arrays[f"beta/{p}"] = np.array(self.beta.get(p, 0.0))
+            if p in self.eta0:
+                arrays[f"eta0/{p}"] = np.array(self.eta0[p])
         for name, c in self.contacts.items():
-            for f in ("Gn", "Gt", "weight", "gap", "active", "gap0", "x", "pressure"):
+            for f in ("Gn", "Gt", "weight", "gap", "active", "gap0", "x", "pressure", "Gt2"):
                 if getattr(c, f) is not None:
                     arrays[f"contact/{name}/{f}"] = getattr(c, f)
-            for f in ("kn", "mu", "sliding"):
+            for f in ("kn", "mu", "sliding", "kt"):
                 arrays[f"contact/{name}/{f}"] = np.array(getattr(c, f))
         write_npz_atomic(path, arrays)
 
     @classmethod
     def load(cls, path) -> ReducedModel:
+        """Read a model written by :meth:`save` (also one written before k_t, η and the interface
+        parameters existed: no G_t₂Φ, k_t = 0, η = 0)."""
         with np.load(path) as z:
             d = {k: z[k] for k in z.files}
         parts = sorted(k.split("/", 1)[1] for k in d if k.startswith("K_part/"))
         contacts = {}
         for name in sorted({k.split("/")[1] for k in d if k.startswith("contact/")}):
             g = {f: d.get(f"contact/{name}/{f}") for f in ("Gn", "Gt", "weight", "gap", "active", "gap0", "x",
-                                                          "pressure")}
+                                                          "pressure", "Gt2")}
             s = {f: float(d[f"contact/{name}/{f}"]) for f in ("kn", "mu", "sliding")}
+            s["kt"] = float(d.get(f"contact/{name}/kt", 0.0))
             contacts[name] = ContactRestriction(**g, **s)
         return cls(K0=d["K0"], Kf1=d.get("Kf1"), C0=d.get("C0"),
                    K_parts={p: d[f"K_part/{p}"] for p in parts}, E0={p: float(d[f"E0/{p}"]) for p in parts},
                    beta={p: float(d[f"beta/{p}"]) for p in parts}, mu0=float(d["mu0"]), contacts=contacts,
-                   f=d.get("f"), q_static=d.get("q_static"))
+                   f=d.get("f"), q_static=d.get("q_static"),
+                   eta0={p: float(d[f"eta0/{p}"]) for p in parts if f"eta0/{p}" in d})

@@ -6,7 +6,9 @@ yᴴQ(λ(p), p)x = 0 gives
     dλ/dp = −yᴴ(λ²∂M/∂p + λ∂C/∂p + ∂K/∂p)x / yᴴ(2λM + C)x.
 
 On the affine reduced model (:mod:`fem_squeal.reduced.model`) M = I and the derivatives are
-constant matrices:  ∂K/∂μ = K_f¹, ∂C/∂μ = 0;  ∂K/∂E_i = K_i/E_i⁰, ∂C/∂E_i = β_i K_i/E_i⁰.
+matrices of the model (:meth:`~fem_squeal.reduced.model.ReducedModel.derivative`):  ∂K/∂μ = K_f¹,
+∂C/∂μ = 0;  ∂K/∂E_i = (1 + iη_i) K_i/E_i⁰, ∂C/∂E_i = β_i K_i/E_i⁰;  ∂K/∂η_i = iθ_i K_i;  per contact
+c: ∂K/∂μ_c = s_c K_f,c¹, ∂K/∂k_n,c = (K_c,c + μ_c K_f,c¹)/k_n,c⁰, ∂K/∂k_t,c = K_t,c¹.
 The formula is exact to first order, so for a parameter that enters linearly in λ it is exact
 (the Ryzhik ring pair: Re λ ∝ μ to O(g²), tested against the closed form of eq. 10).
 
@@ -38,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fem_squeal.reduced.eigensolve import TWO_PI, eig_left_right
-from fem_squeal.reduced.model import MU, ReducedModel
+from fem_squeal.reduced.model import ReducedModel
 from fem_squeal.util.errors import ModelError
 
 #: flag a mode as near a coalescence when κ_loc exceeds this (Δ ≈ c²/(2κ²) ≈ 0.3–0.5 %: module docstring)
@@ -73,15 +75,10 @@ class ModeSensitivity:
                 "rel_d_freq_hz": {p: None if v is None else v * values[p] for p, v in d_f.items()}}
 
 
-def parameter_derivatives(model: ReducedModel, name: str) -> tuple[np.ndarray, np.ndarray | None]:
-    """(∂K/∂p, ∂C/∂p or None) of the affine reduced model for parameter ``name``."""
-    model._check([name])
-    if name == MU:
-        return model.Kf1, None
-    part = name[2:]
-    Ki = model.K_parts[part] / model.E0[part]
-    beta = model.beta.get(part, 0.0)
-    return Ki, (beta * Ki if beta else None)
+def parameter_derivatives(model: ReducedModel, name: str, point: dict[str, float] | None = None
+                          ) -> tuple[np.ndarray, np.ndarray | None]:
+    """(∂K/∂p, ∂C/∂p or None) of the affine reduced model for parameter ``name`` at ``point``."""
+    return model.derivative(name, point)
 
 
 def sensitivities(model: ReducedModel, point: dict[str, float] | None = None,
@@ -98,7 +95,7 @@ def sensitivities(model: ReducedModel, point: dict[str, float] | None = None,
     K, C = K[0], None if C is None else C[0]
     lam, X, Y = eig_left_right(K, C)
     idx = range(lam.size) if modes is None else [int(i) for i in modes]
-    derivs = {p: parameter_derivatives(model, p) for p in parameters}
+    derivs = {p: parameter_derivatives(model, p, point) for p in parameters}
     Cm = np.zeros_like(K) if C is None else C
     nK, nC = np.linalg.norm(K, 2), np.linalg.norm(Cm, 2)
     out = []
@@ -122,10 +119,7 @@ def sensitivities(model: ReducedModel, point: dict[str, float] | None = None,
 def parameter_values(model: ReducedModel, point: dict[str, float] | None = None) -> dict[str, float]:
     """The value of every parameter at ``point`` (nominal where not given)."""
     point = point or {}
-    vals = {MU: float(point.get(MU, model.mu0))} if model.Kf1 is not None else {}
-    for part in model.K_parts:
-        vals[f"E.{part}"] = float(point.get(f"E.{part}", model.E0[part]))
-    return vals
+    return {k: float(point.get(k, v)) for k, v in model.nominal().items()}
 
 
 def ranking(record: dict) -> list[tuple[str, float]]:

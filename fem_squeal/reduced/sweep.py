@@ -121,11 +121,16 @@ def _max_op():
     return MPI.MAX
 
 
-def path_solver(model: ReducedModel, name: str, fixed: Mapping[str, float] | None = None):
-    """``p -> (λ, Y)`` along parameter ``name`` (the others at ``fixed`` or nominal), for tracking."""
+def path_solver(model: ReducedModel, name: str, fixed: Mapping[str, float] | None = None,
+                vectors: bool = True):
+    """``p -> (λ, Y)`` along parameter ``name`` (the others at ``fixed`` or nominal), for tracking;
+    ``vectors`` False: ``p -> λ`` (eigenvalues only, for refining critical values)."""
     fixed = {k: np.array([float(v)]) for k, v in (fixed or {}).items()}
 
     def solve(p: float):
         lam, Y = solve_points(model, {name: np.array([p]), **fixed}, vectors=True)
         return lam[0], Y[0]
-    return solve
+
+    def values(p: float):
+        return solve_points(model, {name: np.array([p]), **fixed})[0]
+    return solve if vectors else values

@@ -22,12 +22,17 @@ After tracking, every change of stability of a branch between two grid values (R
 ``growth_tol``·|λ|, see :func:`~fem_squeal.reduced.eigensolve.unstable`) is an event; its
 critical parameter is where Re λ itself crosses zero (the Hopf point with damping, the exceptional
 point without, where LAPACK returns real θ and hence Re λ = 0 exactly before it), refined by
-bisection on Re λ of the reduced model to ``tol``.  The threshold only classifies: with light
-damping Re λ may already be positive, below the threshold, at the grid value before the step
-where the threshold is crossed; the sign change is then looked for in the earlier grid steps
-(see :func:`_events`), and ``bracket`` is the grid step that holds it.  The partner is the
-branch nearest in frequency.  An event whose partner frequency agrees to ``coalescence_rtol`` is
-a coalescence (mode coupling: for the undamped model, an exceptional point).
+bisection on Re λ of the reduced model (eigenvalues only, ``values_solve``) to ``tol``, or, given
+the model's relative eigenvalue ``error``, only as far as that error warrants: to the parameter
+step over which the branch's eigenvalue moves by error·|λ| (from its change over the grid step),
+at most error × the range — finer bisection would locate a point the model cannot tell from its
+neighbours (issue 23: refining 35 brake events to 1e-10 cost 4× the tracking itself).
+The threshold only classifies: with light damping Re λ may already be positive, below the
+threshold, at the grid value before the step where the threshold is crossed; the sign change is
+then looked for in the earlier grid steps (see :func:`_events`), and ``bracket`` is the grid step
+that holds it.  The partner is the branch nearest in frequency.  An event whose partner frequency
+agrees to ``coalescence_rtol`` is a coalescence (mode coupling: for the undamped model, an
+exceptional point).
 """
 from __future__ import annotations
 
@@ -175,11 +180,14 @@ def track(solve: Solver, values: np.ndarray, *, start: float | None = None, mac_
           max_depth: int = 10, budget: int = 48, order_rtol: float = 1e-9, cluster_rtol: float = 1e-8,
           growth_tol: float = 1e-6,
           coalescence_rtol: float = 1e-3, tol: float = 1e-10, labels: list[str] | None = None,
-          progress: bool = False) -> Tracking:
+          progress: bool = False, values_solve: Callable[[float], np.ndarray] | None = None,
+          error: float | None = None) -> Tracking:
     """Track every eigenvalue of ``solve(p) -> (λ (m,), Y (m, m))`` over the sorted ``values``.
 
     ``start`` (default 0 if inside the range, else the first value) is where branches are
-    labelled; critical points are refined to ``tol`` × (range of values).  ``budget`` caps the
+    labelled; critical points are refined to ``tol`` × (range of values), or with ``error`` (the
+    model's relative eigenvalue error) as far as it warrants (module docstring), never finer than
+    ``tol``; ``values_solve(p) -> λ`` (eigenvalues only) serves the refinement.  ``budget`` caps the
     extra solves spent bisecting one grid interval; ``cluster_rtol`` is the relative distance
     under which eigenvalues count as one degenerate cluster."""
     values = np.asarray(values, float)
@@ -204,7 +212,8 @@ def track(solve: Solver, values: np.ndarray, *, start: float | None = None, mac_
                 done += 1
                 bar.update(done)
     tr = Tracking(values, out, parents_hz, labels)
-    tr.events = _events(tr, solve, start, growth_tol, coalescence_rtol, tol * (values[-1] - values[0]))
+    vsolve = values_solve if values_solve is not None else (lambda p: solve(p)[0])
+    tr.events = _events(tr, vsolve, start, growth_tol, coalescence_rtol, tol * (values[-1] - values[0]), error)
     tr.solves, tr.ambiguous_steps = walker.solves, walker.ambiguous
     return tr
 
@@ -222,16 +231,25 @@ def _growth(lam: np.ndarray) -> np.ndarray:
 _ZERO = 1e-12
 
 
-def _bisect(solve: Solver, v: np.ndarray, lam_j: np.ndarray, i: int, above, tol: float) -> float:
+def _bisect(solve, v: np.ndarray, lam_j: np.ndarray, i: int, above, tol: float,
+            error: float | None = None) -> float:
     """The parameter where ``above(λ)`` of one branch changes between the grid values v[i] and
-    v[i + 1] (``lam_j``: the branch's tracked eigenvalues), bisected to ``tol``; the branch is
-    followed by the eigenvalue nearest to the linear interpolation over the grid step."""
+    v[i + 1] (``lam_j``: the branch's tracked eigenvalues), bisected to ``tol`` (or, with the model's
+    relative ``error``, to the step over which λ moves by error·|λ|, at most error × the range);
+    ``solve(p) -> λ``; the branch is followed by the eigenvalue nearest to the linear interpolation
+    over the grid step."""
     lo, hi, la, lb = v[i], v[i + 1], lam_j[i], lam_j[i + 1]
+    if error is not None and error > 0:
+        rate = abs(lb - la) / (hi - lo)       # |dλ/dp| over the grid step
+        warranted = error * (v[-1] - v[0])
+        if rate > 0:
+            warranted = min(warranted, error * max(abs(la), abs(lb)) / rate)
+        tol = max(tol, warranted)
     s_lo = bool(above(la))
     a, b = lo, hi
     while b - a > tol:
         mid = 0.5 * (a + b)
-        ev = solve(mid)[0]
+        ev = solve(mid)
         if bool(above(ev[np.argmin(np.abs(ev - (la + (lb - la) * (mid - lo) / (hi - lo))))])) == s_lo:
             a = mid
         else:
@@ -239,8 +257,8 @@ def _bisect(solve: Solver, v: np.ndarray, lam_j: np.ndarray, i: int, above, tol:
     return 0.5 * (a + b)
 
 
-def _events(tr: Tracking, solve: Solver, start: float, growth_tol: float, coalescence_rtol: float,
-            tol: float) -> list[CriticalPoint]:
+def _events(tr: Tracking, solve, start: float, growth_tol: float, coalescence_rtol: float,
+            tol: float, error: float | None = None) -> list[CriticalPoint]:
     """Stability changes of every branch between grid values (the threshold test, as
     :func:`~fem_squeal.reduced.eigensolve.unstable`), each located at its Hopf point Re λ = 0.
 
@@ -269,14 +287,14 @@ def _events(tr: Tracking, solve: Solver, start: float, growth_tol: float, coales
             while 0 <= i + step < v.size and growth[i, j] > zero and not grow[i + step, j]:
                 i += step
             if growth[i, j] > zero:          # no sign change of Re λ on the grid: the threshold
-                crit = _bisect(solve, v, lam[:, j], k, lambda x: _growth(x) > growth_tol, tol)
+                crit = _bisect(solve, v, lam[:, j], k, lambda x: _growth(x) > growth_tol, tol, error)
                 bracket, crossing = (v[k], v[k + 1]), False
             else:                            # Re λ changes sign between v[i] and its neighbour
                 i_lo = min(i, i - step)
                 # Re λ exactly ≤ 0 (undamped before an exceptional point, or damped): refine on
                 # the sign itself; within round-off of zero: on the same margin as the walk
                 z = 0.0 if lam[i, j].real <= 0.0 else zero
-                crit = _bisect(solve, v, lam[:, j], i_lo, lambda x, z=z: _growth(x) > z, tol)
+                crit = _bisect(solve, v, lam[:, j], i_lo, lambda x, z=z: _growth(x) > z, tol, error)
                 bracket, crossing = (v[i_lo], v[i_lo + 1]), True
             f = lam[k_un].imag
             others = np.delete(np.arange(lam.shape[1]), j)

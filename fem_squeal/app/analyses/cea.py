@@ -5,68 +5,87 @@ import math
 import time
 from pathlib import Path
 
-from fem_squeal.app.fields import REAL, Field, band, non_negative, one_of, positive
+from fem_squeal.app.fields import REAL, Field, band, one_of, positive
 from fem_squeal.app.html import escape as _e
 from fem_squeal.app.html import link
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
+from fem_squeal.reduced.eigensolve import unstable
 from fem_squeal.util.errors import SceneError
 from geometry.tags import COMPONENT_GROUPS
 
 SECTION = {
     "n_modes": Field(int, 20, positive, "complex modes (Im λ > 0) to compute"),
-    "target_hz": Field(REAL, 0.0, non_negative, "shift; 0 = centre of band_hz"),
+    "target_hz": Field(REAL, None, positive, "shift; not set: centre of band_hz", unset=0),
     "band_hz": Field(list, [0.0, 10000.0], band, "frequency band kept in the results"),
     "method": Field(str, "auto", one_of("auto", "linear", "pep")),
     "tol": Field(REAL, 1e-10, positive), "max_residual": Field(REAL, 1e-8, positive),
+    "growth_tol": Field(REAL, 1e-6, positive, "unstable: Re λ > growth_tol |λ| (the reduced layer's "
+                        "definition, fem_squeal.reduced.eigensolve.unstable: round-off of a neutral mode, "
+                        "a gyroscopic disc's ~1e-9 |λ|, is not an instability)"),
     "describe_part": Field(str, "", None, "part for nodal diameters; '' = disc if present"),
 }
 
 
 def cea_target_hz(cea: dict) -> float:
-    """Shift of the CEA: ``target_hz`` or, when 0, the band centre in ω² (the linear EPS works in θ = ω²)."""
+    """Shift of the CEA: ``target_hz`` or, when not set, the band centre in ω² (the linear EPS works in θ = ω²)."""
     lo, hi = cea["band_hz"]
     return cea["target_hz"] or math.sqrt(0.5 * (lo * lo + hi * hi))
 
 
 def run(ctx: Context, work: Path, timings: dict) -> dict:
     """Complex eigenvalues λ²M + λC + (K + K_f) in analyses.cea.band_hz, with their descriptors."""
-    from fem_squeal.fe.descriptors import strain_energy_shares  # heavy: FE stack
+    from fem_squeal.fe.assembly import operating_operators  # heavy: FE stack
+    from fem_squeal.fe.descriptors import strain_energy_shares_all  # heavy: FE stack
     from fem_squeal.fe.eigen import solve_complex_modes  # heavy: FE stack
     from fem_squeal.fe.output import write_modes_xdmf, write_vtu  # heavy: FE stack
 
     ops, basis, scene = ctx.products["linear"], ctx.products["basis"], ctx.scene
-    a = scene["analyses"]["cea"]
+    a = scene.analyses["cea"]
     t = time.perf_counter()
-    cm = solve_complex_modes(ops.K_total(), ops.M, ops.C, a["n_modes"], cea_target_hz(a), method=a["method"],
+    op = scene.operating   # the disc's rotation and the stress stiffening (fe.assembly.operating_operators)
+    pre = ctx.products.get("preload")
+    K, C, rotation = operating_operators(
+        ops, ctx.products["mesh"], ctx.spec, speed=op.speed, gyroscopic=op.gyroscopic,
+        rotating_parts=op.rotating_parts, stress_stiffening=scene.preload.geometric_stiffness,
+        u_static=pre.u if pre is not None else None, options=scene.solver.petsc_options)
+    cm = solve_complex_modes(K, ops.M, C, a["n_modes"], cea_target_hz(a), method=a["method"],
                              tol=a["tol"], max_residual=a["max_residual"], band_hz=tuple(a["band_hz"]),
-                             options=scene["solver"]["petsc_options"], prefix="cea_", progress=True)
+                             options=scene.solver.petsc_options, prefix="cea_", progress=True)
     timings["cea"] = time.perf_counter() - t
     lo, hi = a["band_hz"]
-    rows, fields = [], []
-    for f, re, zeta, r, xr, xi in zip(cm.freqs_hz, cm.real_parts, cm.damping_ratios, cm.residuals,
-                                      cm.vectors_re, cm.vectors_im):
-        d = basis.describe(xr, xi)
+    t = time.perf_counter()
+    fields = list(zip(cm.vectors_re, cm.vectors_im))
+    described = basis.describe_all(fields)
+    groups = COMPONENT_GROUPS.get(scene.geometry.builder)
+    shares = strain_energy_shares_all(ops.K_parts, fields, groups) if ops.K_parts else [None] * len(fields)
+    rows = []
+    for lam, f, re, zeta, r, d, e in zip(cm.eigenvalues, cm.freqs_hz, cm.real_parts, cm.damping_ratios,
+                                         cm.residuals, described, shares):
         rows.append({"index": len(rows), "freq_hz": f, "real_part": re, "damping_ratio": zeta,
-                     "residual": r, "unstable": bool(re > 0), **d._asdict()})
-        if ops.K_parts:
-            groups = COMPONENT_GROUPS.get(scene["geometry"]["builder"])
-            rows[-1]["energy_shares"] = strain_energy_shares(ops.K_parts, xr, xi, groups)
-        fields.append((xr, xi))
+                     "residual": r, "unstable": bool(unstable(lam, a["growth_tol"])), **d._asdict()})
+        if e is not None:
+            rows[-1]["energy_shares"] = e
+    timings["cea_descriptors"] = time.perf_counter() - t
     n_unstable = sum(r["unstable"] for r in rows)
     ctx.say(f"[fem_squeal] CEA ({cm.method}): {len(rows)} modes in {lo:g}-{hi:g} Hz, "
             f"{n_unstable} unstable, {timings['cea']:.2f} s")
     if ctx.write_fields:
+        t = time.perf_counter()
         write_modes_xdmf(ctx.comm, work / "complex_modes.xdmf", ops.V, fields)
         write_vtu(ctx.comm, work / "complex_modes.vtu", ops.V,
                   {f"mode_{j}_{part}": x for j, pair in enumerate(fields) for part, x in zip(("re", "im"), pair)},
                   {"freq_hz": [r["freq_hz"] for r in rows], "real_part": [r["real_part"] for r in rows]})
-    return {"complex_modes": rows, "n_unstable": n_unstable, "cea_method": cm.method}
+        timings["cea_fields"] = time.perf_counter() - t
+    out = {"complex_modes": rows, "n_unstable": n_unstable, "cea_method": cm.method}
+    if rotation:
+        out["cea_rotation"] = {"speed": op.speed, **rotation}
+    return out
 
 
 def check(scene: dict, volumes) -> None:
     """analyses.cea.describe_part must be a part of the model."""
-    part = scene["analyses"]["cea"]["describe_part"]
+    part = scene.analyses["cea"].describe_part
     if part and part not in volumes:
         raise SceneError(f"analyses.cea.describe_part: unknown part {part!r}; parts: {sorted(volumes)}")
 

@@ -56,9 +56,9 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
 
 def _stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
 
-    a = ctx.scene["analyses"]["limit_cycle"]
-    ta = ctx.scene["analyses"]["transient"]
-    band = tuple(ctx.scene["analyses"]["reduced"]["band_hz"])
+    a = ctx.scene.analyses["limit_cycle"]
+    ta = ctx.scene.analyses["transient"]
+    band = tuple(ctx.scene.analyses["reduced"].band_hz)
     comm = ctx.comm
 
     def compute() -> dict[str, Any]:
@@ -71,11 +71,11 @@ def _stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
         x = Q @ dm.contacts[k].D[j]
         lc = detect_limit_cycle(t, x)
         period = 1.0 / lc.frequency_hz
-        last = t >= t[-1] - a["cycles"] * period
+        last = t >= t[-1] - a.cycles * period
         Kt, _ = integ.tangent_matrices(qs, np.zeros_like(qs))
         W = 0.5 * (Kt + Kt.T)
         svd = space_time_svd(Q[last] - Q[last].mean(axis=0), weight=W)
-        n_sh = min(a["svd_shapes"], svd.shapes.shape[1])
+        n_sh = min(a.svd_shapes, svd.shapes.shape[1])
         near = (lam.imag > 0) & (lam.imag / TWO_PI >= band[0]) & (lam.imag / TWO_PI <= band[1])
         cand = np.flatnonzero(near)
         macs = mac(svd.shapes[:, :n_sh], Y[:, cand])
@@ -84,7 +84,7 @@ def _stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
                  "real_part": float(lam[cand[c]].real), "mac": float(macs[r, c]),
                  "plane_share": float(planes[r, c])} for r, c in enumerate(np.argmax(planes, axis=1))]
         samples = np.flatnonzero(t >= t[-1] - period)
-        samples = samples[:: max(samples.size // a["stability_samples"], 1)]
+        samples = samples[:: max(samples.size // a.stability_samples, 1)]
         ds = dynamic_stability(integ, t[samples], Q[samples], V[samples])
         trail = follow_mode(ds, lam[i]) if i >= 0 else None
         K_parts = rm.K_parts
@@ -97,8 +97,8 @@ def _stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
         if i >= 0:
             omega = float(lam[i].imag)
             yn = y / np.abs(dm.contacts[k].D[j] @ y)        # unit closure amplitude at the probe
-            for alpha in a["mode_cycle_amplitudes"]:
-                mc = mode_cycle(integ, qs, yn, omega, alpha * static_closure(dm, qs), n=a["mode_cycle_samples"])
+            for alpha in a.mode_cycle_amplitudes:
+                mc = mode_cycle(integ, qs, yn, omega, alpha * static_closure(dm, qs), n=a.mode_cycle_samples)
                 dsm = dynamic_stability(integ, mc.t, mc.q, mc.v)
                 re = dsm.eigenvalues.real[np.arange(len(mc.t)), follow_mode(dsm, lam[i])]
                 cycles.append({"alpha": alpha, "friction_work": mc.friction_work,
@@ -119,7 +119,7 @@ def _stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
         plots.dynamic_stability(work / "dynamic_stability.png", ds.t, ds.eigenvalues, band,
                                 title="tangent CEA over the last cycle (seed 002 Fig. 10)")
         plots.limit_cycle(work / "limit_cycle.png", t, x, lc, svd.energy_fraction()[:n_sh], best,
-                          t[samples], shares_t, list(K_parts), cycles, ctx.scene["title"])
+                          t[samples], shares_t, list(K_parts), cycles, ctx.scene.title)
         timings["limit_cycle"] = time.perf_counter() - t0
         ctx.say(f"[fem_squeal] limit cycle: saturated {lc.saturated}, {lc.frequency_hz:.0f} Hz, amplitude "
                 f"{lc.amplitude * 1e6:.3g} µm; SVD shape 1 lies {100 * best[0]['plane_share']:.0f} % in the plane "
@@ -131,7 +131,7 @@ def _stage_limit_cycle(ctx, work: Path, timings: dict) -> dict[str, Any]:
 
 def check(scene: dict, volumes) -> None:
     """The amplitudes of the complex-mode cycles are numbers > 0."""
-    amps = scene["analyses"]["limit_cycle"]["mode_cycle_amplitudes"]
+    amps = scene.analyses["limit_cycle"].mode_cycle_amplitudes
     if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in amps):
         raise SceneError(f"analyses.limit_cycle.mode_cycle_amplitudes: must be numbers > 0 (got {amps})")
 

@@ -47,8 +47,8 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
 
 def masa_amplitudes(prob, targets, m: dict) -> np.ndarray:
     """(n_targets, n) amplitude grids: 0 … amplitude_max in the chosen unit."""
-    steps = np.linspace(0.0, m["amplitude_max"], m["n_amplitudes"])
-    if m["amplitude_unit"] == "modal":
+    steps = np.linspace(0.0, m.amplitude_max, m.n_amplitudes)
+    if m.amplitude_unit == "modal":
         return np.tile(steps, (len(targets), 1))
     scale = [prob.loss_amplitude(t) for t in targets]
     return np.array([steps * (s if np.isfinite(s) else 1.0) for s in scale])
@@ -56,28 +56,28 @@ def masa_amplitudes(prob, targets, m: dict) -> np.ndarray:
 
 def run_masa_analysis(comm, scene: dict, model, outdir: Path, say, timings: dict) -> dict[str, Any]:
     """analyses.masa on the reduced model (module docstring)."""
-    m = scene["analyses"]["masa"]
+    m = scene.analyses["masa"]
     band, gt = band_and_growth_tol(scene)
-    mus = [float(v) for v in m["mu"]] or [model.mu0]
-    cd = m["contact_damping"] or [0.0, np.inf]
+    mus = [float(v) for v in m.mu] or [model.mu0]
+    cd = m.contact_damping or [0.0, np.inf]
     out: dict[str, Any] = {"settings": m, "cases": []}
     t0 = time.perf_counter()
     for mu in mus:
         t = time.perf_counter()
-        mm = from_reduced(model, {MU: mu}, cubic_share=m["cubic_share"], c_max=cd[0], depth=cd[1],
-                          patches=tuple(m["patches"]) if m["patches"] else None)
+        mm = from_reduced(model, {MU: mu}, cubic_share=m.cubic_share, c_max=cd[0], depth=cd[1],
+                          patches=tuple(m.patches) if m.patches else None)
         eq = static_equilibrium(mm, model.q_static)
-        prob = MasaProblem(mm, eq, band, n_samples=m["n_samples"], growth_tol=gt)
+        prob = MasaProblem(mm, eq, band, n_samples=m.n_samples, growth_tol=gt)
         targets = prob.instabilities()
         amps = masa_amplitudes(prob, targets, m)
-        results = run_masa(prob, targets, amps, sweep_break=m["sweep_break"], update_shape=m["update_shape"],
-                           refine=m["refine"], comm=comm, progress=True)
+        results = run_masa(prob, targets, amps, sweep_break=m.sweep_break, update_shape=m.update_shape,
+                           refine=m.refine, comm=comm, progress=True)
         seconds = time.perf_counter() - t
-        unit = "× first contact loss" if m["amplitude_unit"] == "loss" else "modal amplitude p"
+        unit = "× first contact loss" if m.amplitude_unit == "loss" else "modal amplitude p"
         case = {"mu": mu, "equilibrium": eq.as_dict(), "elements": prob.n_elements, "basis": mm.size,
                 "instabilities": [], "seconds": seconds}
         for res, a in zip(results, amps):
-            scale = a[-1] / m["amplitude_max"]  # p of one unit
+            scale = a[-1] / m.amplitude_max  # p of one unit
             rec = res.as_dict()
             rec["amplitude_unit_value"] = float(scale)
             rec["stationary_in_unit"] = [s / scale for s in res.stationary]
@@ -115,7 +115,7 @@ def replace_amplitudes(res, factor: float):
 def check(scene: dict, volumes) -> None:
     """A contact interface, the nonlinear preload, the shared law settings, and μ a list of numbers."""
     check_contact_study(scene, "masa")
-    mus = scene["analyses"]["masa"]["mu"]
+    mus = scene.analyses["masa"].mu
     if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in mus):
         raise SceneError(f"analyses.masa.mu: must be a list of numbers (got {mus})")
 
@@ -133,6 +133,6 @@ def report(res: dict) -> str:
 
 STAGE = Stage("masa", ("reduced",), run, "modal amplitude stability analysis", section=SECTION, check=check,
               report=report,
-              inputs=lambda scene, spec: {"masa": scene["analyses"]["masa"],
-                                          "band": scene["analyses"]["reduced"]["band_hz"],
-                                          "growth_tol": scene["analyses"]["reduced"]["growth_tol"]})
+              inputs=lambda scene, spec: {"masa": scene.analyses["masa"],
+                                          "band": scene.analyses["reduced"].band_hz,
+                                          "growth_tol": scene.analyses["reduced"].growth_tol})

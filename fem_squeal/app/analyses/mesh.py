@@ -15,7 +15,7 @@ from geometry import BUILDERS
 
 def build_mesh(comm: MPI.Comm, scene: dict):
     """Mesh stage: call the geometry builder named in the scene."""
-    g = dict(scene["geometry"])
+    g = dict(scene.geometry)
     builder = BUILDERS[g.pop("builder")]
     with mesh_errors():
         return builder(comm, **g)
@@ -42,7 +42,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
 
 def inputs(scene: dict, spec) -> dict:
     """The geometry section; a mesh file counts by its content (SHA-256), not by its path."""
-    geo = dict(scene["geometry"])
+    geo = dict(scene.geometry)
     if geo["builder"] == "mesh_file":
         h = hashlib.sha256()
         try:

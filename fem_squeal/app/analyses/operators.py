@@ -8,12 +8,12 @@ from pathlib import Path
 from fem_squeal.app.stage import Context, Stage
 
 #: the model sections besides geometry: what the assembly reads
-MODEL_SECTIONS = ("materials", "interfaces", "boundary", "loads", "discretisation")
+MODEL_SECTIONS = ("materials", "interfaces", "boundary", "loads", "discretisation", "operating")
 
 
 def describe_part(scene: dict, volumes: dict[str, int]) -> str | None:
     """The part whose nodal diameters are reported: analyses.cea.describe_part, else "disc"."""
-    part = scene["analyses"].get("cea", {}).get("describe_part", "")
+    part = scene.analyses.get("cea", {}).get("describe_part", "")
     if part:
         return part
     return "disc" if "disc" in volumes and len(volumes) > 1 else None
@@ -26,7 +26,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     from fem_squeal.fe.penalty import penalty_ratios, penalty_warnings  # heavy: FE stack
 
     scene, spec, md = ctx.scene, ctx.spec, ctx.products["mesh"]
-    ana = scene["analyses"]
+    ana = scene.analyses
     t = time.perf_counter()
     part = describe_part(scene, md.volumes)
     sub: dict[str, float] = {}

@@ -55,6 +55,31 @@ def _preload_outputs(comm, outdir: Path, ops, pre, write_fields: bool, title: st
     return summary
 
 
+def _add_friction_damping(ctx: Context, ops, lin, pre, out: dict):
+    """``lin`` with the friction-damping matrix (interfaces.<name>.friction_damping) added to its C, about
+    the preload ``pre`` (a model without contacts: the linear static displacement K u = f of ``ops``)."""
+    spec = ctx.spec
+    if not (any(p.friction_damping for p in spec.plates) or any(i.friction_damping for i in spec.interfaces)):
+        return lin
+    from fem_squeal.fe.preload import friction_damping, static_displacement  # heavy: FE stack
+
+    u = pre.u if pre is not None else None
+    if u is None and any(p.friction_damping for p in spec.plates):
+        u = static_displacement(ops, ctx.scene.solver.petsc_options)
+    Cd = friction_damping(ops, ctx.products["mesh"], spec, u, pre.pressure if pre is not None else None)
+    if pre is None and u is not None:
+        u.destroy()
+    if Cd is None:
+        return lin
+    out["friction_damping"] = {"norm": Cd.norm(), "speed": ctx.scene.operating.speed}
+    ctx.say(f"[fem_squeal] friction damping at {ctx.scene.operating['speed']:g} rad/s: ‖C_d‖ = {Cd.norm():.3g}")
+    if lin.C is None:
+        return lin._replace(C=Cd, Cd=Cd)
+    C = lin.C.copy()
+    C.axpy(1.0, Cd, structure=Cd.Structure.DIFFERENT_NONZERO_PATTERN)   # C_d: facets only
+    return lin._replace(C=C, Cd=Cd)     # Cd apart too: the reduced basis adds its static corrections
+
+
 def run(ctx: Context, work: Path, timings: dict) -> dict:
     """Static contact state (nonlinear, or every point closed) and the linearisation about it."""
     from fem_squeal.fe.assembly import linearise  # heavy: FE stack
@@ -63,18 +88,18 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     out: dict[str, Any] = {}
     pre = None
     if ops.contacts:
-        pl = ctx.scene["preload"]
+        pl = ctx.scene.preload
         t = time.perf_counter()
         if pl["mode"] == "nonlinear":
             from fem_squeal.fe.preload import solve_preload  # heavy: FE stack
 
             pre = solve_preload(ops, friction=pl["friction"], tol=pl["tol"], max_iterations=pl["max_iterations"],
-                                options=ctx.scene["solver"]["petsc_options"])
+                                options=ctx.scene.solver.petsc_options)
             lin = linearise(ops, pre.active)
             timings["preload"] = time.perf_counter() - t
             out["preload"] = {"mode": "nonlinear", "iterations": pre.iterations, "history": pre.history,
                               "interfaces": _preload_outputs(ctx.comm, work, ops, pre, ctx.write_fields,
-                                                             ctx.scene["title"])}
+                                                             ctx.scene.title)}
             ctx.say(f"[fem_squeal] preload: {pre.iterations} Newton iterations, "
                     + ", ".join(f"{k} N = {v['normal_force']:.4g} N, closed {100 * v['closed_share']:.1f} %"
                                 for k, v in out["preload"]["interfaces"].items())
@@ -83,8 +108,11 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
             lin = linearise(ops, None)
             timings["preload"] = time.perf_counter() - t
             out["preload"] = {"mode": "all_closed"}
+        lin = _add_friction_damping(ctx, ops, lin, pre, out)
         ops.K.destroy()
         ops = lin
+    else:
+        ops = _add_friction_damping(ctx, ops, ops, pre, out)
     ctx.products["preload"] = pre
     ctx.products["linear"] = ops
     return out
@@ -102,4 +130,4 @@ def report(res: dict) -> str:
 
 
 STAGE = Stage("preload", ("operators",), run, "static contact state and the linearisation about it",
-              inputs=lambda scene, spec: scene["preload"], report=report, memory=True, fields=True)
+              inputs=lambda scene, spec: scene.preload, report=report, memory=True, fields=True)

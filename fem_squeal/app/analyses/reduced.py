@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from fem_squeal.app.fields import REAL, Field, band, increasing, non_negative, positive
+from fem_squeal.app.fields import REAL, Field, band, increasing, positive
 from fem_squeal.app.html import escape as _e
 from fem_squeal.app.html import num as _num
 from fem_squeal.app.html import table as _table
@@ -30,7 +30,9 @@ SECTION = {
     "cut_factors": Field(list, [1.25, 1.6, 2.0, 2.5], increasing(2, 1.0),
                          "modes up to factor × band top, one basis per factor until tol is met"),
     "static_correction": Field(bool, True, None, "add (K + σM)⁻¹ K_f Φ"),
-    "sigma_hz": Field(REAL, 0.0, non_negative, "shift σ = (2π f)² of the correction; 0 = 0.1 × cut"),
+    "sigma_hz": Field(REAL, None, positive, "the corrections and E directions use (K + σM)⁻¹ with "
+                      "σ = (2π f)²; not set: the band centre f_c inside the band, (K − (2π f_c)²M)⁻¹",
+                      unset=0),
     "growth_tol": Field(REAL, 1e-6, positive, "unstable: Re λ > growth_tol |λ|"),
     "enrich_rtol": Field(REAL, 1e-3, positive, "modes sampled at other parameter values keep only "
                          "directions whose new part exceeds this share of their norm"),
@@ -39,14 +41,43 @@ SECTION = {
 
 
 def map_E_range(scene: dict, spec) -> tuple[float, float]:
-    m = scene["analyses"]["map"]
+    m = scene.analyses["map"]
     E0 = spec.materials[m["part"]].E
     return tuple(m["E_range"]) if m["E_range"] else (0.8 * E0, 1.2 * E0)
 
 
+def robustness_E_ranges(section: dict, prefixes: tuple[str, ...] = ("E",)) -> dict[str, tuple[float, float]]:
+    """``E.<part>`` (and ``<prefix>.<name>`` for the other ``prefixes``, e.g. kn, kt) → (low, high) of
+    analyses.robustness's distributions (the nested ``E = {part = ...}`` too): a uniform's bounds,
+    mean ∓ 3 std of a normal, exp(m ∓ 3s) of a lognormal (99.7 % of the samples)."""
+    params = section.get("parameters", {})
+    tables = {}
+    for prefix in prefixes:
+        nested = params.get(prefix, {})
+        if isinstance(nested, dict):
+            tables.update({f"{prefix}.{k}": v for k, v in nested.items() if isinstance(v, dict)})
+        tables.update({k: v for k, v in params.items() if k.startswith(prefix + ".")})
+    out = {}
+    for name, t in tables.items():
+        kind = t.get("distribution") if isinstance(t, dict) else None
+        try:
+            if kind == "uniform":
+                out[name] = (float(t["lower"]), float(t["upper"]))
+            elif kind == "normal":
+                out[name] = (float(t["mean"]) - 3 * float(t["std"]), float(t["mean"]) + 3 * float(t["std"]))
+            elif kind == "lognormal":
+                s2 = np.log1p((float(t["std"]) / float(t["mean"])) ** 2)
+                m = np.log(float(t["mean"])) - s2 / 2
+                out[name] = (float(np.exp(m - 3 * np.sqrt(s2))), float(np.exp(m + 3 * np.sqrt(s2))))
+        except (KeyError, TypeError, ValueError, ZeroDivisionError):
+            continue   # the robustness section's own check names the bad key
+    return out
+
+
 def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict], list[str]]:
-    """(check points, E samples for the basis, parts whose E varies) implied by sweep and map."""
-    ana = scene["analyses"]
+    """(check points, E samples for the basis, parts whose E varies) implied by sweep, map and the
+    E, kn and kt distributions of robustness (their ranges: :func:`robustness_E_ranges`)."""
+    ana = scene.analyses
     checks: list[dict] = [{MU: mu0}]
     samples: list[dict] = []
     parts: list[str] = []
@@ -68,34 +99,38 @@ def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict]
         checks += [{MU: s * m["mu_max"], name: e} for s in (-1, 1) for e in (e_lo, e_hi)]
     if "masa" in ana:
         checks += [{MU: float(v)} for v in ana["masa"]["mu"]]
+    if "robustness" in ana:   # E, k_n, k_t of the scatter: modes sampled at the ends of their ranges
+        for name, (lo, hi) in robustness_E_ranges(ana["robustness"], ("E", "kn", "kt")).items():
+            if name.startswith("E."):
+                parts.append(name[2:])
+            samples += [{name: lo}, {name: hi}]
+            checks += [{MU: mu0, name: lo}, {MU: mu0, name: hi}]
     uniq = lambda pts: [dict(t) for t in dict.fromkeys(tuple(sorted(p.items())) for p in pts)]  # noqa: E731
     return uniq(checks), uniq(samples), sorted(set(parts))
 
 
 def basis_design(scene: dict, spec) -> tuple[float, list[dict], list[dict], list[str]]:
     """(μ₀, check points, E samples, parts whose stiffness the basis carries): :func:`design_points`,
-    with every part when a transient asks for component strain-energy shares along its cycle."""
+    with every part when a transient asks for component strain-energy shares along its cycle, and
+    every part with a loss factor η > 0 (its K_i carries the i η K_i term of the reduced model)."""
     mu0 = common_mu(spec)
     checks, samples, parts = design_points(scene, spec, mu0)
-    if "transient" in scene["analyses"]:
+    if "transient" in scene.analyses:
         parts = sorted(spec.materials)
+    parts = sorted(set(parts) | {p for p, m in spec.materials.items() if getattr(m, "eta", 0.0) > 0})
     return mu0, checks, samples, parts
 
 
 def full_cea(par, point: dict, band, nev: int, options) -> tuple[np.ndarray, float]:
-    """Eigenvalues (Im λ > 0, in ``band``) of the full CEA at ``point`` and its wall time [s]."""
-    from fem_squeal.fe.eigen import solve_complex_modes  # heavy: FE stack
+    """Eigenvalues (Im λ > 0, in ``band``) of the full CEA at ``point`` and its wall time [s]
+    (:func:`fem_squeal.fe.projection.full_modes`: with a loss factor, the real problem of twice the size)."""
+    from fem_squeal.fe.projection import full_modes  # heavy: FE stack
 
-    K, C = par.matrices(point)
     t = time.perf_counter()
     target = np.sqrt(0.5 * (band[0] ** 2 + band[1] ** 2))
-    cm = solve_complex_modes(K, par.ops.M, C, nev, target, band_hz=tuple(band), options=options,
-                             prefix="verify_", progress=True)
-    seconds = time.perf_counter() - t
-    for A in (K, C, *cm.vectors_re, *cm.vectors_im):
-        if A is not None:
-            A.destroy()
-    return cm.eigenvalues, seconds
+    lam = full_modes(par, point, nev, target, band_hz=tuple(band), options=options, prefix="verify_",
+                     progress=True)
+    return lam, time.perf_counter() - t
 
 
 def verify_point(par, model, point: dict, band, growth_tol: float, options) -> dict:
@@ -117,18 +152,18 @@ def verify_point(par, model, point: dict, band, growth_tol: float, options) -> d
 
 def band_and_growth_tol(scene: dict) -> tuple[tuple[float, float], float]:
     """analyses.reduced's band [Hz] and growth tolerance (unstable: Re λ > growth_tol |λ|)."""
-    a = scene["analyses"]["reduced"]
+    a = scene.analyses["reduced"]
     return tuple(a["band_hz"]), a["growth_tol"]
 
 
 def field_basis_needed(scene: dict) -> bool:
     """The transient writes snapshots, so the reduced stage keeps Φ on the mesh nodes (basis_field.npz)."""
-    return scene["analyses"].get("transient", {}).get("snapshots", 0) > 0
+    return scene.analyses.get("transient", {}).get("snapshots", 0) > 0
 
 
 def extra_vector_settings(scene: dict) -> list | None:
     """Patch attachments that MASA and the transient need in the basis (None: no extra vectors)."""
-    ana = scene["analyses"]
+    ana = scene.analyses
     sets = [ana[a]["attachments"] for a in ("masa", "transient") if a in ana]
     if not sets:
         return None
@@ -140,7 +175,7 @@ def inputs(scene: dict, spec) -> dict:
     """What the reduced basis depends on: analyses.reduced, the check points, E samples and parts
     of :func:`basis_design`, and the extra vectors that masa and transient add."""
     _, checks, samples, parts = basis_design(scene, spec)
-    return {"reduced": scene["analyses"]["reduced"], "checks": checks, "samples": samples, "parts": parts,
+    return {"reduced": scene.analyses["reduced"], "checks": checks, "samples": samples, "parts": parts,
             "extra_vectors": extra_vector_settings(scene), "field_basis": field_basis_needed(scene)}
 
 
@@ -163,17 +198,17 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
 
     scene, spec, comm, say = ctx.scene, ctx.spec, ctx.comm, ctx.say
     ops, preload = ctx.products["linear"], ctx.products["preload"]
-    a = scene["analyses"]["reduced"]
+    a = scene.analyses["reduced"]
     band = tuple(a["band_hz"])
-    opts = scene["solver"]["petsc_options"]
+    opts = scene.solver.petsc_options
     mu0, checks, samples, parts = basis_design(scene, spec)
-    par = ParametricOperators(ops, spec, mu0, parts)
+    par = ParametricOperators(ops, spec, mu0, parts, preload=preload)
     t = time.perf_counter()
     attach = extra_vector_settings(scene)
     extra = masa_vectors(ops, preload, attach, band, opts) if attach is not None else None
     model, basis, report = adaptive_reduce(
         ops, par, band, checks, tol=a["tol"], cut_factors=tuple(a["cut_factors"]), samples=samples,
-        static=a["static_correction"], sigma_hz=a["sigma_hz"] or None, growth_tol=a["growth_tol"],
+        static=a["static_correction"], sigma_hz=a["sigma_hz"], growth_tol=a["growth_tol"],
         enrich_rtol=a["enrich_rtol"], preload=preload, options=opts, log=say, extra=extra)
     timings["reduced_basis"] = time.perf_counter() - t
     if comm.rank == 0:
@@ -218,9 +253,9 @@ def verification_failures(reduced: dict, what: str = "") -> list[str]:
 
 def check(scene: dict, volumes) -> None:
     """A reduced model needs friction (its μ direction) with one common μ on every frictional interface."""
-    frictional = [n for n, t in scene["interfaces"].items()
+    frictional = [n for n, t in scene.interfaces.items()
                   if t["type"] in ("rigid_plate", "contact") and t.get("mu", 0) > 0 and t.get("sliding", 0)]
-    mus = {scene["interfaces"][n]["mu"] for n in frictional}
+    mus = {scene.interfaces[n]["mu"] for n in frictional}
     if not frictional:
         raise SceneError("analyses.reduced: needs an interface with friction (mu > 0, sliding != 0); "
                          "its friction stiffness sets the μ direction of the reduced model")
@@ -231,11 +266,11 @@ def check(scene: dict, volumes) -> None:
 
 def check_contact_study(scene: dict, name: str) -> None:
     """Cross-checks shared by the nonlinear studies on the reduced model (masa, transient)."""
-    m = scene["analyses"][name]
-    if not any(t["type"] == "contact" for t in scene["interfaces"].values()):
+    m = scene.analyses[name]
+    if not any(t["type"] == "contact" for t in scene.interfaces.values()):
         raise SceneError(f"analyses.{name}: needs an interface of type 'contact' (its points carry the "
                          "nonlinear contact law)")
-    if scene["preload"]["mode"] != "nonlinear":
+    if scene.preload.mode != "nonlinear":
         raise SceneError(f"analyses.{name}: needs preload.mode = 'nonlinear' (it starts from the static "
                          "equilibrium)")
     if m["cubic_share"] > 1:

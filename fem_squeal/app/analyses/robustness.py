@@ -1,7 +1,8 @@
 """The ``robustness`` analysis: Monte Carlo over scattered parameters on the reduced model
 (:mod:`fem_squeal.reduced.robustness`): the probability of at least one unstable mode, in the
 whole band, per frequency band and per mode family, with standard errors; each family's
-growth-rate distribution; the drivers (Spearman ρ with Fisher-z intervals); and spot checks of
+growth-rate distribution; the drivers (Spearman ρ with Fisher-z intervals, first-order Sobol'
+indices with bootstrap intervals); and spot checks of
 the full CEA at a few samples, the extreme ones included (the samples with the largest and the
 smallest growth rate, then those with the extreme value of each parameter).
 
@@ -29,7 +30,7 @@ from fem_squeal.app.html import num as _num
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 from fem_squeal.reduced.eigensolve import TWO_PI
-from fem_squeal.reduced.model import format_point
+from fem_squeal.reduced.model import INTERFACE_PREFIXES, PART_PREFIXES, format_point, split_param
 from fem_squeal.reduced.robustness import KINDS, Distribution, run_robustness
 from fem_squeal.reduced.stability_map import equal_bands
 from fem_squeal.util.atomic import write_json_atomic, write_npz_atomic
@@ -41,7 +42,8 @@ SECTION = {
     "seed": Field(int, 0, non_negative, "seed of numpy.random.default_rng (the same samples on any rank count)"),
     "n_bands": Field(int, 6, positive, "equal frequency ranges of analyses.reduced.band_hz"),
     "parameters": Field(dict, {}, None, "<name> = {distribution = 'uniform', lower, upper} or "
-                        "{distribution = 'normal' | 'lognormal', mean, std}; names 'mu', 'E.<part>'"),
+                        "{distribution = 'normal' | 'lognormal', mean, std}; names 'mu', 'E.<part>', "
+                        "'eta.<part>', 'mu.<contact>', 'kn.<contact>', 'kt.<contact>'"),
     "spot_checks": Field(int, 3, non_negative, "full CEA at this many samples (the extreme ones first)"),
     "n_histograms": Field(int, 4, non_negative, "growth-rate histograms of the families most often unstable"),
 }
@@ -50,11 +52,17 @@ _KEYS = {"uniform": ("lower", "upper"), "normal": ("mean", "std"), "lognormal": 
 
 
 def _tables(params: dict) -> dict[str, Any]:
-    """name → table, the nested form ``E = {disc = {...}}`` flattened to ``E.disc``."""
+    """name → table, the nested forms ``E = {disc = {...}}``, ``kn = {pad = {...}}`` (any of E, eta,
+    mu, kn, kt) flattened to ``E.disc``, ``kn.pad``; a table-valued entry of ``mu`` is ``mu.<contact>``
+    also next to ``mu``'s own distribution keys (``[...parameters.mu]`` and ``[...parameters.mu.pad]``)."""
     out = {}
     for name, t in params.items():
-        if name == "E" and isinstance(t, dict) and "distribution" not in t:
-            out.update({f"E.{part}": v for part, v in t.items()})
+        if name in (*PART_PREFIXES, *INTERFACE_PREFIXES) and isinstance(t, dict) and \
+                ("distribution" not in t or any(isinstance(v, dict) for v in t.values())):
+            own = {k: v for k, v in t.items() if not isinstance(v, dict)}
+            if own:
+                out[name] = own
+            out.update({f"{name}.{target}": v for target, v in t.items() if isinstance(v, dict)})
         else:
             out[name] = t
     return out
@@ -84,9 +92,17 @@ def distributions(section: dict) -> dict[str, Distribution]:
             d = Distribution(kind, float(t[want[0]]), float(t[want[1]]))
         except ModelError as err:
             raise SceneError(f"{key}.{err}") from None
+        prefix = split_param(name)[0]
         if name.startswith("E.") and not d.stays_positive():
             raise SceneError(f"{key}: a Young's modulus must stay > 0 (a normal needs mean > 8 std; "
                              f"or use a lognormal) (got {d.as_dict()})")
+        if prefix == "kn" and "." in name and not d.stays_positive():
+            raise SceneError(f"{key}: a contact stiffness must stay > 0 (a normal needs mean > 8 std; "
+                             f"or use a lognormal) (got {d.as_dict()})")
+        if prefix in ("kt", "eta") and not d.stays_non_negative():
+            raise SceneError(f"{key}: {'a tangential stiffness' if prefix == 'kt' else 'a loss factor'} must stay "
+                             f">= 0 (uniform: lower >= 0; a normal needs mean > 8 std; or use a lognormal) "
+                             f"(got {d.as_dict()})")
         out[name] = d
     return out
 
@@ -104,9 +120,10 @@ def _spot_checks(ctx: Context, model, res, band, gt: float, n: int) -> list[dict
     """Full CEA at the spot samples against the reduced eigenvalues (as analyses.reduced.verify)."""
     from fem_squeal.fe.projection import ParametricOperators  # heavy: FE stack
 
-    parts = sorted(p[2:] for p in res.samples if p.startswith("E."))
-    par = ParametricOperators(ctx.products["linear"], ctx.spec, model.mu0, parts)
-    opts = ctx.scene["solver"]["petsc_options"]
+    # every part the model carries: a part's nominal loss factor enters the full problem too
+    par = ParametricOperators(ctx.products["linear"], ctx.spec, model.mu0, sorted(model.K_parts),
+                              preload=ctx.products["preload"])
+    opts = ctx.scene.solver.petsc_options
     rows = []
     try:
         for k in _spot_points(res, n):
@@ -121,7 +138,7 @@ def _spot_checks(ctx: Context, model, res, band, gt: float, n: int) -> list[dict
 def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     """analyses.robustness: Monte Carlo on the reduced model; robustness.npz/json/png."""
     scene, model = ctx.scene, ctx.reduced_model()
-    r = scene["analyses"]["robustness"]
+    r = scene.analyses["robustness"]
     band, gt = band_and_growth_tol(scene)
     dists = distributions(r)
     bands = equal_bands(band, r["n_bands"])
@@ -150,7 +167,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
            "parameters": {k: d.as_dict() for k, d in dists.items()},
            "probability": prob.as_dict(),
            "bands": [{"band_hz": list(b), **p.as_dict()} for b, p in zip(bands, res.band_probabilities())],
-           "families": families, "drivers": res.drivers(),
+           "families": families, "drivers": res.drivers(), "sobol": res.sobol(),
            "family_assignment": "nearest nominal eigenvalue (Hungarian, |λ − λ⁰|/|λ⁰|)"}
     ctx.say(f"[fem_squeal] robustness: {n} samples in {res.seconds:.1f} s on {res.ranks} rank(s); "
             f"P(unstable) = {prob.p:.4f} ± {prob.stderr:.4f}")
@@ -171,7 +188,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
         plots.robustness(work / "robustness.png", bands, [b["p"] for b in out["bands"]],
                          [b["stderr"] for b in out["bands"]], out["drivers"],
                          [{"label": labels[j], "growth": res.family_lambda[:, j].real} for j in top],
-                         scene["title"])
+                         scene.title)
     return {"robustness": out}
 
 
@@ -184,7 +201,7 @@ def spot_check_failures(rob: dict, tol: float, what: str = "") -> list[str]:
 
 def check(scene: dict, volumes) -> None:
     """At least one parameter; each a valid distribution of μ or of the E of a part the basis carries."""
-    r = scene["analyses"]["robustness"]
+    r = scene.analyses["robustness"]
     if not r["parameters"]:
         raise SceneError("analyses.robustness.parameters: at least one parameter is required, e.g. "
                          "[analyses.robustness.parameters.mu] distribution = \"uniform\", lower = 0.3, "
@@ -212,10 +229,13 @@ def report(res: dict) -> str:
         txt += _table(["family", "P(unstable)", "std. error", "Re λ median [1/s]", "Re λ 5–95 %"],
                       [[f["label"], f["p"], f["stderr"], f["growth"]["median"],
                         f"{f['growth']['q05']:.3g} – {f['growth']['q95']:.3g}"] for f in fams])
-    txt += "<p>Drivers of the largest growth rate (Spearman ρ, 95 % interval):</p>" + _table(
-        ["parameter", "ρ", "95 % interval"],
-        [[k, d["rho"], f"{d['ci95'][0]:.3f} – {d['ci95'][1]:.3f}"] for k, d in
-         sorted(r["drivers"].items(), key=lambda kv: -abs(kv[1]["rho"]))])
+    sob = r.get("sobol", {})
+    txt += ("<p>Drivers of the largest growth rate (Spearman ρ and the first-order Sobol' index S₁, "
+            "95 % intervals):</p>") + _table(
+        ["parameter", "ρ", "95 % interval", "S₁", "S₁ 95 % interval"],
+        [[k, d["rho"], f"{d['ci95'][0]:.3f} – {d['ci95'][1]:.3f}", sob[k]["S1"] if k in sob else "",
+          f"{sob[k]['ci95'][0]:.3f} – {sob[k]['ci95'][1]:.3f}" if k in sob else ""]
+         for k, d in sorted(r["drivers"].items(), key=lambda kv: -abs(kv[1]["rho"]))])
     if r.get("spot_checks"):
         txt += "<p>Spot checks, full CEA against the reduced model:</p>" + _table(
             ["sample", "point", "max rel. error", "unstable full", "unstable reduced"],

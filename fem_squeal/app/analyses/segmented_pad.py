@@ -44,17 +44,17 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     The runs are dealt over the ranks; every rank gets all results."""
 
 
-    a = ctx.scene["analyses"]["segmented_pad"]
+    a = ctx.scene.analyses["segmented_pad"]
     comm = ctx.comm
     pad = pad_parameters(a)
-    cases = [("speed", pad, v) for v in a["speeds"]]
-    cases += [("velocities", replace(pad, v_s=vs, v_d=vd), v) for vs, vd in a["velocity_pairs"]
-              for v in a["pair_speeds"]]
+    cases = [("speed", pad, v) for v in a.speeds]
+    cases += [("velocities", replace(pad, v_s=vs, v_d=vd), v) for vs, vd in a.velocity_pairs
+              for v in a.pair_speeds]
     t0 = time.perf_counter()
     mine = {}
     for n, (kind, p, speed) in enumerate(cases):
         if n % comm.size == comm.rank:
-            r = simulate(p, speed, t_end=a["t_end"], dt=a["dt"], alpha=a["alpha"])
+            r = simulate(p, speed, t_end=a.t_end, dt=a.dt, alpha=a.alpha)
             late = r.t >= 0.5 * r.t[-1]
             centre = p.n_elements // 2
             mine[n] = {"kind": kind, "speed": speed, "v_s": p.v_s, "v_d": p.v_d, "regimes": r.regime,
@@ -93,17 +93,17 @@ def _majority(regimes: list[str]) -> str:
 
 def check(scene: dict, volumes) -> None:
     """(v_s, v_d) pairs with 0 < v_s < v_d, their speeds, dt < t_end, and a valid pad."""
-    a = scene["analyses"]["segmented_pad"]
-    for i, pair in enumerate(a["velocity_pairs"]):
+    a = scene.analyses["segmented_pad"]
+    for i, pair in enumerate(a.velocity_pairs):
         key = f"analyses.segmented_pad.velocity_pairs[{i}]"
         if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(v, (int, float))
                                                                   and not isinstance(v, bool) for v in pair)):
             raise SceneError(f"{key}: must be [v_s, v_d] in m/s (got {pair!r})")
         if not 0 < pair[0] < pair[1]:
             raise SceneError(f"{key}: must satisfy 0 < v_s < v_d (got {pair})")
-    if a["velocity_pairs"] and not a["pair_speeds"]:
+    if a.velocity_pairs and not a.pair_speeds:
         raise SceneError("analyses.segmented_pad.pair_speeds: required with velocity_pairs")
-    if a["dt"] >= a["t_end"]:
+    if a.dt >= a.t_end:
         raise SceneError(f"analyses.segmented_pad.dt: must be < t_end = {a['t_end']} (got {a['dt']})")
     try:
         pad_parameters(a)

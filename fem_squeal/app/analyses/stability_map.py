@@ -33,7 +33,7 @@ SECTION = {
 def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     """analyses.map: unstable modes per band over the (sign(v)μ, E) design; stability_map.npz/png."""
     scene, model = ctx.scene, ctx.reduced_model()
-    m = scene["analyses"]["map"]
+    m = scene.analyses["map"]
     band, gt = band_and_growth_tol(scene)
     name = e_param(m["part"])
     E = np.linspace(*map_E_range(scene, ctx.spec), m["n_E"])
@@ -52,13 +52,13 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
                                                        "total": smap.total, "eigenvalues": res.eigenvalues,
                                                        "bands_hz": np.array(bands)})
         plots.stability_maps(work / "stability_map.png", grid.axes[MU], E / 1e9, smap.counts, smap.total,
-                             bands, f"E of {m['part']} [GPa]", scene["title"])
+                             bands, f"E of {m['part']} [GPa]", scene.title)
     return {"map": out}
 
 
 def check(scene: dict, volumes) -> None:
     """The varied part exists; E_range is [E_min, E_max] with 0 < E_min < E_max."""
-    m = scene["analyses"]["map"]
+    m = scene.analyses["map"]
     if m["part"] not in volumes:
         raise SceneError(f"analyses.map.part: unknown part {m['part']!r}; parts: {sorted(volumes)}")
     if m["E_range"]:

@@ -1,6 +1,8 @@
 """The ``sweep`` analysis: one parameter (sign(v)μ or a part's E) over a range on the reduced model,
 every branch tracked by MAC continuation (:func:`fem_squeal.reduced.tracking.track`) and the
-critical values refined.  Files: sweep.json, root_locus.png, complex_plane.png."""
+critical values refined (by default only as far as the reduced model's estimated error warrants:
+the parameter step over which the eigenvalue moves by that error; ``refine_tol`` asks for more).
+Files: sweep.json, root_locus.png, complex_plane.png."""
 from __future__ import annotations
 
 import time
@@ -11,7 +13,7 @@ import numpy as np
 
 from fem_squeal.app import plots
 from fem_squeal.app.analyses.reduced import band_and_growth_tol
-from fem_squeal.app.fields import Field, at_least, increasing
+from fem_squeal.app.fields import REAL, Field, at_least, increasing, positive
 from fem_squeal.app.html import escape as _e
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
@@ -20,26 +22,43 @@ from fem_squeal.reduced.model import MU
 from fem_squeal.reduced.sweep import path_solver
 from fem_squeal.reduced.tracking import track
 from fem_squeal.util.atomic import write_json_atomic
-from fem_squeal.util.errors import SceneError
+from fem_squeal.util.errors import PipelineError, SceneError
 
 SECTION = {
     "parameter": Field(str, "mu", None, "'mu' (sign(v)μ) or 'E.<part>' (Young's modulus [Pa])"),
     "range": Field(list, [-1.0, 1.0], increasing(2), "[first, last] value"),
     "n": Field(int, 101, at_least(2), "number of values"),
+    "refine_tol": Field(REAL, None, positive, "critical values refined to this fraction of the range; "
+                        "not set: only as far as the reduced model's estimated error warrants", unset=0),
 }
+
+
+def basis_error(ctx: Context) -> float | None:
+    """The reduced model's relative eigenvalue error: its estimate (the last round's change), or the
+    worst reduced-vs-full error at the check points where it was verified, if larger (from the
+    reduced stage's results, so that a cached reduced stage gives the same); None if unknown."""
+    try:
+        r = ctx.cache.load("reduced", ctx.keys["reduced"])["results"]["reduced"]
+    except (PipelineError, KeyError, TypeError):  # no entry or no estimate: the default tolerance
+        return None
+    errs = [r.get("estimated_error")] + [v.get("max_rel_error") for v in r.get("verification", [])]
+    errs = [float(e) for e in errs if isinstance(e, (int, float)) and np.isfinite(e)]
+    return max(errs) if errs else None
 
 
 def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     """analyses.sweep on the reduced model: sweep.json, root_locus.png, complex_plane.png."""
     scene, model = ctx.scene, ctx.reduced_model()
-    s = scene["analyses"]["sweep"]
+    s = scene.analyses["sweep"]
     band, gt = band_and_growth_tol(scene)
     t = time.perf_counter()
     values = np.linspace(*s["range"], s["n"])
     fixed = {} if s["parameter"] == MU else {MU: model.mu0}
+    error = basis_error(ctx) if s["refine_tol"] is None else None
     tr = track(path_solver(model, s["parameter"], fixed), values, growth_tol=gt,
                start=0.0 if s["parameter"] == MU and values[0] <= 0 <= values[-1] else None,
-               progress=ctx.comm.rank == 0)
+               progress=ctx.comm.rank == 0, values_solve=path_solver(model, s["parameter"], fixed, vectors=False),
+               tol=s["refine_tol"] or 1e-10, error=error)
     timings["sweep"] = time.perf_counter() - t
     f = tr.freqs_hz
     inside = np.flatnonzero(np.any((f >= band[0]) & (f <= band[1]), axis=0))
@@ -48,22 +67,24 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
         {"label": tr.labels[j], "parent_hz": tr.parents_hz[j], "freq_hz": f[:, j],
          "real_part": tr.eigenvalues[:, j].real} for j in inside],
         "critical": [e.as_dict() for e in events], "solves": tr.solves,
-        "ambiguous_steps": tr.ambiguous_steps, "seconds": timings["sweep"]}
+        "ambiguous_steps": tr.ambiguous_steps, "seconds": timings["sweep"],
+        # the error the critical values were refined to (None: refine_tol, or 1e-10 of the range)
+        "seconds_per_value": timings["sweep"] / s["n"], "refined_to_estimated_error": error}
     ctx.say(f"[fem_squeal] sweep of {s['parameter']}: {s['n']} values, {tr.solves} reduced solves, "
             f"{len(events)} stability changes in the band, {timings['sweep']:.2f} s")
     if ctx.comm.rank == 0:
         write_json_atomic(work / "sweep.json", out)
         xlabel = "sign(v) μ" if s["parameter"] == MU else f"{s['parameter']} [Pa]"
         plots.root_locus(work / "root_locus.png", values, tr.eigenvalues, unstable(tr.eigenvalues, gt),
-                         xlabel, band, tr.labels, scene["title"])
-        plots.complex_plane(work / "complex_plane.png", tr.eigenvalues, band, gt, scene["title"])
+                         xlabel, band, tr.labels, scene.title)
+        plots.complex_plane(work / "complex_plane.png", tr.eigenvalues, band, gt, scene.title)
     out.pop("branches")  # kept in sweep.json; results.json holds the summary
     return {"sweep": out}
 
 
 def check(scene: dict, volumes) -> None:
     """The swept parameter is μ or the Young's modulus of a part of the model (> 0)."""
-    s = scene["analyses"]["sweep"]
+    s = scene.analyses["sweep"]
     par = s["parameter"]
     if par != "mu":
         if not par.startswith("E.") or par[2:] not in volumes:

@@ -43,8 +43,8 @@ SECTION = {
     "adaptive": Field(bool, False, None, "halve the step around contact and stick/slip events"),
     "friction": Field(str, next(iter(FRICTION_LAWS)), one_of(*FRICTION_LAWS),
                       "; ".join(f"{name}: {e.doc}" for name, e in FRICTION_LAWS.items())),
-    "mu_s": Field(REAL, 0.0, non_negative, "static μ (stribeck, coulomb); 0 = the scene's μ"),
-    "mu_d": Field(REAL, 0.0, non_negative, "dynamic μ (stribeck, coulomb); 0 = the scene's μ"),
+    "mu_s": Field(REAL, None, positive, "static μ (stribeck, coulomb); not set: the scene's μ", unset=0),
+    "mu_d": Field(REAL, None, positive, "dynamic μ (stribeck, coulomb); not set: the scene's μ", unset=0),
     "v_s": Field(REAL, 1e-3, positive, "Stribeck static transition velocity [m/s]"),
     "v_d": Field(REAL, 1e-2, positive, "Stribeck dynamic transition velocity [m/s]"),
     "k_t": Field(REAL, 1e8, positive, "elastic Coulomb tangential stiffness per element [N/m]"),
@@ -68,13 +68,14 @@ SECTION = {
     "checkpoint_every": Field(int, 20000, non_negative, "checkpoint every k steps (0 = at the end only)"),
     "snapshots": Field(int, 0, non_negative, "displacement fields Φ(q − q_static) written to "
                        "transient_snapshots.vtu/.xdmf, evenly over the last snapshot_window (0 = none)"),
-    "snapshot_window": Field(REAL, 0.0, non_negative, "time span of the snapshots [s] (0 = the whole run)"),
+    "snapshot_window": Field(REAL, None, positive, "time span of the snapshots [s]; not set: the whole run",
+                             unset=0),
 }
 
 
 def friction_law(a: dict, mu: float):
-    """The friction law of analyses.transient (``mu``: the scene's |μ|, used when mu_s/mu_d are 0)."""
-    return FRICTION_LAWS[a["friction"]].make(mu, a["mu_s"], a["mu_d"], a["v_s"], a["v_d"], a["k_t"], a["c_t"])
+    """The friction law of analyses.transient (``mu``: the scene's |μ|, used when mu_s/mu_d are not set)."""
+    return FRICTION_LAWS[a.friction].make(mu, a.mu_s, a.mu_d, a.v_s, a.v_d, a.k_t, a.c_t)
 
 
 def integrator_options(a: dict) -> dict:
@@ -84,12 +85,12 @@ def integrator_options(a: dict) -> dict:
 
 def brake_model(rm, a: dict):
     """(dynamic model, integrator, steady-sliding state) of analyses.transient ``a`` on the reduced model."""
-    cd = a["contact_damping"] or [0.0, np.inf]
-    dm = from_reduced(rm, omega=a["omega"], cubic_share=a["cubic_share"], c_max=cd[0], depth=cd[1],
-                      patches=tuple(a["patches"]) if a["patches"] else None,
-                      friction=friction_law(a, abs(rm.mu0)), f_cut=a["f_cut_hz"] or None, zeta_cut=a["zeta_cut"],
-                      normal=a["normal"], zeta=a["zeta"])
-    integ = NewmarkHHT(dm, a["dt"], **integrator_options(a))
+    cd = a.contact_damping or [0.0, np.inf]
+    dm = from_reduced(rm, omega=a.omega, cubic_share=a.cubic_share, c_max=cd[0], depth=cd[1],
+                      patches=tuple(a.patches) if a.patches else None,
+                      friction=friction_law(a, abs(rm.mu0)), f_cut=a.f_cut_hz or None, zeta_cut=a.zeta_cut,
+                      normal=a.normal, zeta=a.zeta)
+    integ = NewmarkHHT(dm, a.dt, **integrator_options(a))
     qs = integ.steady_sliding(rm.q_static)
     return dm, integ, qs
 
@@ -143,8 +144,8 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
 
 def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
 
-    a = ctx.scene["analyses"]["transient"]
-    band = tuple(ctx.scene["analyses"]["reduced"]["band_hz"])
+    a = ctx.scene.analyses["transient"]
+    band = tuple(ctx.scene.analyses["reduced"].band_hz)
     comm, say = ctx.comm, ctx.say
 
     def compute() -> dict[str, Any]:
@@ -158,7 +159,7 @@ def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
         k, j = probe(dm, y)
         d = dm.contacts[k].D[j] @ y
         y = y * (np.conj(d) / abs(d))       # the eigenvector's phase is arbitrary (round-off picks it): fix
-        push = a["amplitude"] * closure / abs(d)   # it so that the probe element starts at its largest closure
+        push = a.amplitude * closure / abs(d)   # it so that the probe element starts at its largest closure
         lam_y = lam[i] if i >= 0 else lam[int(np.argmax(lam.real))]   # the eigenvalue of y
         q0, v0 = qs + (push * y).real, (push * lam_y * y).real
         run_dir = ctx.cache.root / f".run-transient-{ctx.keys['transient']}"
@@ -166,8 +167,8 @@ def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
         if resume:
             say(f"[fem_squeal] transient: resuming from the checkpoint in {run_dir}")
         t1 = time.perf_counter()
-        res = run_transient(dm, q0, v0, a["t_end"], a["dt"], record_every=a["record_every"], folder=run_dir,
-                            checkpoint_every=a["checkpoint_every"], resume=resume, progress=True,
+        res = run_transient(dm, q0, v0, a.t_end, a.dt, record_every=a.record_every, folder=run_dir,
+                            checkpoint_every=a.checkpoint_every, resume=resume, progress=True,
                             **integrator_options(a))
         wall = time.perf_counter() - t1
         shutil.move(str(run_dir), str(work / "run"))
@@ -183,14 +184,14 @@ def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
         extra = {f"{cs.name} normal force [kN]": res.contact[f"{cs.name}.normal_force"] / 1e3
                  for cs in dm.contacts}
         plots.transient(work / "transient.png", res.t, x, xv, extra,
-                        title=f"{ctx.scene['title']}: closure of the most active contact element",
+                        title=f"{ctx.scene.title}: closure of the most active contact element",
                         label="closure [µm]")
-        if a["snapshots"] and ctx.write_fields:
+        if a.snapshots and ctx.write_fields:
             write_transient_snapshots(ctx, work, a, res, qs)
         timings["transient"] = time.perf_counter() - t0
         out = {"basis": dm.size, "contact_elements": sum(c.size for c in dm.contacts), "steps": st["n_steps"],
                "steps_computed": st["steps"],
-               "dt": a["dt"], "t_end": a["t_end"], "wall_s": wall, "ms_per_step": 1e3 * wall / max(st["steps"], 1),
+               "dt": a.dt, "t_end": a.t_end, "wall_s": wall, "ms_per_step": 1e3 * wall / max(st["steps"], 1),
                "iterations_per_step": st["iterations"] / max(st["steps"], 1), "stats": st,
                "resumed": resume, "static_closure": closure,
                "probe": {"contact": dm.contacts[k].name, "element": j},
@@ -211,8 +212,8 @@ def write_transient_snapshots(ctx, work: Path, a: dict, res, qs: np.ndarray) -> 
     (nearest recorded states), from the reduced stage's ``basis_field.npz``."""
     with np.load(ctx.entry("reduced") / "basis_field.npz") as f:
         field = {k: f[k] for k in f.files}
-    window = a["snapshot_window"] or float(res.t[-1] - res.t[0])
-    wanted = np.linspace(res.t[-1] - window, res.t[-1], a["snapshots"])
+    window = a.snapshot_window or float(res.t[-1] - res.t[0])
+    wanted = np.linspace(res.t[-1] - window, res.t[-1], a.snapshots)
     idx = np.unique(np.abs(res.t[None, :] - wanted[:, None]).argmin(axis=1))
     write_snapshots(work / "transient_snapshots", field, res.t[idx], res.q[idx], qs)
     ctx.say(f"[fem_squeal] transient: {len(idx)} snapshots from t = {res.t[idx[0]] * 1e3:.3f} ms to "
@@ -222,13 +223,13 @@ def write_transient_snapshots(ctx, work: Path, a: dict, res, qs: np.ndarray) -> 
 def check(scene: dict, volumes) -> None:
     """The nonlinear-study checks, dt < t_end, the snapshot window inside the run, v_d > v_s."""
     check_contact_study(scene, "transient")
-    t = scene["analyses"]["transient"]
-    if t["dt"] >= t["t_end"]:
+    t = scene.analyses["transient"]
+    if t.dt >= t.t_end:
         raise SceneError(f"analyses.transient.dt: must be < t_end = {t['t_end']} (got {t['dt']})")
-    if t["snapshot_window"] > t["t_end"]:
-        raise SceneError(f"analyses.transient.snapshot_window: must be <= t_end = {t['t_end']} "
-                         f"(got {t['snapshot_window']})")
-    if t["friction"] == "stribeck" and t["v_d"] <= t["v_s"]:
+    if t.snapshot_window is not None and t.snapshot_window > t.t_end:
+        raise SceneError(f"analyses.transient.snapshot_window: must be <= t_end = {t.t_end} "
+                         f"(got {t.snapshot_window})")
+    if t.friction == "stribeck" and t.v_d <= t.v_s:
         raise SceneError(f"analyses.transient.v_d: must be > v_s = {t['v_s']} (got {t['v_d']})")
 
 
@@ -246,5 +247,5 @@ def report(res: dict) -> str:
 
 STAGE = Stage("transient", ("reduced",), run, "nonlinear transient of the reduced model", section=SECTION,
               check=check, report=report, fields=True,
-              inputs=lambda scene, spec: {"transient": scene["analyses"]["transient"],
-                                          "band": scene["analyses"]["reduced"]["band_hz"]})
+              inputs=lambda scene, spec: {"transient": scene.analyses["transient"],
+                                          "band": scene.analyses["reduced"].band_hz})

@@ -20,6 +20,22 @@ def spawn(script: str, args: list[str], ranks: int, env: dict[str, str] | None =
     return json.loads(out.strip().splitlines()[-1])
 
 
+def linearised_brake(comm, quick: bool):
+    """scenes/brake_corner_cea.toml (``quick``: the coarse 0.016 m mesh), preloaded and linearised about
+    its contact state, with the part stiffnesses: (scene, spec, ops, preload)."""
+    from fem_squeal.app.analyses.mesh import build_mesh
+    from fem_squeal.app.scene import load_scene, model_spec
+    from fem_squeal.fe.assembly import assemble_operators, linearise
+    from fem_squeal.fe.preload import solve_preload
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "brake_corner_cea.toml",
+                       ["geometry.mesh_size=0.016"] if quick else [])
+    spec = model_spec(scene)
+    ops = assemble_operators(build_mesh(comm, scene), spec, parts=True)
+    pre = solve_preload(ops)
+    return scene, spec, linearise(ops, pre.active), pre
+
+
 def report(result: dict) -> None:
     """Print a case's result on rank 0 (the parent reads the last line)."""
     from mpi4py import MPI

@@ -122,11 +122,7 @@ def main() -> None:
         return stage(args)
     from mpi4py import MPI
 
-    from fem_squeal.app.analyses.mesh import build_mesh
     from fem_squeal.app.analyses.reduced import full_cea
-    from fem_squeal.app.scene import load_scene, model_spec
-    from fem_squeal.fe.assembly import assemble_operators, linearise
-    from fem_squeal.fe.preload import solve_preload
     from fem_squeal.fe.projection import ParametricOperators, build_basis, common_mu, reduce, relative_change
     from fem_squeal.reduced.eigensolve import unstable
     from fem_squeal.reduced.model import MU
@@ -136,13 +132,7 @@ def main() -> None:
 
     comm = MPI.COMM_WORLD
     limit_threads_for(comm)
-    scene = load_scene(ROOT / "scenes" / "brake_corner_cea.toml",
-                       ["geometry.mesh_size=0.016"] if args.quick else [])
-    spec = model_spec(scene)
-    md = build_mesh(comm, scene)
-    ops = assemble_operators(md, spec, parts=True)
-    pre = solve_preload(ops)
-    ops = linearise(ops, pre.active)
+    scene, spec, ops, pre = casework.linearised_brake(comm, args.quick)
     ndofs = ops.K.getSize()[0]
     mu0 = common_mu(spec)
     par = ParametricOperators(ops, spec, mu0, ["disc"])

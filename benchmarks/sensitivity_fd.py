@@ -37,11 +37,7 @@ def main() -> None:
     args = ap.parse_args()
     from mpi4py import MPI
 
-    from fem_squeal.app.analyses.mesh import build_mesh
-    from fem_squeal.app.scene import load_scene, model_spec
-    from fem_squeal.fe.assembly import assemble_operators, linearise
     from fem_squeal.fe.eigen import solve_complex_modes
-    from fem_squeal.fe.preload import solve_preload
     from fem_squeal.fe.projection import (
         ParametricOperators,
         build_basis,
@@ -56,13 +52,7 @@ def main() -> None:
 
     comm = MPI.COMM_WORLD
     limit_threads_for(comm)
-    scene = load_scene(ROOT / "scenes" / "brake_corner_cea.toml",
-                       ["geometry.mesh_size=0.016"] if args.quick else [])
-    spec = model_spec(scene)
-    md = build_mesh(comm, scene)
-    ops = assemble_operators(md, spec, parts=True)
-    pre = solve_preload(ops)
-    ops = linearise(ops, pre.active)
+    scene, spec, ops, pre = casework.linearised_brake(comm, args.quick)
     mu0 = common_mu(spec)
     par = ParametricOperators(ops, spec, mu0, ["disc", "lining_inner"], preload=pre)
     band = (500.0, 10000.0)

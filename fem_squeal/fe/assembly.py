@@ -437,17 +437,23 @@ def rotation_matrices(ops: Operators, mesh_data, spec: ModelSpec, parts, frame: 
     return RotationMatrices(mats[0], mats[1], f)
 
 
+def direct_solver(A: PETSc.Mat, options: dict | None, prefix: str) -> PETSc.KSP:
+    """A direct solver of A (MUMPS LU by default; PETSc options under ``prefix`` override it)."""
+    ksp = PETSc.KSP().create(A.getComm())
+    ksp.setOptionsPrefix(prefix)
+    set_options(prefix, options, {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"})
+    ksp.setOperators(A)
+    ksp.setFromOptions()
+    return ksp
+
+
 def static_displacement(K: PETSc.Mat, f: PETSc.Vec, options: dict | None = None,
                         prefix: str = "prestress_") -> PETSc.Vec:
     """u with K u = f (direct LU; K with the clamped rows as identity and f zero there).  Raises
     :class:`ModelError` when the solve fails or its residual exceeds 1e-6‖f‖ (a part not held against
     rigid-body motion under a load that is not self-equilibrated).  A free body under a self-equilibrated
     load (the centrifugal load of a free disc) gets one solution: its rigid part carries no stress."""
-    ksp = PETSc.KSP().create(K.getComm())
-    ksp.setOptionsPrefix(prefix)
-    set_options(prefix, options, {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"})
-    ksp.setOperators(K)
-    ksp.setFromOptions()
+    ksp = direct_solver(K, options, prefix)
     u = K.createVecRight()
     r = K.createVecLeft()
     try:

@@ -31,8 +31,15 @@ from petsc4py import PETSc
 
 from fem_squeal.fe import forms
 from fem_squeal.fe import interface as itf
-from fem_squeal.fe.assembly import Operators, _compile, _owned_global_rows, contact_matrices, plate_friction_fields
-from fem_squeal.fe.eigen import set_options
+from fem_squeal.fe.assembly import (
+    Operators,
+    _compile,
+    _owned_global_rows,
+    contact_matrices,
+    direct_solver,
+    plate_friction_fields,
+)
+from fem_squeal.fe.assembly import static_displacement as assembly_static_displacement
 from fem_squeal.fe.model import ModelSpec, sliding_speed, speed_friction
 from fem_squeal.reduced.laws.contact import UnilateralLaw
 from fem_squeal.util.errors import ModelError, PreloadError
@@ -55,16 +62,6 @@ def _traction(g: np.ndarray, kn: float, k3: float) -> tuple[np.ndarray, np.ndarr
     of the reduced layer (one definition: p = k_n δ + k_3 δ³ for the closure δ = −g > 0, else 0)."""
     law = UnilateralLaw(k_l=kn, k_nl=k3)
     return 0.0 - law.force(-g), law.stiffness(-g)   # 0.0 - F: open points give +0.0, not -0.0
-
-
-def _lu(A: PETSc.Mat, options: dict | None, prefix: str) -> PETSc.KSP:
-    ksp = PETSc.KSP().create(A.getComm())
-    ksp.setOptionsPrefix(prefix)
-    set_options(prefix, options, {"ksp_type": "preonly", "pc_type": "lu",
-                                  "pc_factor_mat_solver_type": "mumps"})
-    ksp.setOperators(A)
-    ksp.setFromOptions()
-    return ksp
 
 
 def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol: float = 1e-9,
@@ -154,7 +151,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
                 J.axpy(1.0, A, structure=pattern)
                 A.destroy()
         if ksp is None:                    # later steps: PETSc sees J's new values and refactorises
-            ksp = _lu(J, options, prefix)
+            ksp = direct_solver(J, options, prefix)
         R.scale(-1.0)
         ksp.solve(R, du)
         if ksp.getConvergedReason() < 0:
@@ -181,22 +178,15 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
 
 def static_displacement(ops: Operators, options: dict | None = None, prefix: str = "preload_") -> PETSc.Vec:
     """The linear static displacement K u = f (rigid plates are bilateral springs in K): the preload of a
-    model without contact interfaces, whose plates' pressure k_n (u·n) the friction damping needs."""
+    model without contact interfaces, whose plates' pressure k_n (u·n) the friction damping needs
+    (:func:`fem_squeal.fe.assembly.static_displacement`, its failure as a :class:`PreloadError`)."""
     if ops.f is None:
         raise ModelError("loads: the preload needs a load (e.g. loads.pressure on the piston)")
-    ksp = _lu(ops.K, options, prefix)
-    u = ops.K.createVecRight()
     try:
-        ksp.solve(ops.f, u)
-        reason = ksp.getConvergedReason()
-    except PETSc.Error as e:          # a singular K (zero pivot in the factorisation)
-        reason = -e.ierr
-    finally:
-        ksp.destroy()
-    if reason < 0:
-        raise PreloadError(f"preload: linear static solve failed (reason {reason}); a free body needs "
-                           "boundary conditions that hold its rigid-body motions")
-    return u
+        return assembly_static_displacement(ops.K, ops.f, options, prefix)
+    except ModelError:
+        raise PreloadError("preload: linear static solve failed; a free body needs boundary conditions "
+                           "that hold its rigid-body motions") from None
 
 
 def friction_damping(ops: Operators, mesh_data, spec: ModelSpec, u: PETSc.Vec | None,

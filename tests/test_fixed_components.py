@@ -142,3 +142,17 @@ def test_a_face_fixed_twice_is_named():
     s = load_scene(SCENE, ['boundary.fixed.a={face = "inner", components = ["x"]}',
                            'boundary.fixed.b={face = "inner", components = ["z"]}'])
     assert len(model_spec(s).fixed) == 2
+
+
+def test_real_modes_far_from_the_target_meet_the_residual_bound():
+    """Clamped on all three components, the block's modes lie near 46 kHz, far above a 20 Hz target:
+    SLEPc's criterion (relative to the shift-inverted value 1/(λ − σ)) passes pairs whose residual
+    ‖Kx − λMx‖/(‖K‖‖x‖) is ~1e-8 (the CI failure of 2026-11-23: 1.2e-8 against the 1e-8 bound).
+    Asking for 1e-10 forces the continuation at the tighter tolerance on the same factorisation;
+    its pairs must meet the bound and the frequencies agree with the first pass to the square of the
+    first pass's residual (≤ 1e-12 relative, symmetric pencil)."""
+    ops = ops_for(("x", "y", "z"))
+    loose = solve_real_modes(ops.K, ops.M, 10, 20.0, max_residual=1e-7)
+    tight = solve_real_modes(ops.K, ops.M, 10, 20.0, max_residual=1e-10)
+    assert np.all(tight.residuals <= 1e-10)
+    assert np.allclose(tight.freqs_hz, loose.freqs_hz, rtol=1e-10, atol=0.0)

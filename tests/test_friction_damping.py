@@ -247,7 +247,8 @@ def test_seed_scenes_build_the_same_model_without_the_new_keys():
     from fem_squeal.app.scene import load_scene, model_spec
 
     spec = model_spec(load_scene(ROOT / "scenes" / "ryzhik_ring.toml"))
-    assert spec.plates == (RigidPlate("top", 1e10, 0.3, 1), RigidPlate("bottom", 1e10, 0.3, 1))
+    assert spec.plates == (RigidPlate("top", 1e10, 0.3, 1, name="top_plate"),
+                           RigidPlate("bottom", 1e10, 0.3, 1, name="bottom_plate"))
     spec = model_spec(load_scene(ROOT / "scenes" / "brake_corner_cea.toml"))
     pads = [i for i in spec.interfaces if i.kind == "contact"]
     assert pads and all(i.law is None and not i.friction_damping and i.speed == 0 for i in pads)

@@ -203,11 +203,12 @@ def test_scene_errors_name_the_key(override, message):
 @pytest.mark.parametrize("override, message", [
     ('analyses.robustness.parameters.kn.piston_seal.distribution="uniform"',
      r"^analyses\.robustness\.parameters\.kn\.piston_seal: 'kn\.piston_seal': interface 'piston_seal' is a "
-     r"spring; per-interface parameters exist for contact interfaces \(\['pad_inner', 'pad_outer'\]\)"),
+     r"spring; per-interface parameters exist for contact and rigid_plate interfaces with kn > 0 "
+     r"\(\['pad_inner', 'pad_outer'\]\)"),
     ('analyses.robustness.parameters.kt.pad_rear.distribution="uniform"',
      r"^analyses\.robustness\.parameters\.kt\.pad_rear: unknown parameter 'kt\.pad_rear'; parameters are 'mu', "
-     r"'E\.<part>' and 'eta\.<part>' with a part of \[.*\], 'mu\.<contact>', 'kn\.<contact>' and 'kt\.<contact>' "
-     r"with a contact interface of \['pad_inner', 'pad_outer'\]"),
+     r"'E\.<part>' and 'eta\.<part>' with a part of \[.*\], 'mu\.<interface>', 'kn\.<interface>' and "
+     r"'kt\.<interface>' with a contact or rigid_plate interface of \['pad_inner', 'pad_outer'\]"),
     ('analyses.sensitivity.parameters=["eta.caliper"]',
      r"^analyses\.sensitivity\.parameters\[0\]: the reduced basis does not carry 'eta\.caliper'.*"
      r"materials\.caliper\.eta > 0"),

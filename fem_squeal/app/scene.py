@@ -627,8 +627,8 @@ def model_spec(scene: dict) -> ModelSpec:
     mats = {p: Material(**m) for p, m in scene["materials"].items()}
     speed = float(scene["operating"]["speed"]) if "operating" in scene else 0.0
     plates = tuple(RigidPlate(t["face"], float(t["kn"]), _nominal_mu(t), int(t["sliding"]), float(t["kt"]),
-                              **_speed_terms(t, speed))
-                   for t in scene["interfaces"].values() if t["type"] == "rigid_plate")
+                              **_speed_terms(t, speed), name=name)
+                   for name, t in scene["interfaces"].items() if t["type"] == "rigid_plate")
     interfaces = tuple(
         Interface(name, t["slave"], t["master"], t["type"], float(t["kn"]), float(t.get("kt", 0.0)),
                   _nominal_mu(t), int(t.get("sliding", 0)), **_speed_terms(t, speed))

@@ -26,13 +26,23 @@ from ufl.corealg.multifunction import MultiFunction
 from fem_squeal.fe import forms
 from fem_squeal.fe import interface as itf
 from fem_squeal.fe.eigen import set_options
-from fem_squeal.fe.model import Interface, ModelSpec, sliding_speed, speed_friction
+from fem_squeal.fe.model import Interface, ModelSpec, RigidPlate, sliding_speed, speed_friction
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
 # The JIT's compiler driver logs INFO lines through the root logger: keep only warnings from it.
 logging.getLogger().addFilter(lambda rec: rec.name != "root" or rec.levelno >= logging.WARNING)
 
 JIT_PARAMS = {"cffi_extra_compile_args": ["-O2"]}
+
+
+class PlateMatrices(NamedTuple):
+    """One rigid plate's share of K and K_f, without boundary-condition rows (the per-interface
+    parameters of :class:`fem_squeal.fe.projection.ParametricOperators`)."""
+
+    plate: RigidPlate
+    Kc: PETSc.Mat          # ∫ k_n (u·n)(v·n) ds at the nominal k_n
+    Kt: PETSc.Mat          # ∫ (u·t₂)(v·t₂) ds: the tangential penalty for k_t = 1
+    Kf: PETSc.Mat | None   # −∫ k_n (u·n)(v·s) ds: the friction stiffness for μ = 1 (None: no friction)
 
 
 class Operators(NamedTuple):
@@ -50,6 +60,7 @@ class Operators(NamedTuple):
     K_parts: dict | None = None                      # part -> elastic stiffness (no BC rows)
     M_parts: dict | None = None                      # part -> (M, M_axial) of that part
     Cd: PETSc.Mat | None = None                      # friction damping (already in C; fe.preload.friction_damping)
+    plate_parts: dict | None = None                  # plate name -> PlateMatrices (with parts=True)
 
     def K_total(self) -> PETSc.Mat:
         """K + K_f as a new matrix (K itself when there is no friction)."""
@@ -307,20 +318,13 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
     for plate in spec.plates:
         ftag = _face_tag(mesh_data, plate.face, present_faces, "interfaces")
         if plate.kn > 0:
-            a_K = a_K + forms.contact_form(u, v, plate.kn, n, ds(ftag))
-            if plate.kt > 0:   # tangential penalty: across the sliding direction (sliding = 0: whole plane)
-                s_t = forms.circumferential_direction(x, float(plate.sliding)) if plate.sliding != 0 else None
-                # t₂ = n × s/|n × s| is not polynomial: FFCx's estimate (1444 points per facet) is
-                # replaced by the degree of a product of two P_k traces on a P2 facet, 2k + 2
-                qdeg = spec.quadrature_degree or 2 * spec.degree + 2
-                a_K = a_K + forms.tangential_penalty_form(
-                    u, v, plate.kt, n, s_t, ds(ftag, metadata={"quadrature_degree": qdeg}))
-            if plate.mu > 0 and plate.sliding != 0:
-                s = forms.circumferential_direction(x, float(plate.sliding))
-                # the traction μ k_n (u·n) s is a load: it enters the operator as −a_f
-                mu = plate.mu if plate.law is None else plate_friction_fields(V, plate)[0]
-                f = -forms.friction_form(u, v, plate.kn, mu, n, s, ds(ftag))
-                a_f = f if a_f is None else a_f + f
+            mu = plate.mu if plate.law is None else plate_friction_fields(V, plate)[0]
+            a_c, a_t, a_fp = _plate_forms(u, v, x, n, ds(ftag), plate, spec, plate.kt, mu)
+            a_K = a_K + a_c
+            if plate.kt > 0:
+                a_K = a_K + a_t
+            if a_fp is not None:
+                a_f = a_fp if a_f is None else a_f + a_fp
     for gs in spec.ground_springs:
         ftag = _face_tag(mesh_data, gs.face, present_faces, "boundary.ground_springs")
         a_K = a_K + forms.ground_spring_form(u, v, gs.k_axial, gs.k_transverse, axis_c, ds(ftag))
@@ -363,12 +367,21 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
         op.destroy()
 
     t2 = time.perf_counter()
-    K_parts = M_parts = None
+    K_parts = M_parts = plate_parts = None
     if parts:
         K_parts = {}
         for part, mat in spec.materials.items():
             fp = _compile(forms.material_stiffness_form(u, v, mat, dx(mesh_data.volumes[part])), qd)
             K_parts[part] = _assemble(fp, fp, [], 0.0)
+        plate_parts = {}
+        for plate in spec.plates:
+            if plate.kn > 0 and plate.name:
+                shape = 1.0 if plate.law is None else plate_friction_fields(V, plate)[0] / plate.mu
+                a_c, a_t, a_f1 = _plate_forms(u, v, x, n, ds(mesh_data.faces[plate.face]), plate, spec, 1.0, shape)
+                fc = _compile(a_c, qd)
+                plate_parts[plate.name] = PlateMatrices(
+                    plate, _assemble(fc, fc, [], 0.0), _assemble(_compile(a_t, qd), fc, [], 0.0),
+                    None if a_f1 is None else _assemble(_compile(a_f1, qd), fc, [], 0.0))
     if describe_part is not None:
         if describe_part not in spec.materials:
             raise UnknownNameError(f"describe_part: no part {describe_part!r}; parts: {sorted(spec.materials)}")
@@ -379,7 +392,24 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
                                              fm, [], 0.0))}
     if timings is not None:
         timings.update(volume_forms=t1 - t0 + time.perf_counter() - t2, interfaces=t2 - t1)
-    return Operators(V, K, Kf, M, C, Mz, bc_dofs, f, tuple(contacts), K_parts, M_parts)
+    return Operators(V, K, Kf, M, C, Mz, bc_dofs, f, tuple(contacts), K_parts, M_parts,
+                     plate_parts=plate_parts)
+
+
+def _plate_forms(u, v, x, n, dsp, plate: RigidPlate, spec: ModelSpec, kt, mu):
+    """The forms of rigid plate ``plate`` on its face measure ``dsp``: (a_c at its k_n, a_t at
+    ``kt``, −a_f at ``mu`` (a number or a μ(V) field) or None without friction).  a_t acts across
+    the sliding direction (sliding = 0: on the whole tangent plane)."""
+    s = forms.circumferential_direction(x, float(plate.sliding)) if plate.sliding != 0 else None
+    # t₂ = n × s/|n × s| is not polynomial: FFCx's estimate (1444 points per facet) is replaced
+    # by the degree of a product of two P_k traces on a P2 facet, 2k + 2
+    qdeg = spec.quadrature_degree or 2 * spec.degree + 2
+    a_t = forms.tangential_penalty_form(u, v, kt, n, s, dsp.reconstruct(metadata={"quadrature_degree": qdeg}))
+    a_f1 = None
+    if plate.mu > 0 and plate.sliding != 0:
+        # the traction μ k_n (u·n) s is a load: it enters the operator as −a_f
+        a_f1 = -forms.friction_form(u, v, plate.kn, mu, n, s, dsp)
+    return forms.contact_form(u, v, plate.kn, n, dsp), a_t, a_f1
 
 
 class RotationMatrices(NamedTuple):

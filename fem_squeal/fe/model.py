@@ -132,6 +132,7 @@ class RigidPlate:
     friction_damping: bool = False
     law: Any = None
     speed: float = 0.0
+    name: str = ""       # the scene's interface name (per-interface parameters ``kn.<name>``, ...)
 
     def __post_init__(self):
         _check_speed_terms(self)
@@ -143,6 +144,10 @@ class RigidPlate:
             raise ModelError(f"mu: must be >= 0 (got {self.mu})")
         if self.sliding not in (-1, 0, 1):
             raise ModelError(f"sliding: must be -1, 0 or +1 (got {self.sliding})")
+
+    @property
+    def has_friction(self) -> bool:
+        return self.mu > 0 and self.sliding != 0 and self.kn > 0
 
 
 @dataclass(frozen=True)
@@ -276,7 +281,7 @@ class ModelSpec:
 
     @property
     def has_friction(self) -> bool:
-        return any(p.mu > 0 and p.sliding != 0 and p.kn > 0 for p in self.plates) or \
+        return any(p.has_friction for p in self.plates) or \
             any(i.has_friction for i in self.interfaces)
 
     @property
@@ -286,7 +291,7 @@ class ModelSpec:
 
 def common_mu(spec: ModelSpec) -> float:
     """The friction coefficient shared by every frictional interface (a μ sweep scales it)."""
-    mus = {p.mu for p in spec.plates if p.kn > 0 and p.mu > 0 and p.sliding != 0}
+    mus = {p.mu for p in spec.plates if p.has_friction}
     mus |= {it.mu for it in spec.interfaces if it.kind == "contact" and it.mu > 0 and it.sliding != 0}
     if len(mus) > 1:
         raise ModelError(f"interfaces: frictional interfaces have different mu {sorted(mus)}; a reduced "

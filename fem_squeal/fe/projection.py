@@ -37,7 +37,15 @@ from fem_squeal.fe.eigen import (
 )
 from fem_squeal.fe.model import ModelSpec, common_mu  # noqa: F401  (common_mu: re-exported)
 from fem_squeal.reduced.masa import polar_patches
-from fem_squeal.reduced.model import MU, ContactRestriction, ReducedModel, e_param, eta_param, split_param
+from fem_squeal.reduced.model import (
+    MU,
+    ContactRestriction,
+    PlateProjection,
+    ReducedModel,
+    e_param,
+    eta_param,
+    split_param,
+)
 from fem_squeal.reduced.sweep import solve_points
 from fem_squeal.util.errors import EigenSolveError, ModelError, ReductionError, UnknownNameError
 
@@ -229,7 +237,8 @@ class ParametricOperators:
     used to verify the reduced model and to sample modes at parameter values.
 
     The parameters are those of :class:`~fem_squeal.reduced.model.ReducedModel`: ``mu``, ``E.<part>``
-    and ``eta.<part>`` (``parts``), and ``mu.<c>``, ``kn.<c>``, ``kt.<c>`` of every contact interface c.
+    and ``eta.<part>`` (``parts``), and ``mu.<c>``, ``kn.<c>``, ``kt.<c>`` of every contact interface c
+    and of every named rigid plate (``ops.plate_parts``: assembled with ``parts=True``).
     The interface matrices are assembled at the closed points of ``preload`` (all points without
     one), as the reduced model's: the contact state of the preload is kept when k_n changes.
     A loss factor η makes K complex, which the real PETSc build cannot hold: :meth:`matrices`
@@ -255,6 +264,10 @@ class ParametricOperators:
         self.contacts = {it.name: (it, op) for it, op in ops.contacts}
         self.active = {name: (None if preload is None else np.asarray(preload.active[name], bool))
                        for name in self.contacts}
+        self.plates = dict(ops.plate_parts or {})
+        # every interface with per-interface parameters: contacts and named rigid plates
+        self.interfaces = {**{n: it for n, (it, _) in self.contacts.items()},
+                           **{n: pm.plate for n, pm in self.plates.items()}}
         self._bc_rows = bc_rows
         self._interface: dict[str, tuple] = {}
 
@@ -262,13 +275,21 @@ class ParametricOperators:
     def parameters(self) -> list[str]:
         """Every parameter name these operators accept (the reduced model's names)."""
         out = [MU] + [e_param(p) for p in self.parts]   # μ = 0 is accepted by a frictionless model
-        out += [f"mu.{c}" for c, (it, _) in self.contacts.items() if it.sliding != 0]
-        out += [f"{k}.{c}" for k in ("kn", "kt") for c in self.contacts]
+        out += [f"mu.{c}" for c, it in self.interfaces.items() if it.sliding != 0]
+        out += [f"{k}.{c}" for k in ("kn", "kt") for c in self.interfaces]
         return out + [eta_param(p) for p in self.parts]
 
     def interface_matrices(self, name: str) -> tuple[PETSc.Mat, PETSc.Mat | None, PETSc.Mat]:
         """(K_c at the nominal k_n, K_f for μ = 1 at the nominal k_n or None without sliding, K_t for
-        k_t = 1) of contact ``name`` on its closed points, zero on the clamped DOFs."""
+        k_t = 1) of contact ``name`` on its closed points (of rigid plate ``name``: on its face), zero
+        on the clamped DOFs."""
+        if name in self.plates and name not in self._interface:
+            pm = self.plates[name]
+            mats = [None if A is None else A.copy() for A in (pm.Kc, pm.Kf, pm.Kt)]
+            for A in mats:
+                if A is not None:
+                    A.zeroRowsColumns(self._bc_rows, diag=0.0)
+            self._interface[name] = tuple(mats)
         if name not in self._interface:
             it, op = self.contacts[name]
             a = self.active[name]
@@ -330,7 +351,7 @@ class ParametricOperators:
                         C.scale(self.beta[p] * d)
                     else:
                         _add(C, self.K_parts[p], self.beta[p] * d)
-        for name, (it, _) in self.contacts.items():
+        for name, it in self.interfaces.items():
             keys = (f"mu.{name}", f"kn.{name}", f"kt.{name}")
             if not any(k in params for k in keys):
                 continue
@@ -403,7 +424,7 @@ def parameter_derivative(par: ParametricOperators, name: str) -> tuple[PETSc.Mat
         return Ki, C, 1.0
     if prefix == "eta":
         return _combination([(par.K_parts[target], 1.0)]), None, 1j
-    it, _ = par.contacts[target]
+    it = par.interfaces[target]
     Kc, Kf, Kt = par.interface_matrices(target)
     if prefix == "kt":
         return _combination([(Kt, 1.0)]), None, 1.0
@@ -710,7 +731,19 @@ def reduce(ops: Operators, par: ParametricOperators, basis: Basis, preload=None)
     return ReducedModel(K0=K0, Kf1=Kf1, C0=C0, K_parts={p: project(A, Phi) for p, A in par.K_parts.items()},
                         E0=dict(par.E0), beta=dict(par.beta), mu0=par.mu0,
                         contacts=restrict_contacts(ops, Phi, preload), info=dict(basis.counts), f=f, q_static=q_s,
-                        eta0=dict(par.eta0))
+                        eta0=dict(par.eta0), plates=project_plates(par, Phi))
+
+
+def project_plates(par: ParametricOperators, Phi: np.ndarray) -> dict[str, PlateProjection]:
+    """Φᵀ K_c,p Φ, Φᵀ K_t,p Φ, Φᵀ K_f,p Φ of every named rigid plate (:class:`PlateProjection`)."""
+    out = {}
+    for name, plate in par.interfaces.items():
+        if name not in par.plates:
+            continue
+        Kc, Kf, Kt = par.interface_matrices(name)
+        out[name] = PlateProjection(project(Kc, Phi), project(Kt, Phi), None if Kf is None else project(Kf, Phi),
+                                    kn=plate.kn, mu=plate.mu, sliding=float(plate.sliding), kt=plate.kt)
+    return out
 
 
 def lifted_residuals(par: ParametricOperators, Phi: np.ndarray, params: Mapping[str, float],

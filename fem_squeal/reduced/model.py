@@ -24,7 +24,10 @@ closed points: K_c,c = (G_nΦ)ᵀ diag(k_n w a) (G_nΦ), K_f,c¹ = (G_sΦ)ᵀ di
 K_t,c¹ = (G_t₂Φ)ᵀ diag(w a) (G_t₂Φ) (+ the same along t₁ for a contact that does not slide), w the
 quadrature weights and a the closed points: the contact state of the preload is kept (a change
 of k_n does not re-solve the preload; the full-order check of
-:class:`fem_squeal.fe.projection.ParametricOperators` makes the same assumption).
+:class:`fem_squeal.fe.projection.ParametricOperators` makes the same assumption).  A named rigid
+plate p (a bilateral penalty layer, always closed) has the same three parameters with its
+projected face matrices (:class:`PlateProjection`): K_c,p = Φᵀ∫k_n (u·n)(v·n) ds Φ,
+K_f,p¹ = −Φᵀ∫k_n (u·n)(v·s) ds Φ (with a friction law μ(V): of μ(V)/μ_p⁰), K_t,p¹ = Φᵀ∫(u·t₂)(v·t₂) ds Φ.
 μ_c^μ = μ·μ_c⁰/μ⁰ is what ``mu`` gives interface c (μ_c⁰ its nominal coefficient), and μ_c =
 ``mu.<c>`` where given, else μ_c^μ: the terms vanish at the nominal point and where the interface
 parameters are not given, so these models reproduce the μ/E model exactly.
@@ -127,6 +130,39 @@ class ContactRestriction:
         T = self.Gt2.T @ (wa * self.Gt2)
         return T if self.sliding != 0 else T + self.Gt.T @ (wa * self.Gt)
 
+    @property
+    def has_kt(self) -> bool:
+        """k_t is a parameter (G_t₂Φ stored)."""
+        return self.Gt2 is not None
+
+
+@dataclass
+class PlateProjection:
+    """A rigid plate's share of the stiffness on the basis (a bilateral penalty layer: no contact
+    state): K_c = Φᵀ K_c,p Φ at the nominal k_n, K_f¹ = Φᵀ K_f,p Φ for μ = 1 (None: no friction),
+    K_t¹ = Φᵀ K_t,p Φ for k_t = 1 (:class:`fem_squeal.fe.assembly.PlateMatrices`)."""
+
+    Kc: np.ndarray
+    Kt: np.ndarray
+    Kf: np.ndarray | None
+    kn: float
+    mu: float
+    sliding: float
+    kt: float = 0.0
+
+    def normal_stiffness(self) -> np.ndarray:
+        return self.Kc
+
+    def friction_stiffness(self) -> np.ndarray | None:
+        return self.Kf
+
+    def tangential_stiffness(self) -> np.ndarray:
+        return self.Kt
+
+    @property
+    def has_kt(self) -> bool:
+        return True
+
 
 @dataclass
 class ReducedModel:
@@ -144,12 +180,15 @@ class ReducedModel:
     f: np.ndarray | None = None                               # Φᵀ f: the static load (preload)
     q_static: np.ndarray | None = None                        # ΦᵀM u_s: the preload displacement
     eta0: dict[str, float] = field(default_factory=dict)      # parts with a loss-factor parameter: nominal η
+    plates: dict[str, PlateProjection] = field(default_factory=dict)  # named rigid plates
 
     def __post_init__(self):
         m = self.K0.shape[0]
         if self.K0.shape != (m, m):
             raise ModelError(f"K0: must be square (got {self.K0.shape})")
-        for name, A in [("Kf1", self.Kf1), ("C0", self.C0), *self.K_parts.items()]:
+        plate_mats = [(f"plates.{n}.{f}", getattr(pl, f)) for n, pl in self.plates.items()
+                      for f in ("Kc", "Kt", "Kf")]
+        for name, A in [("Kf1", self.Kf1), ("C0", self.C0), *self.K_parts.items(), *plate_mats]:
             if A is not None and A.shape != (m, m):
                 raise ModelError(f"{name}: must be {m}×{m} like K0 (got {A.shape})")
         missing = sorted(set(self.K_parts) - set(self.E0))
@@ -164,28 +203,33 @@ class ReducedModel:
         self._interface_cache: dict[str, tuple] = {}
 
     @property
+    def interfaces(self) -> dict:
+        """The interfaces with per-interface parameters: contacts, then named rigid plates."""
+        return {**self.contacts, **self.plates}
+
+    @property
     def size(self) -> int:
         return self.K0.shape[0]
 
     @property
     def parameters(self) -> list[str]:
         """Names of the parameters this model can vary (module docstring): ``mu``, ``E.<part>``,
-        ``mu.<contact>`` (sliding contacts), ``kn.<contact>``, ``kt.<contact>``, ``eta.<part>``."""
+        ``mu.<c>`` (sliding contacts and named rigid plates c), ``kn.<c>``, ``kt.<c>``, ``eta.<part>``."""
         out = ([MU] if self.Kf1 is not None else []) + [e_param(p) for p in self.K_parts]
-        out += [f"mu.{c}" for c, r in self.contacts.items() if r.sliding != 0]
-        out += [f"kn.{c}" for c in self.contacts]
-        out += [f"kt.{c}" for c, r in self.contacts.items() if r.Gt2 is not None]
+        out += [f"mu.{c}" for c, r in self.interfaces.items() if r.sliding != 0]
+        out += [f"kn.{c}" for c in self.interfaces]
+        out += [f"kt.{c}" for c, r in self.interfaces.items() if r.has_kt]
         return out + [eta_param(p) for p in self.K_parts if p in self.eta0]
 
     def nominal(self) -> dict[str, float]:
         """The value of every parameter at the nominal point."""
         vals = {MU: float(self.mu0)} if self.Kf1 is not None else {}
         vals.update({e_param(p): float(self.E0[p]) for p in self.K_parts})
-        for c, r in self.contacts.items():
+        for c, r in self.interfaces.items():
             if r.sliding != 0:
                 vals[f"mu.{c}"] = float(r.mu)
             vals[f"kn.{c}"] = float(r.kn)
-            if r.Gt2 is not None:
+            if r.has_kt:
                 vals[f"kt.{c}"] = float(r.kt)
         vals.update({eta_param(p): float(self.eta0[p]) for p in self.K_parts if p in self.eta0})
         return {k: vals[k] for k in self.parameters}
@@ -196,15 +240,16 @@ class ReducedModel:
         return any(v != 0 for v in self.eta0.values())
 
     def interface_matrices(self, name: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-        """(K_c, K_f¹ or None without sliding, K_t¹ or None) of contact ``name`` (module docstring)."""
+        """(K_c, K_f¹ or None without sliding, K_t¹ or None) of contact or plate ``name`` (module
+        docstring)."""
         if name not in self._interface_cache:
-            c = self.contacts[name]
+            c = self.interfaces[name]
             self._interface_cache[name] = (c.normal_stiffness(),
                                            c.friction_stiffness() if c.sliding != 0 else None,
                                            c.tangential_stiffness())
         return self._interface_cache[name]
 
-    def _mu_share(self, c: ContactRestriction) -> float:
+    def _mu_share(self, c: ContactRestriction | PlateProjection) -> float:
         """μ_c⁰/μ⁰: what a unit ``mu`` gives contact c (0 for a contact without friction at nominal)."""
         return c.mu / self.mu0 if self.mu0 != 0 and c.sliding != 0 and self.Kf1 is not None else 0.0
 
@@ -253,7 +298,7 @@ class ReducedModel:
                 coefs.append(1j * eta * vec(e_param(part), self.E0[part]) / self.E0[part])
                 mats.append(Kp)
         mu = vec(MU, self.mu0)
-        for cname, c in self.contacts.items():
+        for cname, c in self.interfaces.items():
             mu_key, kn_key, kt_key = f"mu.{cname}", f"kn.{cname}", f"kt.{cname}"
             if not any(k in points for k in (mu_key, kn_key, kt_key)):
                 continue
@@ -292,7 +337,7 @@ class ReducedModel:
         prefix, target = split_param(name)
         if name == MU:
             dK = self.Kf1.copy()
-            for cname, c in self.contacts.items():
+            for cname, c in self.interfaces.items():
                 share = self._mu_share(c)
                 if share == 0 or (f"mu.{cname}" not in point and f"kn.{cname}" not in point):
                     continue
@@ -310,7 +355,7 @@ class ReducedModel:
             Ki = Kp / E0
             beta = self.beta.get(target, 0.0)
             return (Ki if eta == 0 else (1.0 + 1j * eta) * Ki), (beta * Ki if beta else None)
-        c = self.contacts[target]
+        c = self.interfaces[target]
         Kc, Kf, Kt = self.interface_matrices(target)
         s = val[f"kn.{target}"] / c.kn
         if prefix == "kt":
@@ -373,6 +418,10 @@ class ReducedModel:
                     arrays[f"contact/{name}/{f}"] = getattr(c, f)
             for f in ("kn", "mu", "sliding", "kt"):
                 arrays[f"contact/{name}/{f}"] = np.array(getattr(c, f))
+        for name, pl in self.plates.items():
+            for f in ("Kc", "Kt", "Kf", "kn", "mu", "sliding", "kt"):
+                if getattr(pl, f) is not None:
+                    arrays[f"plate/{name}/{f}"] = np.asarray(getattr(pl, f))
         write_npz_atomic(path, arrays)
 
     @classmethod
@@ -389,8 +438,13 @@ class ReducedModel:
             s = {f: float(d[f"contact/{name}/{f}"]) for f in ("kn", "mu", "sliding")}
             s["kt"] = float(d.get(f"contact/{name}/kt", 0.0))
             contacts[name] = ContactRestriction(**g, **s)
+        plates = {}
+        for name in sorted({k.split("/")[1] for k in d if k.startswith("plate/")}):
+            plates[name] = PlateProjection(
+                d[f"plate/{name}/Kc"], d[f"plate/{name}/Kt"], d.get(f"plate/{name}/Kf"),
+                **{f: float(d[f"plate/{name}/{f}"]) for f in ("kn", "mu", "sliding", "kt")})
         return cls(K0=d["K0"], Kf1=d.get("Kf1"), C0=d.get("C0"),
                    K_parts={p: d[f"K_part/{p}"] for p in parts}, E0={p: float(d[f"E0/{p}"]) for p in parts},
                    beta={p: float(d[f"beta/{p}"]) for p in parts}, mu0=float(d["mu0"]), contacts=contacts,
                    f=d.get("f"), q_static=d.get("q_static"),
-                   eta0={p: float(d[f"eta0/{p}"]) for p in parts if f"eta0/{p}" in d})
+                   eta0={p: float(d[f"eta0/{p}"]) for p in parts if f"eta0/{p}" in d}, plates=plates)

@@ -1,6 +1,6 @@
 """Robustness of the stability to scattered parameters: Monte Carlo on the reduced model.
 
-**Samples.**  Each parameter (any of the reduced model's: ``"mu"``, ``"E.<part>"``, ``"kn.<contact>"``, …)
+**Samples.**  Each parameter (any of the reduced model's: ``"mu"``, ``"E.<part>"``, ``"kn.<interface>"``, …)
 has a distribution (:class:`Distribution`:
 uniform [lower, upper], normal (mean, std), lognormal (mean, std of the variable itself, i.e.
 ln p ~ N(m, s²) with s² = ln(1 + (std/mean)²), m = ln(mean) − s²/2)); std = 0 or lower = upper

@@ -43,7 +43,8 @@ SECTION = {
     "n_bands": Field(int, 6, positive, "equal frequency ranges of analyses.reduced.band_hz"),
     "parameters": Field(dict, {}, None, "<name> = {distribution = 'uniform', lower, upper} or "
                         "{distribution = 'normal' | 'lognormal', mean, std}; names 'mu', 'E.<part>', "
-                        "'eta.<part>', 'mu.<contact>', 'kn.<contact>', 'kt.<contact>'"),
+                        "'eta.<part>', 'mu.<interface>', 'kn.<interface>', 'kt.<interface>' (contact or "
+                        "rigid_plate)"),
     "spot_checks": Field(int, 3, non_negative, "full CEA at this many samples (the extreme ones first)"),
     "n_histograms": Field(int, 4, non_negative, "growth-rate histograms of the families most often unstable"),
 }
@@ -53,7 +54,7 @@ _KEYS = {"uniform": ("lower", "upper"), "normal": ("mean", "std"), "lognormal": 
 
 def _tables(params: dict) -> dict[str, Any]:
     """name → table, the nested forms ``E = {disc = {...}}``, ``kn = {pad = {...}}`` (any of E, eta,
-    mu, kn, kt) flattened to ``E.disc``, ``kn.pad``; a table-valued entry of ``mu`` is ``mu.<contact>``
+    mu, kn, kt) flattened to ``E.disc``, ``kn.pad``; a table-valued entry of ``mu`` is ``mu.<interface>``
     also next to ``mu``'s own distribution keys (``[...parameters.mu]`` and ``[...parameters.mu.pad]``)."""
     out = {}
     for name, t in params.items():

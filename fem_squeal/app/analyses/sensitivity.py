@@ -31,8 +31,8 @@ SECTION = {
     "modes": Field(str, "unstable", one_of("unstable", "band"),
                    "'unstable': the unstable modes in analyses.reduced.band_hz; 'band': every mode in it"),
     "parameters": Field(list, [], None,
-                        "parameters ('mu', 'E.<part>', 'eta.<part>', 'mu.<contact>', 'kn.<contact>', "
-                        "'kt.<contact>'); [] = every parameter of the reduced model"),
+                        "parameters ('mu', 'E.<part>', 'eta.<part>', 'mu.<interface>', 'kn.<interface>', "
+                        "'kt.<interface>'); [] = every parameter of the reduced model"),
     "kappa_max": Field(REAL, KAPPA_COALESCENCE, lambda v: None if v > 1 else f"must be > 1 (got {v})",
                        "near a coalescence when the local condition number exceeds this (≈ 0.5 % from it)"),
     "full": Field(bool, False, None, "also dλ/dp of the full model (CEA right vectors, SLEPc left vectors of "
@@ -60,24 +60,28 @@ def basis_parts(scene: dict, volumes) -> list[str]:
     return sorted(parts)
 
 
-PARAMETER_NAMES = ("'mu', 'E.<part>' and 'eta.<part>' with a part of {parts}, 'mu.<contact>', 'kn.<contact>' "
-                   "and 'kt.<contact>' with a contact interface of {contacts}")
+PARAMETER_NAMES = ("'mu', 'E.<part>' and 'eta.<part>' with a part of {parts}, 'mu.<interface>', 'kn.<interface>' "
+                   "and 'kt.<interface>' with a contact or rigid_plate interface of {contacts}")
 
 
 def check_parameter(scene: dict, volumes, name: str, key: str) -> None:
     """``name`` is a parameter of the reduced model of this scene (:attr:`~fem_squeal.reduced.model.
     ReducedModel.parameters`): 'mu'; 'E.<part>' or 'eta.<part>' with a part the reduced basis carries;
-    'mu.<c>' (c sliding), 'kn.<c>', 'kt.<c>' with a contact interface c; else SceneError at ``key``."""
+    'mu.<c>' (c sliding), 'kn.<c>', 'kt.<c>' with a contact or rigid_plate interface c (a plate with
+    k_n > 0); else SceneError at ``key``."""
     if name == MU:
         return
     prefix, target = split_param(name)
     interfaces = scene.get("interfaces", {})
-    contacts = sorted(n for n, t in interfaces.items() if t.get("type") == "contact")
+    contacts = sorted(n for n, t in interfaces.items() if t.get("type") == "contact" or
+                      (t.get("type") == "rigid_plate" and t.get("kn", 0) > 0))
     known = PARAMETER_NAMES.format(parts=sorted(volumes), contacts=contacts)
     if prefix in INTERFACE_PREFIXES and target is not None:
         if target in interfaces and target not in contacts:
-            raise SceneError(f"{key}: {name!r}: interface {target!r} is a {interfaces[target].get('type')}; "
-                             f"per-interface parameters exist for contact interfaces ({contacts or 'none'})")
+            t = interfaces[target]
+            what = t.get("type") + (f" with kn = {t.get('kn')}" if t.get("type") == "rigid_plate" else "")
+            raise SceneError(f"{key}: {name!r}: interface {target!r} is a {what}; per-interface parameters "
+                             f"exist for contact and rigid_plate interfaces with kn > 0 ({contacts or 'none'})")
         if target not in contacts:
             raise SceneError(f"{key}: unknown parameter {name!r}; parameters are {known}")
         if prefix == "mu" and not interfaces[target].get("sliding", 1):

@@ -192,11 +192,11 @@ def test_scene_keys_default_off_and_named_errors():
         validate(_scene(speed=100.0, gyroscopic=True, rotating_parts="disc"))
     with pytest.raises(SceneError, match=r"operating\.rotating_parts: must be a list of part names"):
         validate(_scene(speed=100.0, gyroscopic=True, rotating_parts=[1]))
-    # only the CEA has the rotation and the stress stiffening: a reduced-model study is refused
-    with pytest.raises(SceneError, match=r"operating\.gyroscopic: only analyses\.cea.*analyses\.reduced"):
-        validate({**_scene(speed=100.0, gyroscopic=True), "analyses": {"cea": {}, "sweep": {}}})
-    with pytest.raises(SceneError, match=r"preload\.geometric_stiffness: only analyses\.cea"):
-        validate({**SCENE, "preload": {"geometric_stiffness": True}, "analyses": {"reduced": {}}})
+    # the CEA and the reduced model have the rotation and the stress stiffening; a nonlinear study is refused
+    with pytest.raises(SceneError, match=r"operating\.gyroscopic: the nonlinear study analyses\.transient"):
+        validate({**_scene(speed=100.0, gyroscopic=True), "analyses": {"cea": {}, "transient": {}}})
+    with pytest.raises(SceneError, match=r"preload\.geometric_stiffness: the nonlinear study analyses\.masa"):
+        validate({**SCENE, "preload": {"geometric_stiffness": True}, "analyses": {"masa": {}}})
 
 
 SPIN_TOML = """

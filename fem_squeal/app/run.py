@@ -38,7 +38,8 @@ reduced          size, parameters, mu0, rounds [{cut_hz, modes, sampled_modes, s
 sweep            parameter, values, critical [{branch, partner, value, bracket, freq_hz, kind,
                  onset, labels, zero_crossing (False: no Re λ = 0 in reach, value is where Re λ =
                  growth_tol |λ|)}], solves, seconds (branches in sweep.json)
-map              parameter, points, seconds, seconds_per_point, axes, bands_hz, counts, total
+map              parameter ("E.<part>" or "speed": the second axis), points, seconds, seconds_per_point,
+                 axes, bands_hz, counts, total (stability_map.npz: mu, E or speed, counts, total, ...)
 sensitivity      [{index, freq_hz, real_part, unstable, d_real_part {parameter: ∂Re λ/∂p}, d_freq_hz
                    {parameter: ∂f/∂p}, rel_d_real_part, rel_d_freq_hz (p·∂/∂p), kappa_local, kappa,
                    near_coalescence (then the derivatives are None), ranking, full (with

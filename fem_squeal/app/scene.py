@@ -57,8 +57,12 @@ operating        speed [rad/s] (default 0: the disc speed Ω; V = Ω r at each c
                  gyroscopic (default false: the rotating_parts turn at speed Ω about z under fixed
                  observers; the CEA gains Ω G₁ in C and −Ω² K_L in K, transport form, see
                  fem_squeal.fe.forms), rotating_parts = [part names] (default ["disc"]); gyroscopic
-                 and preload.geometric_stiffness enter analyses.cea only (real_modes: at rest;
-                 reduced-model studies are refused with them)
+                 and preload.geometric_stiffness enter analyses.cea and the reduced model (reduced,
+                 sweep, map, sensitivity, robustness; real_modes: at rest; the nonlinear studies
+                 transient and masa are refused with them).  The reduced model has the parameter
+                 "speed" (analyses.sweep.parameter = "speed", analyses.map.second = "speed") when
+                 speed > 0, gyroscopic or a friction_damping uses it and no μ(V) law is set:
+                 Ω G₁ in C, Ω² (K_σc − K_L) in K, the friction damping as (|μ|/|μ⁰|)(Ω₀/Ω)
 discretisation   degree (1 or 2), quadrature_degree (not set: automatic), interface_quadrature_degree
 analyses.<name>  one section per analysis, declared by its module in fem_squeal.app.analyses (the
                  registry): fields, defaults and cross-checks.  The full reference of every key, model
@@ -368,8 +372,8 @@ def validate(raw: dict) -> dict:
 def _check_rotation(scene: dict, volumes) -> None:
     """operating.rotating_parts: a list of part names (checked against the geometry's parts when
     gyroscopic is true; then it must not be empty) and gyroscopic = true needs speed > 0.  The rotation
-    and the stress stiffening enter the CEA only (real_modes stay the modes at rest): the reduced-model
-    studies are refused with them."""
+    and the stress stiffening enter the CEA and the reduced model (real_modes stay the modes at rest);
+    the nonlinear studies (transient, masa and those built on them) are refused with them."""
     op = scene["operating"]
     parts = op["rotating_parts"]
     if not isinstance(parts, list) or not all(isinstance(p, str) for p in parts):
@@ -378,10 +382,11 @@ def _check_rotation(scene: dict, volumes) -> None:
         raise SceneError(f"operating.rotating_parts: a part is listed twice (got {parts!r})")
     terms = [k for k, on in (("operating.gyroscopic", op["gyroscopic"]),
                              ("preload.geometric_stiffness", scene["preload"]["geometric_stiffness"])) if on]
-    studies = sorted(set(scene["analyses"]) - {"cea", "real_modes"})
+    studies = sorted(set(scene["analyses"]) - {"cea", "real_modes", "reduced", "sweep", "map", "sensitivity",
+                                               "robustness"})
     if terms and studies:
-        raise SceneError(f"{terms[0]}: only analyses.cea includes it, not the reduced model of "
-                         f"analyses.{studies[0]} (remove that analysis or set {terms[0]} = false)")
+        raise SceneError(f"{terms[0]}: the nonlinear study analyses.{studies[0]} does not include it "
+                         f"(remove that analysis or set {terms[0]} = false)")
     if not op["gyroscopic"]:
         return
     if not parts:

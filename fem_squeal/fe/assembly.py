@@ -523,57 +523,117 @@ def geometric_stiffness(ops: Operators, mesh_data, spec: ModelSpec, u0: PETSc.Ve
     return A
 
 
-def operating_operators(ops: Operators, mesh_data, spec: ModelSpec, *, speed: float = 0.0,
-                        gyroscopic: bool = False, rotating_parts=("disc",), stress_stiffening: bool = False,
-                        u_static: PETSc.Vec | None = None, options: dict | None = None
-                        ) -> tuple[PETSc.Mat, PETSc.Mat | None, dict]:
-    """K and C of the CEA with the disc's rotation and the stress stiffening (issue 20 items 4, 5):
+class OperatingTerms(NamedTuple):
+    """The disc's rotation and the stress stiffening per unit speed (issue 20 items 4–6):
 
-        C = C₀ + Ω G₁,   K = K₀ + K_f − Ω² K_L + K_σ(σ₀),   σ₀ = C ε(u_static + Ω² u_c),
+        C(Ω) = C₀ + Ω G,   K(Ω) = K₀ + K_f + K_σ0 + Ω² (K_σc − S).
 
-    G₁, K_L of the ``rotating_parts`` in the transport form (:func:`rotation_matrices`, frame "fixed")
-    when ``gyroscopic``; K_σ (:func:`geometric_stiffness`) when ``stress_stiffening``, with u_static the
-    preload displacement (None: K_total u = f when there is a load) and u_c the static response
-    K_total u_c = f_c to the centrifugal load (gyroscopic only).  Both off: K_total() and C unchanged.
-    ``info``: norms of the added matrices, for the results."""
-    K, C, info = ops.K_total(), ops.C, {}
-    if not (gyroscopic or stress_stiffening):
-        return K, C, info
-    if K is ops.K:
-        K = K.copy()
-    u0 = None
+    G, S of the rotating parts in the transport form (:func:`rotation_matrices`, frame "fixed"),
+    K_σ0 = K_σ(u_static) the stress stiffening of the preload, K_σc = K_σ(u_c¹) that of the
+    centrifugal displacement per unit Ω² (K_total u_c¹ = f_c¹; K_σ is linear in u).  A term that the
+    scene does not ask for is None."""
+
+    G: PETSc.Mat | None      # gyroscopic, per unit Ω (skew)
+    S: PETSc.Mat | None      # convective stiffness K_L, per unit Ω² (enters as −Ω² S)
+    Ks0: PETSc.Mat | None    # K_σ of the preload displacement
+    Ksc: PETSc.Mat | None    # K_σ of the centrifugal displacement per unit Ω²
+    uc_max: float = 0.0      # max |u_c¹| [m per (rad/s)²]
+
+    def stiffness_per_speed2(self) -> PETSc.Mat | None:
+        """K_σc − S: the stiffness per unit Ω² (a new matrix; None without rotation)."""
+        if self.S is None:
+            return None
+        out = self.S.copy()
+        out.scale(-1.0)
+        if self.Ksc is not None:
+            _add(out, self.Ksc)
+        return out
+
+    def destroy(self) -> None:
+        for A in (self.G, self.S, self.Ks0, self.Ksc):
+            if A is not None:
+                A.destroy()
+
+
+def operating_terms(ops: Operators, mesh_data, spec: ModelSpec, *, gyroscopic: bool = False,
+                    rotating_parts=("disc",), stress_stiffening: bool = False,
+                    u_static: PETSc.Vec | None = None, options: dict | None = None) -> OperatingTerms:
+    """The :class:`OperatingTerms` of a scene: G, S of the ``rotating_parts`` when ``gyroscopic``;
+    K_σ0 when ``stress_stiffening`` (u_static the preload displacement; None: K_total u = f when there
+    is a load), and K_σc with both."""
+    G = S = Ks0 = Ksc = None
+    uc_max = 0.0
+    K = ops.K_total() if stress_stiffening else None
     if stress_stiffening:
-        if u_static is not None:
-            u0 = u_static.copy()
-        elif ops.f is not None and ops.f.norm() > 0:
+        u0 = u_static.copy() if u_static is not None else None
+        if u0 is None and ops.f is not None and ops.f.norm() > 0:
             u0 = static_displacement(K, ops.f, options)
+        if u0 is not None:
+            Ks0 = geometric_stiffness(ops, mesh_data, spec, u0)
+            u0.destroy()
     if gyroscopic:
         rot = rotation_matrices(ops, mesh_data, spec, list(rotating_parts), "fixed")
+        G, S = rot.G, rot.S
         if stress_stiffening:
-            rot.f.scale(speed ** 2)
             uc = static_displacement(K, rot.f, options)
-            info["centrifugal_displacement_max"] = uc.norm(PETSc.NormType.INFINITY)
-            if u0 is None:
-                u0 = uc
-            else:
-                u0.axpy(1.0, uc)
-                uc.destroy()
-        _add(K, rot.S, -speed ** 2)
-        info["convective_stiffness_norm"] = speed ** 2 * rot.S.norm(PETSc.NormType.FROBENIUS)
-        info["gyroscopic_norm"] = speed * rot.G.norm(PETSc.NormType.FROBENIUS)
+            uc_max = uc.norm(PETSc.NormType.INFINITY)
+            Ksc = geometric_stiffness(ops, mesh_data, spec, uc)
+            uc.destroy()
+        rot.f.destroy()
+    if K is not None and K is not ops.K:
+        K.destroy()
+    return OperatingTerms(G, S, Ks0, Ksc, uc_max)
+
+
+def operating_operators(ops: Operators, mesh_data, spec: ModelSpec, *, speed: float = 0.0,
+                        gyroscopic: bool = False, rotating_parts=("disc",), stress_stiffening: bool = False,
+                        u_static: PETSc.Vec | None = None, options: dict | None = None,
+                        terms: OperatingTerms | None = None) -> tuple[PETSc.Mat, PETSc.Mat | None, dict]:
+    """K and C of the CEA at speed Ω with the disc's rotation and the stress stiffening
+    (:class:`OperatingTerms`; ``terms`` given: those, else :func:`operating_terms` of the flags):
+
+        C = C₀ + Ω G,   K = K₀ + K_f + K_σ0 + Ω² (K_σc − S).
+
+    Both off: K_total() and C unchanged.  ``info``: norms of the added matrices, for the results."""
+    K, C, info = ops.K_total(), ops.C, {}
+    if terms is None and not (gyroscopic or stress_stiffening):
+        return K, C, info
+    own = terms is None
+    if own:
+        terms = operating_terms(ops, mesh_data, spec, gyroscopic=gyroscopic, rotating_parts=rotating_parts,
+                                stress_stiffening=stress_stiffening, u_static=u_static, options=options)
+    if K is ops.K:
+        K = K.copy()
+    Ks = None
+    if terms.Ks0 is not None or terms.Ksc is not None:
+        Ks = combination([(terms.Ks0, 1.0), (terms.Ksc, speed ** 2)])
+        if terms.Ksc is not None:
+            info["centrifugal_displacement_max"] = speed ** 2 * terms.uc_max
+    if terms.G is not None:
+        _add(K, terms.S, -speed ** 2)
+        info["convective_stiffness_norm"] = speed ** 2 * terms.S.norm(PETSc.NormType.FROBENIUS)
+        info["gyroscopic_norm"] = speed * terms.G.norm(PETSc.NormType.FROBENIUS)
         if C is None:
-            C = rot.G
+            C = terms.G.copy()
             C.scale(speed)
         else:
             C = C.copy()
-            _add(C, rot.G, speed)
-            rot.G.destroy()
-        rot.S.destroy()
-        rot.f.destroy()
-    if u0 is not None:
-        Ks = geometric_stiffness(ops, mesh_data, spec, u0)
+            _add(C, terms.G, speed)
+    if Ks is not None:
         info["geometric_stiffness_norm"] = Ks.norm(PETSc.NormType.FROBENIUS)
         _add(K, Ks)
         Ks.destroy()
-        u0.destroy()
+    if own:
+        terms.destroy()
     return K, C, info
+
+
+def combination(terms) -> PETSc.Mat:
+    """Σ αⱼ Aⱼ over the (A, α) of ``terms`` with A not None, as a new matrix (the first's pattern
+    grown by the others')."""
+    terms = [(A, a) for A, a in terms if A is not None]
+    out = terms[0][0].copy()
+    out.scale(terms[0][1])
+    for A, a in terms[1:]:
+        _add(out, A, a)
+    return out

@@ -3,7 +3,9 @@
 K(p) = K₀ + Σᵢ (θᵢ − 1) Kᵢ + μ K_f¹          θᵢ = Eᵢ / Eᵢ⁰ (part i's Young's modulus scale)
        + i Σᵢ ηᵢ θᵢ Kᵢ                          ηᵢ part i's loss factor (structural damping Kᵢ(1 + iη))
        + Σ_c [(s_c − 1) K_c,c + (k_t,c − k_t,c⁰) K_t,c¹ + (μ_c s_c − μ_c^μ) K_f,c¹]
+       + Ω² K₂                                   Ω the disc speed (``speed``), K₂ = K_σc − S
 C(p) = C₀ + Σᵢ βᵢ (θᵢ − 1) Kᵢ                 (stiffness-proportional damping follows E)
+       + Ω G₁ + (|μ|/|μ⁰|)(Ω₀/Ω) C_d           (gyroscopic; friction damping p |μ|/V, V = Ω r)
 M    = I                                       (the basis is M-orthonormal)
 
 K₀ is the frictionless stiffness at the nominal parameters (elasticity, springs, closed contact),
@@ -32,6 +34,12 @@ K_f,p¹ = −Φᵀ∫k_n (u·n)(v·s) ds Φ (with a friction law μ(V): of μ(V)
 ``mu.<c>`` where given, else μ_c^μ: the terms vanish at the nominal point and where the interface
 parameters are not given, so these models reproduce the μ/E model exactly.
 
+**Speed** (issue 20 items 4–6; :class:`fem_squeal.fe.assembly.OperatingTerms`).  The turning disc
+in the space-fixed frame adds Ω G₁ (G₁ skew) and −Ω² S (convective), the centrifugal prestress
+Ω² K_σc; K₀ holds the preload's stress stiffening K_σ0.  The friction damping C_d of the nominal
+point (μ⁰, Ω₀) scales as (|μ|/|μ⁰|)(Ω₀/Ω) for a constant μ: ``speed`` is a parameter when the scene has
+one of these terms and no μ(V) law (whose μ, dμ/dV and preload change with V: not affine in Ω).
+
 **Loss factor.**  η ≥ 0 makes K complex: the eigenvalues of λ²I + K(1 + iη) (one part, undamped)
 are λ = iω√(1 + iη) (Im λ > 0: Re λ = −ω Im√(1 + iη) < 0, the physical branch; the roots with
 Im λ < 0 belong to K(1 − iη), the other sign of the frequency, and are not kept by
@@ -49,6 +57,8 @@ from fem_squeal.util.atomic import write_npz_atomic
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
 MU = "mu"
+#: the disc speed Ω [rad/s] (issue 20 item 6): G ∝ Ω, K_σc − S ∝ Ω², friction damping ∝ μ/Ω
+SPEED = "speed"
 #: prefixes of the per-part and per-interface parameters: ``<prefix>.<part or interface>``
 PART_PREFIXES = ("E", "eta")
 INTERFACE_PREFIXES = ("mu", "kn", "kt")
@@ -62,6 +72,15 @@ def e_param(part: str) -> str:
 def eta_param(part: str) -> str:
     """Name of the parameter that sets part ``part``'s loss factor η (structural damping K(1 + iη))."""
     return f"eta.{part}"
+
+
+def friction_damping_scale(mu, mu0: float, speed, speed0: float):
+    """(|μ|/|μ⁰|)(Ω₀/Ω): the factor of the friction damping C_d = ∫ p |μ|/|V| t₂t₂ᵀ ds (V = Ω r) of the
+    nominal point at (μ, Ω), a constant friction law (with μ(V) the damping is not affine in Ω).  The
+    signed μ (sign(v)μ) turns the friction force, not this damping: a transverse velocity turns the
+    force towards −t₂ whichever way the counter-face slides.  Ω₀ = 0 (the nominal speed not known):
+    |μ|/|μ⁰|, the damping of the nominal speed."""
+    return (np.abs(mu) / abs(mu0)) * (speed0 / speed if speed0 else 1.0)
 
 
 def split_param(name: str) -> tuple[str, str | None]:
@@ -85,6 +104,8 @@ def format_point(point: Mapping[str, float]) -> str:
             out.append(f"{name[:2]}({name[3:]}) = {value:.4g} N/m³")
         elif name.startswith("eta."):
             out.append(f"η({name[4:]}) = {value:.4g}")
+        elif name == SPEED:
+            out.append(f"Ω = {value:.4g} rad/s")
         else:
             out.append(f"{name} = {value:.4g}")
     return ", ".join(out)
@@ -181,6 +202,12 @@ class ReducedModel:
     q_static: np.ndarray | None = None                        # ΦᵀM u_s: the preload displacement
     eta0: dict[str, float] = field(default_factory=dict)      # parts with a loss-factor parameter: nominal η
     plates: dict[str, PlateProjection] = field(default_factory=dict)  # named rigid plates
+    # the disc's speed (issue 20 items 4–6): C += Ω G1 + (|μ|/|μ⁰|)(Ω₀/Ω) Cd0, K += Ω² K2
+    speed0: float = 0.0                                       # the scene's Ω₀ [rad/s]
+    G1: np.ndarray | None = None                              # gyroscopic per unit Ω (skew)
+    K2: np.ndarray | None = None                              # K_σc − S per unit Ω²
+    Cd0: np.ndarray | None = None                             # friction damping at (μ⁰, Ω₀) (not in C0)
+    speed_varies: bool = False                                # "speed" is a parameter (no μ(V) law)
 
     def __post_init__(self):
         m = self.K0.shape[0]
@@ -188,7 +215,8 @@ class ReducedModel:
             raise ModelError(f"K0: must be square (got {self.K0.shape})")
         plate_mats = [(f"plates.{n}.{f}", getattr(pl, f)) for n, pl in self.plates.items()
                       for f in ("Kc", "Kt", "Kf")]
-        for name, A in [("Kf1", self.Kf1), ("C0", self.C0), *self.K_parts.items(), *plate_mats]:
+        for name, A in [("Kf1", self.Kf1), ("C0", self.C0), *self.K_parts.items(), *plate_mats,
+                        ("G1", self.G1), ("K2", self.K2), ("Cd0", self.Cd0)]:
             if A is not None and A.shape != (m, m):
                 raise ModelError(f"{name}: must be {m}×{m} like K0 (got {A.shape})")
         missing = sorted(set(self.K_parts) - set(self.E0))
@@ -219,7 +247,8 @@ class ReducedModel:
         out += [f"mu.{c}" for c, r in self.interfaces.items() if r.sliding != 0]
         out += [f"kn.{c}" for c in self.interfaces]
         out += [f"kt.{c}" for c, r in self.interfaces.items() if r.has_kt]
-        return out + [eta_param(p) for p in self.K_parts if p in self.eta0]
+        return out + [eta_param(p) for p in self.K_parts if p in self.eta0] + \
+            ([SPEED] if self.speed_varies else [])
 
     def nominal(self) -> dict[str, float]:
         """The value of every parameter at the nominal point."""
@@ -232,6 +261,7 @@ class ReducedModel:
             if r.has_kt:
                 vals[f"kt.{c}"] = float(r.kt)
         vals.update({eta_param(p): float(self.eta0[p]) for p in self.K_parts if p in self.eta0})
+        vals[SPEED] = self.speed0
         return {k: vals[k] for k in self.parameters}
 
     @property
@@ -255,7 +285,8 @@ class ReducedModel:
 
     @property
     def damped(self) -> bool:
-        return self.C0 is not None or any(self.beta.get(p, 0.0) > 0 for p in self.K_parts)
+        return self.C0 is not None or self.G1 is not None or self.Cd0 is not None or \
+            any(self.beta.get(p, 0.0) > 0 for p in self.K_parts)
 
     def _check(self, names) -> None:
         unknown = sorted(set(names) - set(self.parameters))
@@ -330,12 +361,22 @@ class ReducedModel:
         ∂K/∂μ = K_f¹ (− μ_c⁰/μ⁰ K_f,c¹ for a contact whose ``mu.<c>`` is given, + μ_c⁰/μ⁰ (s_c − 1)
         K_f,c¹ for one whose k_n is changed); ∂K/∂E_i = (1 + iη_i) K_i/E_i⁰, ∂C/∂E_i = β_i K_i/E_i⁰;
         ∂K/∂η_i = i θ_i K_i; ∂K/∂μ_c = s_c K_f,c¹; ∂K/∂k_n,c = (K_c,c + μ_c K_f,c¹)/k_n,c⁰;
-        ∂K/∂k_t,c = K_t,c¹."""
+        ∂K/∂k_t,c = K_t,c¹; ∂C/∂μ = sign(μ)(Ω₀/Ω) C_d/|μ⁰|; ∂K/∂Ω = 2Ω K₂, ∂C/∂Ω = G₁ − (|μ|/|μ⁰|)(Ω₀/Ω²) C_d."""
         point = dict(point or {})
         self._check([name, *point])
         val = {**self.nominal(), **{k: float(v) for k, v in point.items()}}
         prefix, target = split_param(name)
+        w, mu = val.get(SPEED, self.speed0), val.get(MU, self.mu0)
+        if name == SPEED:
+            m = self.size
+            dK = 2.0 * w * self.K2 if self.K2 is not None else np.zeros((m, m))
+            dC = self.G1.copy() if self.G1 is not None else np.zeros((m, m))
+            if self.Cd0 is not None:
+                dC = dC - friction_damping_scale(mu, self.mu0, w, self.speed0) / w * self.Cd0
+            return dK, dC
         if name == MU:
+            dC = np.sign(mu) * friction_damping_scale(1.0, self.mu0, w, self.speed0) * self.Cd0 \
+                if self.Cd0 is not None else None
             dK = self.Kf1.copy()
             for cname, c in self.interfaces.items():
                 share = self._mu_share(c)
@@ -346,7 +387,7 @@ class ReducedModel:
                     dK = dK - share * Kf
                 else:
                     dK = dK + share * (val[f"kn.{cname}"] / c.kn - 1.0) * Kf
-            return dK, None
+            return dK, dC
         if prefix in PART_PREFIXES:
             Kp, E0 = self.K_parts[target], self.E0[target]
             eta = val.get(eta_param(target), 0.0)
@@ -382,13 +423,32 @@ class ReducedModel:
         extra = self.extra_terms(points, n)
         if extra is not None:
             K = K + np.tensordot(extra[0], extra[1], axes=1)
+        speed = self._speed(points, n)
+        if self.K2 is not None:
+            K = K + (speed ** 2)[:, None, None] * self.K2
         if not self.damped:
             return K, None
         C = np.broadcast_to(self.C0 if self.C0 is not None else np.zeros((self.size,) * 2),
                             K.shape).copy()
         if self.K_parts:
             C += np.tensordot(cc, np.stack(list(self.K_parts.values())), axes=1)
+        if self.G1 is not None:
+            C += speed[:, None, None] * self.G1
+        if self.Cd0 is not None:
+            mu = np.broadcast_to(np.asarray(points.get(MU, self.mu0), float), (n,))
+            C += friction_damping_scale(mu, self.mu0, speed, self.speed0)[:, None, None] * self.Cd0
         return K, C
+
+    def _speed(self, points: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+        """Ω at each of ``n`` points (the nominal Ω₀ where not given), checked: ≥ 0, > 0 with friction
+        damping (C_d ∝ 1/Ω)."""
+        speed = np.broadcast_to(np.asarray(points.get(SPEED, self.speed0), float), (n,))
+        if SPEED in points:
+            if np.any(~(speed >= 0)):
+                raise ModelError(f"{SPEED}: must be >= 0 (got {speed.min()})")
+            if self.Cd0 is not None and self.speed0 and np.any(~(speed > 0)):
+                raise ModelError(f"{SPEED}: must be > 0 with friction damping (C_d ∝ 1/Ω; got {speed.min()})")
+        return speed
 
     def frictionless_frequencies(self) -> np.ndarray:
         """√eig(K₀)/2π [Hz] of the nominal frictionless reduced model, ascending (the parents)."""
@@ -418,6 +478,12 @@ class ReducedModel:
                     arrays[f"contact/{name}/{f}"] = getattr(c, f)
             for f in ("kn", "mu", "sliding", "kt"):
                 arrays[f"contact/{name}/{f}"] = np.array(getattr(c, f))
+        for name in ("G1", "K2", "Cd0"):
+            if getattr(self, name) is not None:
+                arrays[name] = getattr(self, name)
+        if self.speed0 or self.speed_varies:
+            arrays["speed0"] = np.array(self.speed0)
+            arrays["speed_varies"] = np.array(self.speed_varies)
         for name, pl in self.plates.items():
             for f in ("Kc", "Kt", "Kf", "kn", "mu", "sliding", "kt"):
                 if getattr(pl, f) is not None:
@@ -447,4 +513,6 @@ class ReducedModel:
                    K_parts={p: d[f"K_part/{p}"] for p in parts}, E0={p: float(d[f"E0/{p}"]) for p in parts},
                    beta={p: float(d[f"beta/{p}"]) for p in parts}, mu0=float(d["mu0"]), contacts=contacts,
                    f=d.get("f"), q_static=d.get("q_static"),
-                   eta0={p: float(d[f"eta0/{p}"]) for p in parts if f"eta0/{p}" in d}, plates=plates)
+                   eta0={p: float(d[f"eta0/{p}"]) for p in parts if f"eta0/{p}" in d}, plates=plates,
+                   speed0=float(d.get("speed0", 0.0)), G1=d.get("G1"), K2=d.get("K2"), Cd0=d.get("Cd0"),
+                   speed_varies=bool(d.get("speed_varies", False)))

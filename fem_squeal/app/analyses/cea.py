@@ -5,6 +5,7 @@ import math
 import time
 from pathlib import Path
 
+from fem_squeal.app.analyses.preload import operating
 from fem_squeal.app.fields import REAL, Field, band, one_of, positive
 from fem_squeal.app.html import escape as _e
 from fem_squeal.app.html import link
@@ -43,12 +44,10 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     ops, basis, scene = ctx.products["linear"], ctx.products["basis"], ctx.scene
     a = scene.analyses["cea"]
     t = time.perf_counter()
-    op = scene.operating   # the disc's rotation and the stress stiffening (fe.assembly.operating_operators)
-    pre = ctx.products.get("preload")
-    K, C, rotation = operating_operators(
-        ops, ctx.products["mesh"], ctx.spec, speed=op.speed, gyroscopic=op.gyroscopic,
-        rotating_parts=op.rotating_parts, stress_stiffening=scene.preload.geometric_stiffness,
-        u_static=pre.u if pre is not None else None, options=scene.solver.petsc_options)
+    # the disc's rotation and the stress stiffening (fe.assembly.operating_operators)
+    terms = operating(ctx)
+    K, C, rotation = operating_operators(ops, ctx.products["mesh"], ctx.spec, speed=scene.operating.speed,
+                                         terms=terms) if terms is not None else (ops.K_total(), ops.C, {})
     cm = solve_complex_modes(K, ops.M, C, a["n_modes"], cea_target_hz(a), method=a["method"],
                              tol=a["tol"], max_residual=a["max_residual"], band_hz=tuple(a["band_hz"]),
                              options=scene.solver.petsc_options, prefix="cea_", progress=True)
@@ -79,7 +78,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
         timings["cea_fields"] = time.perf_counter() - t
     out = {"complex_modes": rows, "n_unstable": n_unstable, "cea_method": cm.method}
     if rotation:
-        out["cea_rotation"] = {"speed": op.speed, **rotation}
+        out["cea_rotation"] = {"speed": scene.operating.speed, **rotation}
     return out
 
 

@@ -80,6 +80,24 @@ def _add_friction_damping(ctx: Context, ops, lin, pre, out: dict):
     return lin._replace(C=C, Cd=Cd)     # Cd apart too: the reduced basis adds its static corrections
 
 
+def operating(ctx: Context):
+    """The disc's rotation and stress stiffening per unit speed (:class:`fem_squeal.fe.assembly.
+    OperatingTerms`) about this preload, assembled once for the CEA and the reduced model; None
+    when the scene asks for neither (operating.gyroscopic, preload.geometric_stiffness)."""
+    scene = ctx.scene
+    if not (scene.operating.gyroscopic or scene.preload.geometric_stiffness):
+        return None
+    if "operating" not in ctx.products:
+        from fem_squeal.fe.assembly import operating_terms  # heavy: FE stack
+
+        pre = ctx.products.get("preload")
+        ctx.products["operating"] = operating_terms(
+            ctx.products["linear"], ctx.products["mesh"], ctx.spec, gyroscopic=scene.operating.gyroscopic,
+            rotating_parts=scene.operating.rotating_parts, stress_stiffening=scene.preload.geometric_stiffness,
+            u_static=pre.u if pre is not None else None, options=scene.solver.petsc_options)
+    return ctx.products["operating"]
+
+
 def run(ctx: Context, work: Path, timings: dict) -> dict:
     """Static contact state (nonlinear, or every point closed) and the linearisation about it."""
     from fem_squeal.fe.assembly import linearise  # heavy: FE stack

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from fem_squeal.app.analyses.preload import operating
 from fem_squeal.app.fields import REAL, Field, band, increasing, positive
 from fem_squeal.app.html import escape as _e
 from fem_squeal.app.html import num as _num
@@ -20,7 +21,7 @@ from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 from fem_squeal.fe.model import common_mu
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
-from fem_squeal.reduced.model import MU, e_param, format_point
+from fem_squeal.reduced.model import MU, SPEED, e_param, format_point
 from fem_squeal.reduced.sweep import solve_points
 from fem_squeal.util.errors import SceneError
 
@@ -44,6 +45,30 @@ def map_E_range(scene: dict, spec) -> tuple[float, float]:
     m = scene.analyses["map"]
     E0 = spec.materials[m["part"]].E
     return tuple(m["E_range"]) if m["E_range"] else (0.8 * E0, 1.2 * E0)
+
+
+def map_speed_range(scene: dict) -> tuple[float, float]:
+    """analyses.map.speed_range, or operating.speed × [0.5, 2] when not given."""
+    m = scene.analyses["map"]
+    w = scene.operating.speed
+    return tuple(m["speed_range"]) if m["speed_range"] else (0.5 * w, 2.0 * w)
+
+
+def speed_not_a_parameter(scene: dict) -> str | None:
+    """Why ``speed`` (the disc speed Ω) is not a parameter of this scene's reduced model; None when it
+    is: that needs a nominal operating.speed > 0, a term that depends on it (operating.gyroscopic or
+    an interface's friction_damping) and no μ(V) law (whose μ, damping and preload are not affine in Ω)."""
+    speed = scene.operating.speed
+    if not speed > 0:
+        return f"operating.speed = {speed}: the nominal speed must be > 0"
+    laws = [n for n, t in scene.interfaces.items() if t.get("friction", "constant") != "constant"]
+    if laws:
+        return (f"interfaces.{laws[0]}.friction = {scene.interfaces[laws[0]]['friction']!r}: μ(V), its damping "
+                "and the preload are not affine in the speed")
+    if not (scene.operating.gyroscopic or any(t.get("friction_damping") for t in scene.interfaces.values())):
+        return ("nothing depends on it: set operating.gyroscopic = true or interfaces.<name>.friction_damping "
+                "= true")
+    return None
 
 
 def robustness_E_ranges(section: dict, prefixes: tuple[str, ...] = ("E",)) -> dict[str, tuple[float, float]]:
@@ -86,17 +111,22 @@ def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict]
         lo, hi = s["range"]
         if s["parameter"] == MU:
             checks += [{MU: lo}, {MU: hi}]
+        elif s["parameter"] == SPEED:   # the modes do not depend on Ω: no samples, the corrections do
+            checks += [{MU: mu0, SPEED: lo}, {MU: mu0, SPEED: hi}]
         else:
             parts.append(s["parameter"][2:])
             samples += [{s["parameter"]: lo}, {s["parameter"]: hi}]
             checks += [{MU: mu0, s["parameter"]: lo}, {MU: mu0, s["parameter"]: hi}]
     if "map" in ana:
         m = ana["map"]
-        name = e_param(m["part"])
-        parts.append(m["part"])
-        e_lo, e_hi = map_E_range(scene, spec)
-        samples += [{name: e_lo}, {name: e_hi}]
-        checks += [{MU: s * m["mu_max"], name: e} for s in (-1, 1) for e in (e_lo, e_hi)]
+        if m["second"] == SPEED:
+            checks += [{MU: s * m["mu_max"], SPEED: w} for s in (-1, 1) for w in map_speed_range(scene)]
+        else:
+            name = e_param(m["part"])
+            parts.append(m["part"])
+            e_lo, e_hi = map_E_range(scene, spec)
+            samples += [{name: e_lo}, {name: e_hi}]
+            checks += [{MU: s * m["mu_max"], name: e} for s in (-1, 1) for e in (e_lo, e_hi)]
     if "masa" in ana:
         checks += [{MU: float(v)} for v in ana["masa"]["mu"]]
     if "robustness" in ana:   # E, k_n, k_t of the scatter: modes sampled at the ends of their ranges
@@ -191,10 +221,19 @@ def masa_vectors(ops, preload, attachments: list, band, options) -> np.ndarray:
     return np.hstack(cols)
 
 
+def parametric_operators(ctx: Context, mu0: float, parts: list[str]):
+    """The full-order K(p), C(p) (:class:`fem_squeal.fe.projection.ParametricOperators`) of this scene
+    about its preload, with the rotation, prestress and friction damping at operating.speed."""
+    from fem_squeal.fe.projection import ParametricOperators  # heavy: FE stack
+
+    return ParametricOperators(ctx.products["linear"], ctx.spec, mu0, parts, preload=ctx.products["preload"],
+                               operating=operating(ctx), speed0=ctx.scene.operating.speed)
+
+
 def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     """analyses.reduced: the basis grown to ``tol`` about the preload; ``reduced_model.npz``."""
     from fem_squeal.fe.output import write_basis_field  # heavy: FE stack
-    from fem_squeal.fe.projection import ParametricOperators, adaptive_reduce  # heavy: FE stack
+    from fem_squeal.fe.projection import adaptive_reduce  # heavy: FE stack
 
     scene, spec, comm, say = ctx.scene, ctx.spec, ctx.comm, ctx.say
     ops, preload = ctx.products["linear"], ctx.products["preload"]
@@ -202,7 +241,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     band = tuple(a["band_hz"])
     opts = scene.solver.petsc_options
     mu0, checks, samples, parts = basis_design(scene, spec)
-    par = ParametricOperators(ops, spec, mu0, parts, preload=preload)
+    par = parametric_operators(ctx, mu0, parts)
     t = time.perf_counter()
     attach = extra_vector_settings(scene)
     extra = masa_vectors(ops, preload, attach, band, opts) if attach is not None else None

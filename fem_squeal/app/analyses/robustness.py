@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from fem_squeal.app import plots
-from fem_squeal.app.analyses.reduced import band_and_growth_tol, mismatches, verify_point
+from fem_squeal.app.analyses.reduced import band_and_growth_tol, mismatches, parametric_operators, verify_point
 from fem_squeal.app.analyses.sensitivity import check_parameter
 from fem_squeal.app.fields import Field, at_least, non_negative, positive
 from fem_squeal.app.html import escape as _e
@@ -119,11 +119,8 @@ def _spot_points(res, n: int) -> list[int]:
 
 def _spot_checks(ctx: Context, model, res, band, gt: float, n: int) -> list[dict]:
     """Full CEA at the spot samples against the reduced eigenvalues (as analyses.reduced.verify)."""
-    from fem_squeal.fe.projection import ParametricOperators  # heavy: FE stack
-
     # every part the model carries: a part's nominal loss factor enters the full problem too
-    par = ParametricOperators(ctx.products["linear"], ctx.spec, model.mu0, sorted(model.K_parts),
-                              preload=ctx.products["preload"])
+    par = parametric_operators(ctx, model.mu0, sorted(model.K_parts))
     opts = ctx.scene.solver.petsc_options
     rows = []
     try:

@@ -16,12 +16,17 @@ from typing import Any
 import numpy as np
 
 from fem_squeal.app import plots
-from fem_squeal.app.analyses.reduced import band_and_growth_tol, robustness_E_ranges
+from fem_squeal.app.analyses.reduced import (
+    band_and_growth_tol,
+    parametric_operators,
+    robustness_E_ranges,
+    speed_not_a_parameter,
+)
 from fem_squeal.app.fields import REAL, Field, one_of
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
-from fem_squeal.reduced.model import INTERFACE_PREFIXES, MU, PART_PREFIXES, e_param, split_param
+from fem_squeal.reduced.model import INTERFACE_PREFIXES, MU, PART_PREFIXES, SPEED, e_param, split_param
 from fem_squeal.reduced.sensitivity import KAPPA_COALESCENCE, parameter_values, ranking, sensitivities
 from fem_squeal.reduced.sweep import solve_points
 from fem_squeal.util.atomic import write_json_atomic
@@ -51,7 +56,7 @@ def basis_parts(scene: dict, volumes) -> list[str]:
     parts = {p for p, m in scene.get("materials", {}).items() if m.get("eta", 0.0) > 0}
     if "sweep" in ana and ana["sweep"]["parameter"].startswith("E."):
         parts.add(ana["sweep"]["parameter"][2:])
-    if "map" in ana:
+    if "map" in ana and ana["map"]["second"] == "E":
         parts.add(ana["map"]["part"])
     if "transient" in ana:
         parts.update(volumes)
@@ -70,6 +75,11 @@ def check_parameter(scene: dict, volumes, name: str, key: str) -> None:
     'mu.<c>' (c sliding), 'kn.<c>', 'kt.<c>' with a contact or rigid_plate interface c (a plate with
     k_n > 0); else SceneError at ``key``."""
     if name == MU:
+        return
+    if name == SPEED:
+        why = speed_not_a_parameter(scene)
+        if why:
+            raise SceneError(f"{key}: 'speed' is not a parameter of this model: {why}")
         return
     prefix, target = split_param(name)
     interfaces = scene.get("interfaces", {})
@@ -138,10 +148,9 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
 def _full_block(ctx: Context, model, records: list[dict], eigenvalues, params, values, band) -> None:
     """Each record gets ``full``: the full model's eigenvalue and dλ/dp (None near a coalescence),
     relative forms, and the match of the left eigenvalue."""
-    from fem_squeal.fe.projection import ParametricOperators, full_sensitivities  # heavy: FE stack
+    from fem_squeal.fe.projection import full_sensitivities  # heavy: FE stack
 
-    par = ParametricOperators(ctx.products["linear"], ctx.spec, model.mu0, sorted(model.K_parts),
-                              preload=ctx.products["preload"])
+    par = parametric_operators(ctx, model.mu0, sorted(model.K_parts))
     try:
         full = full_sensitivities(par, np.array(eigenvalues), list(params), band,
                                   options=ctx.scene.solver.petsc_options)

@@ -9,12 +9,17 @@ from typing import Any
 import numpy as np
 
 from fem_squeal.app import plots
-from fem_squeal.app.analyses.reduced import band_and_growth_tol, map_E_range
-from fem_squeal.app.fields import REAL, Field, at_least, increasing, nonempty_str, positive
+from fem_squeal.app.analyses.reduced import (
+    band_and_growth_tol,
+    map_E_range,
+    map_speed_range,
+    speed_not_a_parameter,
+)
+from fem_squeal.app.fields import REAL, Field, at_least, increasing, nonempty_str, one_of, positive
 from fem_squeal.app.html import escape as _e
 from fem_squeal.app.html import num as _num
 from fem_squeal.app.stage import Context, Stage
-from fem_squeal.reduced.model import MU, e_param
+from fem_squeal.reduced.model import MU, SPEED, e_param
 from fem_squeal.reduced.stability_map import equal_bands, stability_map
 from fem_squeal.reduced.sweep import Grid, evaluate, signed_mu_axis
 from fem_squeal.util.atomic import write_npz_atomic
@@ -26,6 +31,10 @@ SECTION = {
     "part": Field(str, "disc", nonempty_str, "part whose Young's modulus is varied"),
     "E_range": Field(list, [], None, "[E_min, E_max] [Pa]; [] = nominal ± 20 %"),
     "n_E": Field(int, 21, at_least(2)),
+    "second": Field(str, "E", one_of("E", "speed"), "the second axis: 'E' (part's Young's modulus) or 'speed' "
+                    "(the disc speed Ω, with operating.gyroscopic or friction damping)"),
+    "speed_range": Field(list, [], None, "[Ω_min, Ω_max] [rad/s]; [] = operating.speed × [0.5, 2]"),
+    "n_speed": Field(int, 21, at_least(2)),
     "n_bands": Field(int, 6, positive, "equal frequency ranges of analyses.reduced.band_hz"),
 }
 
@@ -35,8 +44,12 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     scene, model = ctx.scene, ctx.reduced_model()
     m = scene.analyses["map"]
     band, gt = band_and_growth_tol(scene)
-    name = e_param(m["part"])
-    E = np.linspace(*map_E_range(scene, ctx.spec), m["n_E"])
+    if m["second"] == SPEED:
+        name, E = SPEED, np.linspace(*map_speed_range(scene), m["n_speed"])
+        axis_label, scale = "speed Ω [rad/s]", 1.0
+    else:
+        name, E = e_param(m["part"]), np.linspace(*map_E_range(scene, ctx.spec), m["n_E"])
+        axis_label, scale = f"E of {m['part']} [GPa]", 1e-9
     grid = Grid({name: E, MU: signed_mu_axis(m["mu_max"], m["n_mu"])})
     res = evaluate(model, grid, ctx.comm, progress=True)
     timings["map"] = res.seconds
@@ -48,17 +61,26 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
             f"({1e3 * res.seconds_per_point:.2f} ms per point per rank), "
             f"at most {int(smap.total.max())} unstable modes")
     if ctx.comm.rank == 0:
-        write_npz_atomic(work / "stability_map.npz", {"mu": grid.axes[MU], "E": E, "counts": smap.counts,
+        write_npz_atomic(work / "stability_map.npz", {"mu": grid.axes[MU], m["second"]: E, "counts": smap.counts,
                                                        "total": smap.total, "eigenvalues": res.eigenvalues,
                                                        "bands_hz": np.array(bands)})
-        plots.stability_maps(work / "stability_map.png", grid.axes[MU], E / 1e9, smap.counts, smap.total,
-                             bands, f"E of {m['part']} [GPa]", scene.title)
+        plots.stability_maps(work / "stability_map.png", grid.axes[MU], E * scale, smap.counts, smap.total,
+                             bands, axis_label, scene.title)
     return {"map": out}
 
 
 def check(scene: dict, volumes) -> None:
     """The varied part exists; E_range is [E_min, E_max] with 0 < E_min < E_max."""
     m = scene.analyses["map"]
+    if m["second"] == SPEED:
+        why = speed_not_a_parameter(scene)
+        if why:
+            raise SceneError(f"analyses.map.second: 'speed' is not a parameter of this model: {why}")
+        if m["speed_range"]:
+            msg = increasing(2, 0.0)(m["speed_range"])
+            if msg or len(m["speed_range"]) != 2:
+                raise SceneError(f"analyses.map.speed_range: {msg or 'must be [speed_min, speed_max]'}")
+        return
     if m["part"] not in volumes:
         raise SceneError(f"analyses.map.part: unknown part {m['part']!r}; parts: {sorted(volumes)}")
     if m["E_range"]:

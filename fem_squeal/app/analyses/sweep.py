@@ -12,20 +12,22 @@ from typing import Any
 import numpy as np
 
 from fem_squeal.app import plots
-from fem_squeal.app.analyses.reduced import band_and_growth_tol
+from fem_squeal.app.analyses.reduced import band_and_growth_tol, speed_not_a_parameter
 from fem_squeal.app.fields import REAL, Field, at_least, increasing, positive
 from fem_squeal.app.html import escape as _e
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 from fem_squeal.reduced.eigensolve import unstable
-from fem_squeal.reduced.model import MU
+from fem_squeal.reduced.model import MU, SPEED
 from fem_squeal.reduced.sweep import path_solver
 from fem_squeal.reduced.tracking import track
 from fem_squeal.util.atomic import write_json_atomic
 from fem_squeal.util.errors import PipelineError, SceneError
 
 SECTION = {
-    "parameter": Field(str, "mu", None, "'mu' (sign(v)μ) or 'E.<part>' (Young's modulus [Pa])"),
+    "parameter": Field(str, "mu", None, "'mu' (sign(v)μ), 'E.<part>' (Young's modulus [Pa]) or 'speed' "
+                       "(the disc speed Ω [rad/s]: gyroscopic ∝ Ω, convective and centrifugal ∝ Ω², friction "
+                       "damping ∝ 1/Ω)"),
     "range": Field(list, [-1.0, 1.0], increasing(2), "[first, last] value"),
     "n": Field(int, 101, at_least(2), "number of values"),
     "refine_tol": Field(REAL, None, positive, "critical values refined to this fraction of the range; "
@@ -74,7 +76,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
             f"{len(events)} stability changes in the band, {timings['sweep']:.2f} s")
     if ctx.comm.rank == 0:
         write_json_atomic(work / "sweep.json", out)
-        xlabel = "sign(v) μ" if s["parameter"] == MU else f"{s['parameter']} [Pa]"
+        xlabel = {MU: "sign(v) μ", SPEED: "speed Ω [rad/s]"}.get(s["parameter"], f"{s['parameter']} [Pa]")
         plots.root_locus(work / "root_locus.png", values, tr.eigenvalues, unstable(tr.eigenvalues, gt),
                          xlabel, band, tr.labels, scene.title)
         plots.complex_plane(work / "complex_plane.png", tr.eigenvalues, band, gt, scene.title)
@@ -86,9 +88,18 @@ def check(scene: dict, volumes) -> None:
     """The swept parameter is μ or the Young's modulus of a part of the model (> 0)."""
     s = scene.analyses["sweep"]
     par = s["parameter"]
-    if par != "mu":
+    if par == SPEED:
+        why = speed_not_a_parameter(scene)
+        if why:
+            raise SceneError(f"analyses.sweep.parameter: 'speed' is not a parameter of this model: {why}")
+        if not s["range"][0] > 0 and any(t.get("friction_damping") for t in scene.interfaces.values()):
+            raise SceneError(f"analyses.sweep.range: the speed must be > 0 with friction damping (∝ 1/Ω; "
+                             f"got {s['range']})")
+        if s["range"][0] < 0:
+            raise SceneError(f"analyses.sweep.range: the speed must be >= 0 (got {s['range']})")
+    elif par != "mu":
         if not par.startswith("E.") or par[2:] not in volumes:
-            raise SceneError(f"analyses.sweep.parameter: must be 'mu' or 'E.<part>' with a part of "
+            raise SceneError(f"analyses.sweep.parameter: must be 'mu', 'speed' or 'E.<part>' with a part of "
                              f"{sorted(volumes)} (got {par!r})")
         if s["range"][0] <= 0:
             raise SceneError(f"analyses.sweep.range: Young's modulus must be > 0 (got {s['range']})")

@@ -139,23 +139,13 @@ def test_speed_derivatives_full_reduced_and_finite_differences():
 
 # ------------------------------------------------------------------ scene keys
 def ring_scene(**over) -> dict:
-    raw = {"geometry": {"builder": "annular_disc", "mean_radius": 0.05, "width": 0.005, "thickness": 0.004,
-                        "mesh_size": 0.004},
-           "materials": {"disc": {"E": 3e9, "nu": 0.4, "rho": 1400}},
-           "interfaces": {"bottom_plate": {"type": "rigid_plate", "face": "bottom", "kn": 1e10, "mu": 0.3,
-                                           "friction_damping": True}},
-           "loads": {"pressure": {"top": {"face": "top", "p": 1e5}}},
-           "boundary": {"fixed": {"inner": {"face": "inner", "components": ["x", "y"]}}},
-           "operating": {"speed": W0, "gyroscopic": True},
-           "analyses": {"reduced": {"band_hz": list(BAND)},
-                        "sweep": {"parameter": "speed", "range": [5.0, 80.0], "n": 16}}}
-    for path, value in over.items():
-        node = raw
-        keys = path.split("__")
-        for k in keys[:-1]:
-            node = node[k]
-        node[keys[-1]] = value
-    return raw
+    """The damped-plate ring scene of test_friction_damping, turning, with a reduced model and a speed sweep."""
+    from test_friction_damping import ring_scene as damped_ring
+
+    base = {"geometry__mesh_size": 0.004, "operating": {"speed": W0, "gyroscopic": True},
+            "analyses": {"reduced": {"band_hz": list(BAND)},
+                         "sweep": {"parameter": "speed", "range": [5.0, 80.0], "n": 16}}}
+    return damped_ring(**{**base, **over})
 
 
 def test_scene_speed_sweep_and_map_are_valid():

@@ -21,8 +21,9 @@ so b ≈ 0 and the memory is the linear part, 12.8 KB per DOF (matrices, vectors
 predicted.  blr (ICNTL(35) = 2, CNTL(7) = 1e-8, one refinement
 step: frequencies within 1e-11) lowered no peak: 1.60 against 1.57 GiB at 88,869 DOFs, and above the
 in-core 7.46 GiB at 347,853 (MUMPS still touches its full-rank workspace), so it uses the exact fit.
-The DOFs come from the cell estimate of ``geometry.estimate``, which is high for fine brake meshes
-(650k estimated for the 347,853 of mesh_size 0.0056): the check errs on the safe side there.
+The DOFs come from the cell estimate of ``geometry.estimate`` and :func:`dofs_per_cell` (P2: fewer
+DOFs per tetrahedron as the mesh grows and its surface share falls; fitted on the brake at 0.0056
+and 0.003 m, 5.17 and 4.66, and 8 % high at 0.016 m, where it is 5.89).
 
 A run is refused (:class:`~fem_squeal.util.errors.ResourceError`, exit 2, before gmsh or any solver
 starts) when M exceeds 90 % of the memory of the machines it runs on, and warned about above 60 %.
@@ -43,7 +44,14 @@ from geometry.estimate import ESTIMATORS
 GIB = 2.0 ** 30
 #: P2/P1 displacement DOFs per tetrahedron: measured 6.3 (ring), 5.7-5.9 (brake) for P2; P1 has about
 #: one vertex per 5 cells in the bulk and more in thin parts
-DOFS_PER_CELL = {1: 0.9, 2: 5.8}
+DOFS_PER_CELL = {1: 0.9}
+
+
+def dofs_per_cell(cells: float, degree: int) -> float:
+    """DOFs per tetrahedron of a vector P1 (0.9) or P2 space: 3.98 + 48.3 cells^(−1/3) for P2 (the
+    boundary's share of nodes falls as cells^(−1/3)), fitted on the brake corner at 67,285 and 361,758
+    cells (347,853 and 1,684,788 DOFs)."""
+    return DOFS_PER_CELL[degree] if degree != 2 else 3.98 + 48.3 * cells ** (-1.0 / 3.0)
 REFUSE_SHARE, WARN_SHARE = 0.9, 0.6
 #: one-rank peak memory [GiB] measured at two sizes (DOFs) per factorisation kind (benchmarks/memory_model.py)
 MEMORY_POINTS = {"exact": ((88_869, 1.568), (347_853, 7.456)), "ooc": ((88_869, 1.080), (347_853, 4.214))}
@@ -105,7 +113,7 @@ def estimate(scene: dict, nodes: int = 1) -> Estimate | None:
         return None
     params = {k: v for k, v in geo.items() if k != "builder"}
     cells = sum(ESTIMATORS[geo["builder"]](**params).values())
-    dofs = cells * DOFS_PER_CELL[scene.discretisation.degree]
+    dofs = cells * dofs_per_cell(cells, scene.discretisation.degree)
     kind, machine = factorisation_kind(scene), machine_memory()
     return Estimate(cells, dofs, solve_memory(dofs, 1, kind) / GIB, nodes * machine / GIB,
                     machines_needed(dofs, machine, 1, kind))

@@ -152,3 +152,26 @@ def test_undamped_exceptional_point_unchanged():
     assert abs(e.value - 0.25) < 1e-9
     lam = quadratic_eigs(model.K0 + 0.2 * model.Kf1)
     assert np.all(lam.real == 0.0)
+
+
+def test_band_limits_the_refinement_to_its_branches():
+    """Three copies of the Hoffmann pair at frequency scales 1, 3 and 10 (block diagonal: independent,
+    each with its Hopf point at μ_c), the sweep's band around the middle one.  With ``band_hz`` the
+    event of the middle pair is the same (to the refinement tolerance) and the others are neither
+    refined nor reported; no step of the out-of-band pairs is bisected (one solve per grid value)."""
+    from scipy.linalg import block_diag
+
+    base = hoffmann(*C_LIGHT)
+    scales = (1.0, 9.0, 100.0)           # K × s²: frequencies × s
+    model = ReducedModel(K0=block_diag(*[s * base.K0 for s in scales]),
+                         Kf1=block_diag(*[s * base.Kf1 for s in scales]),
+                         C0=block_diag(*[base.C0 for _ in scales]))
+    f_mid = np.sqrt(9.0 * K11) / (2 * np.pi)
+    band = (0.7 * f_mid, 1.4 * f_mid)
+    grid = np.linspace(0.0, 0.5, 26)
+    full = track(path_solver(model, "mu"), grid)
+    banded = track(path_solver(model, "mu"), grid, band_hz=band)
+    inside = [e for e in full.events if band[0] <= e.freq_hz <= band[1]]
+    assert len(full.events) > len(inside) == len(banded.events) == 1
+    assert abs(banded.events[0].value - inside[0].value) < 1e-9
+    assert banded.solves <= full.solves and banded.solves == grid.size

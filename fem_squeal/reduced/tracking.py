@@ -130,8 +130,9 @@ def _group_mac(mac: np.ndarray, Y_ref: np.ndarray, Y_b: np.ndarray, lam_a: np.nd
 
 class _Walker:
     def __init__(self, solve: Solver, mac_min: float, max_depth: int, order_rtol: float,
-                 cluster_rtol: float, budget: int):
+                 cluster_rtol: float, budget: int, watch=None):
         self.solve, self.mac_min, self.max_depth, self.order_rtol = solve, mac_min, max_depth, order_rtol
+        self.watch = watch   # λ -> mask of the branches whose ambiguity refines a step (None: all)
         self.cluster_rtol, self.budget = cluster_rtol, budget
         self.left = budget
         self.solves = 0
@@ -151,8 +152,9 @@ class _Walker:
         assigned = np.empty_like(cols)
         assigned[rows] = cols
         best = _group_mac(mac, st["Y"], Y_b, st["lam"], lam_b, assigned, self.cluster_rtol)
-        ok = bool(np.all(best >= self.mac_min)) and \
-            not _order_swaps(st["lam"].imag, lam_b[assigned].imag, self.order_rtol)
+        w = self.watch(st["lam"]) if self.watch is not None else slice(None)
+        ok = bool(np.all(best[w] >= self.mac_min)) and \
+            not _order_swaps(st["lam"].imag[w], lam_b[assigned].imag[w], self.order_rtol)
         if not ok and depth < self.max_depth and self.left >= 2:
             mid = 0.5 * (st["p"] + p_b)
             return self.step(self.step(st, mid, depth + 1), p_b, depth + 1)
@@ -181,13 +183,17 @@ def track(solve: Solver, values: np.ndarray, *, start: float | None = None, mac_
           growth_tol: float = 1e-6,
           coalescence_rtol: float = 1e-3, tol: float = 1e-10, labels: list[str] | None = None,
           progress: bool = False, values_solve: Callable[[float], np.ndarray] | None = None,
-          error: float | None = None) -> Tracking:
+          error: float | None = None, band_hz: tuple[float, float] | None = None) -> Tracking:
     """Track every eigenvalue of ``solve(p) -> (λ (m,), Y (m, m))`` over the sorted ``values``.
 
     ``start`` (default 0 if inside the range, else the first value) is where branches are
     labelled; critical points are refined to ``tol`` × (range of values), or with ``error`` (the
     model's relative eigenvalue error) as far as it warrants (module docstring), never finer than
-    ``tol``; ``values_solve(p) -> λ`` (eigenvalues only) serves the refinement.  ``budget`` caps the
+    ``tol``; ``values_solve(p) -> λ`` (eigenvalues only) serves the refinement; ``band_hz``: only the
+    stability changes of branches in this band (their frequency on the unstable side) are located
+    and reported (the others cost refinement solves for nothing), and only an ambiguous step (MAC
+    below ``mac_min``, a change of frequency order) of a branch within the band widened by 10 % of
+    its width on each side is bisected; the other branches follow the assignment.  ``budget`` caps the
     extra solves spent bisecting one grid interval; ``cluster_rtol`` is the relative distance
     under which eigenvalues count as one degenerate cluster."""
     values = np.asarray(values, float)
@@ -195,7 +201,12 @@ def track(solve: Solver, values: np.ndarray, *, start: float | None = None, mac_
         raise ModelError("values: must be at least 2 strictly increasing numbers")
     if start is None:
         start = 0.0 if values[0] <= 0.0 <= values[-1] else float(values[0])
-    walker = _Walker(solve, mac_min, max_depth, order_rtol, cluster_rtol, budget)
+    watch = None
+    if band_hz is not None:
+        margin = 0.1 * (band_hz[1] - band_hz[0])
+        lo, hi = TWO_PI * (band_hz[0] - margin), TWO_PI * (band_hz[1] + margin)
+        watch = lambda lam: (lam.imag >= lo) & (lam.imag <= hi)  # noqa: E731
+    walker = _Walker(solve, mac_min, max_depth, order_rtol, cluster_rtol, budget, watch)
     lam0, Y0 = walker.eig(start)
     m = lam0.size
     parents_hz = lam0.imag / TWO_PI
@@ -213,7 +224,8 @@ def track(solve: Solver, values: np.ndarray, *, start: float | None = None, mac_
                 bar.update(done)
     tr = Tracking(values, out, parents_hz, labels)
     vsolve = values_solve if values_solve is not None else (lambda p: solve(p)[0])
-    tr.events = _events(tr, vsolve, start, growth_tol, coalescence_rtol, tol * (values[-1] - values[0]), error)
+    tr.events = _events(tr, vsolve, start, growth_tol, coalescence_rtol, tol * (values[-1] - values[0]), error,
+                        band_hz)
     tr.solves, tr.ambiguous_steps = walker.solves, walker.ambiguous
     return tr
 
@@ -258,7 +270,8 @@ def _bisect(solve, v: np.ndarray, lam_j: np.ndarray, i: int, above, tol: float,
 
 
 def _events(tr: Tracking, solve, start: float, growth_tol: float, coalescence_rtol: float,
-            tol: float, error: float | None = None) -> list[CriticalPoint]:
+            tol: float, error: float | None = None, band_hz: tuple[float, float] | None = None
+            ) -> list[CriticalPoint]:
     """Stability changes of every branch between grid values (the threshold test, as
     :func:`~fem_squeal.reduced.eigensolve.unstable`), each located at its Hopf point Re λ = 0.
 
@@ -282,6 +295,8 @@ def _events(tr: Tracking, solve, start: float, growth_tol: float, coalescence_rt
         for j in np.flatnonzero(grow[k] != grow[k + 1]):
             g_lo = bool(grow[k, j])
             k_un, k_st = (k, k + 1) if g_lo else (k + 1, k)
+            if band_hz is not None and not band_hz[0] <= lam[k_un, j].imag / TWO_PI <= band_hz[1]:
+                continue
             step = k_st - k_un               # walk away from the unstable side
             i = k_st
             while 0 <= i + step < v.size and growth[i, j] > zero and not grow[i + step, j]:

@@ -60,7 +60,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     tr = track(path_solver(model, s["parameter"], fixed), values, growth_tol=gt,
                start=0.0 if s["parameter"] == MU and values[0] <= 0 <= values[-1] else None,
                progress=ctx.comm.rank == 0, values_solve=path_solver(model, s["parameter"], fixed, vectors=False),
-               tol=s["refine_tol"] or 1e-10, error=error)
+               tol=s["refine_tol"] or 1e-10, error=error, band_hz=band)
     timings["sweep"] = time.perf_counter() - t
     f = tr.freqs_hz
     inside = np.flatnonzero(np.any((f >= band[0]) & (f <= band[1]), axis=0))

@@ -158,6 +158,10 @@ def test_scene_speed_sweep_and_map_are_valid():
     s = validate(ring_scene(analyses={"reduced": {}, "map": {"second": "speed"}}))
     _, checks, _, parts = basis_design(s, model_spec(s))
     assert {"mu": -1.0, "speed": 0.5 * W0} in checks and {"mu": 1.0, "speed": 2 * W0} in checks and not parts
+    rob = {"n_samples": 100, "parameters": {"speed": {"distribution": "uniform", "lower": 10.0, "upper": 40.0}}}
+    s = validate(ring_scene(analyses={"reduced": {}, "robustness": rob}))
+    _, checks, samples, _ = basis_design(s, model_spec(s))
+    assert {"mu": MU, "speed": 10.0} in checks and {"mu": MU, "speed": 40.0} in checks and not samples
 
 
 @pytest.mark.parametrize("over, message", [

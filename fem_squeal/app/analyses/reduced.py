@@ -82,6 +82,8 @@ def robustness_E_ranges(section: dict, prefixes: tuple[str, ...] = ("E",)) -> di
         if isinstance(nested, dict):
             tables.update({f"{prefix}.{k}": v for k, v in nested.items() if isinstance(v, dict)})
         tables.update({k: v for k, v in params.items() if k.startswith(prefix + ".")})
+        if prefix == SPEED and isinstance(params.get(SPEED), dict):   # a bare name, no target
+            tables[SPEED] = params[SPEED]
     out = {}
     for name, t in tables.items():
         kind = t.get("distribution") if isinstance(t, dict) else None
@@ -130,10 +132,11 @@ def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict]
     if "masa" in ana:
         checks += [{MU: float(v)} for v in ana["masa"]["mu"]]
     if "robustness" in ana:   # E, k_n, k_t of the scatter: modes sampled at the ends of their ranges
-        for name, (lo, hi) in robustness_E_ranges(ana["robustness"], ("E", "kn", "kt")).items():
+        for name, (lo, hi) in robustness_E_ranges(ana["robustness"], ("E", "kn", "kt", SPEED)).items():
             if name.startswith("E."):
                 parts.append(name[2:])
-            samples += [{name: lo}, {name: hi}]
+            if name != SPEED:     # the modes do not depend on the speed: checks only
+                samples += [{name: lo}, {name: hi}]
             checks += [{MU: mu0, name: lo}, {MU: mu0, name: hi}]
     uniq = lambda pts: [dict(t) for t in dict.fromkeys(tuple(sorted(p.items())) for p in pts)]  # noqa: E731
     return uniq(checks), uniq(samples), sorted(set(parts))

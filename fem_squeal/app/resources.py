@@ -15,12 +15,14 @@ measured, the power beyond it is an assumption).  Checked against the 711,351-DO
 (22.7 GiB measured, 20.8 predicted).  "How many machines": :func:`machines_needed`.
 
 ooc (MUMPS ICNTL(22) = 1 for the preload and the CEA: the factors go to files in $MUMPS_OOC_TMPDIR,
-frequencies equal to the in-core run's to 2e-11): 1.080 GiB at 88,869 DOFs and 4.214 GiB at 347,853,
-so b ≈ 0 and the memory is the linear part, 12.8 KB per DOF (matrices, vectors, mesh): 14.5 GiB at
-1.2M DOFs on one rank against 32 GiB in core.  Checked by a 184,506-DOF run: 2.31 GiB measured, 2.24
-predicted.  blr (ICNTL(35) = 2, CNTL(7) = 1e-8, one refinement
-step: frequencies within 1e-11) lowered no peak: 1.60 against 1.57 GiB at 88,869 DOFs, and above the
-in-core 7.46 GiB at 347,853 (MUMPS still touches its full-rank workspace), so it uses the exact fit.
+frequencies equal to the in-core run's to 2e-11): 4.214 GiB at 347,853 DOFs and 18.42 GiB at
+1,323,816 (mesh_size 0.0033, one rank, 48 min; eigen-residuals ≤ 3e-14).  The first fit, through
+1.080 GiB at 88,869 and the 347,853 point, had b ≈ 0 (12.8 KB per DOF) and predicted 15.8 GiB for
+the 1.32M run: 14 % low, as the factorisation's in-core fronts grow; the fit through the two larger
+points gives 0.97 and 2.12 GiB at 88,869 and 184,506 DOFs (measured 1.080 and 2.31).
+blr (ICNTL(35) = 2, CNTL(7) = 1e-8, one refinement step: frequencies within 1e-11) lowered no peak:
+1.60 against 1.57 GiB at 88,869 DOFs, and above the in-core 7.46 GiB at 347,853 (MUMPS still touches
+its full-rank workspace), so it uses the exact fit.
 The DOFs come from the cell estimate of ``geometry.estimate`` and :func:`dofs_per_cell` (P2: fewer
 DOFs per tetrahedron as the mesh grows and its surface share falls; fitted on the brake at 0.0056
 and 0.003 m, 5.17 and 4.66, and 8 % high at 0.016 m, where it is 5.89).
@@ -52,9 +54,11 @@ def dofs_per_cell(cells: float, degree: int) -> float:
     boundary's share of nodes falls as cells^(−1/3)), fitted on the brake corner at 67,285 and 361,758
     cells (347,853 and 1,684,788 DOFs)."""
     return DOFS_PER_CELL[degree] if degree != 2 else 3.98 + 48.3 * cells ** (-1.0 / 3.0)
+
+
 REFUSE_SHARE, WARN_SHARE = 0.9, 0.6
 #: one-rank peak memory [GiB] measured at two sizes (DOFs) per factorisation kind (benchmarks/memory_model.py)
-MEMORY_POINTS = {"exact": ((88_869, 1.568), (347_853, 7.456)), "ooc": ((88_869, 1.080), (347_853, 4.214))}
+MEMORY_POINTS = {"exact": ((88_869, 1.568), (347_853, 7.456)), "ooc": ((347_853, 4.214), (1_323_816, 18.42))}
 #: memory ∝ ranks^γ at a fixed size: 9.0 GiB on 2 ranks against 7.456 GiB on 1 at 347,853 DOFs
 RANK_EXPONENT = math.log2(9.0 / 7.456)
 FILL_EXPONENT = 4.0 / 3.0
@@ -136,9 +140,12 @@ def check_resources(scene: dict, comm) -> tuple[Estimate | None, list[str]]:
         return None, []
     geo = scene.geometry
     need = solve_memory(est.dofs, comm.size, factorisation_kind(scene)) / GIB
+    kind = factorisation_kind(scene)
+    (n_ref, m_ref) = MEMORY_POINTS.get(kind, MEMORY_POINTS["exact"])[1]
     what = (f"geometry.mesh_size: {geo['mesh_size']:g} m gives about {est.cells:.3g} elements and "
             f"{est.dofs:.3g} DOFs (P{scene.discretisation['degree']}); its largest solve needs about "
-            f"{need:.3g} GiB on {comm.size} rank(s) (7.5 GiB at 348k DOFs on one rank, fill-in ∝ DOFs^(4/3))")
+            f"{need:.3g} GiB on {comm.size} rank(s) ({m_ref:g} GiB at {n_ref / 1e3:.0f}k DOFs on one rank "
+            f"with {kind} factors, fill-in ∝ DOFs^(4/3))")
     if need > REFUSE_SHARE * est.available_gib:
         raise ResourceError(f"{what}, more than {100 * REFUSE_SHARE:.0f} % of the {est.available_gib:.3g} GiB of "
                             f"the {nodes} machine(s) of this run: it needs {est.machines} such machines under "

@@ -19,3 +19,20 @@ def bilinear(A: PETSc.Mat, u: PETSc.Vec, v: PETSc.Vec) -> float:
     w = A.createVecLeft()
     A.mult(u, w)
     return v.dot(w)
+
+
+def projection_mismatch(par, Phi: np.ndarray, model, point: dict) -> list[float]:
+    """max |reduced − ΦᵀAΦ| / max |ΦᵀAΦ| for A = K(p) and, when damped, C(p), at ``point``: the reduced
+    model's affine terms against the projection of the full parametric operators."""
+    from fem_squeal.fe.projection import project
+
+    full = par.matrices(point)
+    red = model.matrices({k: np.array([v]) for k, v in point.items()})
+    out = []
+    for A, R in zip(full, red):
+        if A is None or R is None:
+            continue
+        P = project(A, Phi)
+        A.destroy()
+        out.append(float(np.max(np.abs(R[0] - P)) / np.max(np.abs(P))))
+    return out

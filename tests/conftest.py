@@ -6,6 +6,7 @@ import os
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 from mpi4py import MPI
 
@@ -57,6 +58,16 @@ def two_rank_signature(mpirun: list[str], module: str, out) -> dict:
                        env=clean_env(), cwd=ROOT)
     assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
     return json.loads(Path(out).read_text())
+
+
+def assert_same_spectrum(sig_a: dict, sig_b: dict, prefix: str, rel: float) -> None:
+    """The eigenvalues ``<prefix>re`` + i ``<prefix>im`` of two signatures agree as sets: as many, and
+    every one has its twin in the other within ``rel``·|λ| (the order may differ between runs)."""
+    a = np.array(sig_a[prefix + "re"]) + 1j * np.array(sig_a[prefix + "im"])
+    b = np.array(sig_b[prefix + "re"]) + 1j * np.array(sig_b[prefix + "im"])
+    assert len(a) == len(b)
+    for u, w in ((a, b), (b, a)):
+        assert all(np.min(np.abs(w - lam)) <= rel * abs(lam) for lam in u)
 
 
 @pytest.fixture(scope="session")

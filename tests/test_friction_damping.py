@@ -418,18 +418,14 @@ def signature() -> dict:
 @pytest.mark.slow     # 26 s (a serial and a 2-rank run of the blocks and the ring)
 @pytest.mark.mpi
 def test_two_ranks_give_the_same_numbers(mpirun, tmp_path):
-    from conftest import two_rank_signature
+    from conftest import assert_same_spectrum, two_rank_signature
 
     if COMM.size > 1:
         pytest.skip("compares a serial run with an mpirun -n 2 child")
     par, ser = two_rank_signature(mpirun, "test_friction_damping", tmp_path / "sig.json"), signature()
     for key in ("normal_force", "friction_force", "xCx", "ring_xCx"):
         assert par[key] == pytest.approx(ser[key], rel=1e-8), key
-    a = np.array(ser["re"]) + 1j * np.array(ser["im"])
-    b = np.array(par["re"]) + 1j * np.array(par["im"])
-    assert len(a) == len(b)
-    for u, w in ((a, b), (b, a)):       # every eigenvalue has its twin within 1e-8 |λ|
-        assert all(np.min(np.abs(w - lam)) <= 1e-8 * abs(lam) for lam in u)
+    assert_same_spectrum(ser, par, "", 1e-8)     # every eigenvalue has its twin within 1e-8 |λ|
 
 
 # ------------------------------------------------------------------ through the scene and the pipeline

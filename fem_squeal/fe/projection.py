@@ -790,9 +790,8 @@ def reduce(ops: Operators, par: ParametricOperators, basis: Basis, preload=None)
 def project_plates(par: ParametricOperators, Phi: np.ndarray) -> dict[str, PlateProjection]:
     """Φᵀ K_c,p Φ, Φᵀ K_t,p Φ, Φᵀ K_f,p Φ of every named rigid plate (:class:`PlateProjection`)."""
     out = {}
-    for name, plate in par.interfaces.items():
-        if name not in par.plates:
-            continue
+    for name, pm in par.plates.items():
+        plate = pm.plate
         Kc, Kf, Kt = par.interface_matrices(name)
         out[name] = PlateProjection(project(Kc, Phi), project(Kt, Phi), None if Kf is None else project(Kf, Phi),
                                     kn=plate.kn, mu=plate.mu, sliding=float(plate.sliding), kt=plate.kt)

@@ -57,7 +57,7 @@ from fem_squeal.util.atomic import write_npz_atomic
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
 MU = "mu"
-#: the disc speed Ω [rad/s] (issue 20 item 6): G ∝ Ω, K_σc − S ∝ Ω², friction damping ∝ μ/Ω
+#: the disc speed Ω [rad/s] (issue 20 item 6): G ∝ Ω, K_σc − S ∝ Ω², friction damping ∝ |μ|/Ω
 SPEED = "speed"
 #: prefixes of the per-part and per-interface parameters: ``<prefix>.<part or interface>``
 PART_PREFIXES = ("E", "eta")

@@ -44,10 +44,9 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     ops, basis, scene = ctx.products["linear"], ctx.products["basis"], ctx.scene
     a = scene.analyses["cea"]
     t = time.perf_counter()
-    # the disc's rotation and the stress stiffening (fe.assembly.operating_operators)
-    terms = operating(ctx)
+    # the disc's rotation and the stress stiffening (fe.assembly.operating_operators; None: neither)
     K, C, rotation = operating_operators(ops, ctx.products["mesh"], ctx.spec, speed=scene.operating.speed,
-                                         terms=terms) if terms is not None else (ops.K_total(), ops.C, {})
+                                         terms=operating(ctx))
     cm = solve_complex_modes(K, ops.M, C, a["n_modes"], cea_target_hz(a), method=a["method"],
                              tol=a["tol"], max_residual=a["max_residual"], band_hz=tuple(a["band_hz"]),
                              options=scene.solver.petsc_options, prefix="cea_", progress=True)

@@ -179,8 +179,8 @@ IGNORED = ("timings_s", "seconds", "started", "residual", "backward_error", "ran
            # diagnostics of the tracking walk: the SLEPc vectors of the ring's double eigenvalues are
            # any basis of their eigenspace (different per rank count), so the walk may take other
            # sub-steps; the eigenvalues and critical values it finds are compared below
-           ".sweep.solves", ".sweep.ambiguous_steps")
-# critical values are bisected to 1e-10 of the sweep range (fem_squeal.reduced.tracking.track):
+           ".sweep.solves", ".sweep.vector_solves", ".sweep.ambiguous_steps")
+# critical values are refined to a bracket of 1e-10 of the sweep range (fem_squeal.reduced.tracking.track):
 # two runs may differ by twice that on top of round-off
 ABSOLUTE = {".sweep.critical[*].value": 2 * 1e-10 * 2.0}
 

@@ -148,3 +148,37 @@ def test_save_load_roundtrip(tmp_path):
     back = ReducedModel.load(tmp_path / "r.npz")
     pts = {"mu": np.array([0.3]), "E.x": np.array([2.2e11])}
     assert np.allclose(solve_points(back, pts), solve_points(model, pts))
+
+
+def _random_coupled(m: int = 30, seed: int = 3) -> ReducedModel:
+    """m modes 1..10 rad/s, weakly coupled, a non-symmetric friction-like coupling of neighbours
+    and light damping: coalescences, veerings and crossings along μ ∈ [−0.5, 0.5]."""
+    rng = np.random.default_rng(seed)
+    w2 = np.sort(rng.uniform(1.0, 100.0, m))
+    S = 0.05 * rng.normal(size=(m, m))
+    F = np.diag(rng.normal(size=m - 1), 1) * 4.0 - np.diag(rng.normal(size=m - 1), -1) * 4.0
+    return ReducedModel(K0=np.diag(w2) + 0.5 * (S + S.T), Kf1=F + np.diag(rng.normal(size=m)),
+                        C0=np.diag(rng.uniform(1e-3, 2e-2, m)))
+
+
+@pytest.mark.parametrize("case", ["undamped", "damped", "crossing", "veering", "random"])
+def test_values_first_tracking_follows_the_same_branches(case):
+    """Steps accepted on eigenvalues alone (``values_solve``: no eigenvectors where every watched
+    branch's new eigenvalue is unambiguously the one nearest its linear prediction; issue 23) give
+    the branches of MAC continuation with eigenvectors at every step: the tracked eigenvalues equal to
+    the round-off of the two LAPACK paths (eigvals vs eig, ~1e-13 relative here; a wrong assignment
+    would be an O(1) difference) and the same events, located to the refinement tolerance (1e-10 of
+    the range); with fewer eigenvector solves."""
+    model = {"undamped": two_dof(), "damped": two_dof(0.01, 0.05),
+             "crossing": ReducedModel(K0=np.diag([1.0, 2.0, 5.0]), Kf1=np.diag([1.0, -1.0, 0.0])),
+             "veering": ReducedModel(K0=np.array([[1.0, 1e-3], [1e-3, 2.0]]), Kf1=np.diag([1.0, -1.0])),
+             "random": _random_coupled()}[case]
+    grid = signed_mu_axis(0.5, 201)
+    vec = track(path_solver(model, "mu"), grid)
+    fast = track(path_solver(model, "mu"), grid, values_solve=path_solver(model, "mu", vectors=False))
+    assert np.max(np.abs(fast.eigenvalues - vec.eigenvalues) / np.abs(vec.eigenvalues)) < 1e-9
+    assert [(e.branch, e.onset, e.kind) for e in fast.events] == [(e.branch, e.onset, e.kind) for e in vec.events]
+    assert np.allclose([e.value for e in fast.events], [e.value for e in vec.events], rtol=0, atol=1e-9)
+    assert fast.vector_solves < vec.vector_solves == vec.solves
+    if case == "random":
+        assert len(vec.events) >= 4 and fast.vector_solves < 0.6 * vec.vector_solves

@@ -37,7 +37,8 @@ reduced          size, parameters, mu0, rounds [{cut_hz, modes, sampled_modes, s
                  max_rel_error, n_unstable_full, n_unstable_reduced, full_cea_s, ...}]
 sweep            parameter, values, critical [{branch, partner, value, bracket, freq_hz, kind,
                  onset, labels, zero_crossing (False: no Re λ = 0 in reach, value is where Re λ =
-                 growth_tol |λ|)}], solves, seconds (branches in sweep.json)
+                 growth_tol |λ|)}], solves (reduced solves while tracking), vector_solves (of which
+                 with eigenvectors), seconds (branches in sweep.json)
 map              parameter ("E.<part>" or "speed": the second axis), points, seconds, seconds_per_point,
                  axes, bands_hz, counts, total (stability_map.npz: mu, E or speed, counts, total, ...)
 sensitivity      [{index, freq_hz, real_part, unstable, d_real_part {parameter: ∂Re λ/∂p}, d_freq_hz

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
+from scipy.linalg import solve_triangular
 from scipy.sparse import csr_matrix
 
 from fem_squeal.fe import interface as itf
@@ -30,6 +31,7 @@ from fem_squeal.fe.assembly import OperatingTerms, Operators, _add, _owned_globa
 from fem_squeal.fe.eigen import (
     DIRECT_SOLVER_OPTIONS,
     TWO_PI,
+    drop_zeros,
     set_options,
     solve_complex_modes,
     solve_left_vectors,
@@ -60,6 +62,7 @@ class Basis:
     n_global: int
     modal_hz: np.ndarray          # frequencies of the nominal frictionless modes included
     counts: dict = field(default_factory=dict)  # modes, sampled modes, static corrections, dropped
+    MPhi: np.ndarray | None = field(default=None, repr=False)   # M Φ, if at hand (rank-local rows)
 
     @property
     def size(self) -> int:
@@ -67,18 +70,23 @@ class Basis:
 
 
 def _dense(comm, local: np.ndarray, n_global: int) -> PETSc.Mat:
+    """A PETSc dense matrix of the rank-local rows ``local``; it shares their memory when they are
+    column-major (PETSc's layout; a row-major array is copied and transposed, ~10× slower), so
+    ``local`` must outlive it."""
     D = PETSc.Mat().createDense(((local.shape[0], n_global), (PETSc.DECIDE, local.shape[1])),
-                                array=np.ascontiguousarray(local), comm=comm)
+                                array=np.asfortranarray(local), comm=comm)
     D.assemble()
     return D
 
 
 def apply(A: PETSc.Mat, Phi: np.ndarray) -> np.ndarray:
-    """A Φ, rank-local rows (n_local, m)."""
+    """A Φ, rank-local rows (n_local, m), column-major (as PETSc's dense matrices: no transposing
+    copies on the way in or out)."""
     comm = A.getComm().tompi4py()
+    Phi = np.asfortranarray(Phi)
     D = _dense(comm, Phi, A.getSize()[1])
     P = A.matMult(D)
-    out = P.getDenseArray().copy()
+    out = np.array(P.getDenseArray(), order="F")
     D.destroy()
     P.destroy()
     return out
@@ -97,32 +105,50 @@ def project(A: PETSc.Mat, Phi: np.ndarray) -> np.ndarray:
 def m_orthonormalise(M: PETSc.Mat, V: np.ndarray, rtol: float = 1e-8, Phi: np.ndarray | None = None
                      ) -> tuple[np.ndarray, int]:
     """Extend the M-orthonormal ``Phi`` (or start afresh) by span(V), with deflation; returns
-    (basis, number of dropped directions).
+    (basis, number of dropped directions).  See :func:`m_extend`."""
+    Phi, _, dropped = m_extend(M, V, rtol, Phi)
+    return Phi, dropped
 
-    Each column of V is M-orthogonalised against Phi (two passes of block Gram–Schmidt) and
-    scaled by its original M-norm; then G = WᵀMW = Q diag(s) Qᵀ and directions with s < rtol²
-    (new content below ``rtol`` of the vector) are dropped, W Q s^(-1/2) is appended.  A final
-    pass makes ΦᵀMΦ = I to round-off."""
+
+def m_extend(M: PETSc.Mat, V: np.ndarray, rtol: float = 1e-8, Phi: np.ndarray | None = None,
+             MPhi: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, int]:
+    """Extend the M-orthonormal ``Phi`` (``MPhi`` = M Φ if at hand) by span(V), with deflation;
+    returns (basis Φ', M Φ', number of dropped directions).
+
+    Each column of V is M-orthogonalised against Phi (two passes of block Gram–Schmidt, using
+    ΦᵀMW = (MΦ)ᵀW) and scaled by its original M-norm; then G = WᵀMW = Q diag(s) Qᵀ and directions
+    with s < rtol² (new content below ``rtol`` of the vector) are dropped, W Q s^(-1/2) is appended.
+    A final pass and the Cholesky factor of the whole Gram matrix make Φ'ᵀMΦ' = I to round-off.
+    M is applied twice, to V and to the kept directions (the latter afresh: s^(-1/2) amplifies
+    the round-off of a tracked product by up to 1/rtol), never to Φ when MΦ is given (issue 23:
+    the basis of the 50k-DOF brake spent 5.5 s re-applying M to the whole basis)."""
     comm = M.getComm().tompi4py()
     # collective calls depend on column counts only: a rank may own no rows of V
     extend = Phi is not None and Phi.shape[1] > 0
-    norms = np.sqrt(np.maximum(comm.allreduce(np.einsum("ij,ij->j", V, apply(M, V)), op=MPI.SUM), 0.0))
+    if extend and MPhi is None:
+        MPhi = apply(M, Phi)
+    MV = apply(M, V)
+    norms = np.sqrt(np.maximum(comm.allreduce(np.einsum("ij,ij->j", V, MV), op=MPI.SUM), 0.0))
     ok = norms > 0
-    W = V[:, ok] / norms[ok]
+    W, MW = V[:, ok] / norms[ok], MV[:, ok] / norms[ok]
     dropped = int(np.sum(~ok))
     for _ in range(2 if extend else 0):
-        W = W - Phi @ gram(comm, Phi, apply(M, W))
-    G = gram(comm, W, apply(M, W))
+        C = gram(comm, MPhi, W)
+        W, MW = W - Phi @ C, MW - MPhi @ C
+    G = gram(comm, W, MW)
     s, Q = np.linalg.eigh(0.5 * (G + G.T))
     keep = s > rtol ** 2
     dropped += int(np.sum(~keep))
     W = W @ (Q[:, keep] / np.sqrt(s[keep]))
     if extend:
-        W = W - Phi @ gram(comm, Phi, apply(M, W))
-        W = np.hstack([Phi, W])
-    G = gram(comm, W, apply(M, W))
-    L = np.linalg.cholesky(0.5 * (G + G.T))
-    return np.linalg.solve(L, W.T).T, dropped
+        W = W - Phi @ gram(comm, MPhi, W)
+    MW = apply(M, W)
+    if extend:
+        W, MW = np.hstack([Phi, W]), np.hstack([MPhi, MW])
+    G = gram(comm, W, MW)
+    # W L⁻ᵀ as one matrix product (the inverse of the well-conditioned L: G ≈ I but for the new block)
+    T = solve_triangular(np.linalg.cholesky(0.5 * (G + G.T)), np.eye(G.shape[0]), lower=True).T
+    return W @ T, MW @ T, dropped
 
 
 def _local_array(vecs: list[PETSc.Vec]) -> np.ndarray:
@@ -665,11 +691,14 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
     else:
         keep = np.sqrt(np.abs(modes[0])) / TWO_PI <= f_cut_hz
         w2, V = modes[0][keep], modes[1][:, keep]
-    Phi, dropped = m_orthonormalise(ops.M, V, rtol)
+    # M Φ carried along: M is applied to the new columns only, without its stored zeros (a third of
+    # the work: the vector mass is assembled on the stiffness's 3×3 block pattern)
+    Mz = drop_zeros(ops.M)
+    Phi, MPhi, dropped = m_extend(Mz, V, rtol)
     n_sample = 0
     if directions is not None and directions.shape[1]:
         size = Phi.shape[1]
-        Phi, d = m_orthonormalise(ops.M, directions, enrich_rtol, Phi)
+        Phi, MPhi, d = m_extend(Mz, directions, enrich_rtol, Phi, MPhi)
         n_sample += Phi.shape[1] - size
         dropped += d
     for s in samples:
@@ -681,7 +710,7 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
         # are quadratic in the subspace error for well-separated modes, but near a coalescence
         # (non-normal) they are not: 1e-2 gave 1.0e-3 on the brake at a map corner, 1e-3 is the default
         size = Phi.shape[1]
-        Phi, d = m_orthonormalise(ops.M, Vs, enrich_rtol, Phi)
+        Phi, MPhi, d = m_extend(Mz, Vs, enrich_rtol, Phi, MPhi)
         n_sample += Phi.shape[1] - size
         dropped += d
     n_static = 0
@@ -692,18 +721,21 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
         S = solver.solve(F) if solver is not None else \
             static_correction(ops.K, ops.M, F, sigma, options, prefix + "static_")
         size = Phi.shape[1]
-        Phi, d = m_orthonormalise(ops.M, S, rtol, Phi)  # corrections: all of their new content
+        Phi, MPhi, d = m_extend(Mz, S, rtol, Phi, MPhi)  # corrections: all of their new content
         n_static = Phi.shape[1] - size
         dropped += d
     n_extra = 0
     if extra is not None and extra.shape[1]:
         size = Phi.shape[1]
-        Phi, d = m_orthonormalise(ops.M, extra, rtol, Phi)
+        Phi, MPhi, d = m_extend(Mz, extra, rtol, Phi, MPhi)
         n_extra = Phi.shape[1] - size
         dropped += d
-    return Basis(Phi, ops.K.getSize()[0], np.sqrt(np.abs(w2)) / TWO_PI,
+    basis = Basis(Phi, ops.K.getSize()[0], np.sqrt(np.abs(w2)) / TWO_PI,
                  {"modes": int(V.shape[1]), "sampled_modes": n_sample, "static": n_static, "extra": n_extra,
-                  "dropped": dropped, "size": int(Phi.shape[1])})
+                  "dropped": dropped, "size": int(Phi.shape[1])}, MPhi)
+    if Mz is not ops.M:
+        Mz.destroy()
+    return basis
 
 
 def static_loads(ops: Operators, par: ParametricOperators, Phi: np.ndarray) -> list[np.ndarray]:
@@ -769,11 +801,11 @@ def reduce(ops: Operators, par: ParametricOperators, basis: Basis, preload=None)
         C0 = None if ops.C is ops.Cd else C0 - speed["Cd0"]
     if speed:
         speed.update(speed0=par.speed0, speed_varies=par.speed_varies)
-    M = project(ops.M, Phi)
+    comm = ops.K.getComm().tompi4py()
+    M = gram(comm, Phi, basis.MPhi) if basis.MPhi is not None else project(ops.M, Phi)
     err = np.max(np.abs(M - np.eye(basis.size)))
     if err > 1e-8:
         raise ReductionError(f"basis: not M-orthonormal (max |ΦᵀMΦ − I| = {err:.1e})")
-    comm = ops.K.getComm().tompi4py()
     f = comm.allreduce(Phi.T @ ops.f.array_r, op=MPI.SUM) if ops.f is not None else None
     q_s = None
     if preload is not None:

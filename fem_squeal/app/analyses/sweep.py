@@ -68,7 +68,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     out = {"parameter": s["parameter"], "values": values, "branches": [
         {"label": tr.labels[j], "parent_hz": tr.parents_hz[j], "freq_hz": f[:, j],
          "real_part": tr.eigenvalues[:, j].real} for j in inside],
-        "critical": [e.as_dict() for e in events], "solves": tr.solves,
+        "critical": [e.as_dict() for e in events], "solves": tr.solves, "vector_solves": tr.vector_solves,
         "ambiguous_steps": tr.ambiguous_steps, "seconds": timings["sweep"],
         # the error the critical values were refined to (None: refine_tol, or 1e-10 of the range)
         "seconds_per_value": timings["sweep"] / s["n"], "refined_to_estimated_error": error}

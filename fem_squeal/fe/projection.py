@@ -28,6 +28,7 @@ from scipy.sparse import csr_matrix
 
 from fem_squeal.fe import interface as itf
 from fem_squeal.fe.assembly import OperatingTerms, Operators, _add, _owned_global_rows, combination
+from fem_squeal.fe.dense import apply, dense_matrix, gram
 from fem_squeal.fe.eigen import (
     DIRECT_SOLVER_OPTIONS,
     TWO_PI,
@@ -67,34 +68,6 @@ class Basis:
     @property
     def size(self) -> int:
         return self.Phi.shape[1]
-
-
-def _dense(comm, local: np.ndarray, n_global: int) -> PETSc.Mat:
-    """A PETSc dense matrix of the rank-local rows ``local``; it shares their memory when they are
-    column-major (PETSc's layout; a row-major array is copied and transposed, ~10× slower), so
-    ``local`` must outlive it."""
-    D = PETSc.Mat().createDense(((local.shape[0], n_global), (PETSc.DECIDE, local.shape[1])),
-                                array=np.asfortranarray(local), comm=comm)
-    D.assemble()
-    return D
-
-
-def apply(A: PETSc.Mat, Phi: np.ndarray) -> np.ndarray:
-    """A Φ, rank-local rows (n_local, m), column-major (as PETSc's dense matrices: no transposing
-    copies on the way in or out)."""
-    comm = A.getComm().tompi4py()
-    Phi = np.asfortranarray(Phi)
-    D = _dense(comm, Phi, A.getSize()[1])
-    P = A.matMult(D)
-    out = np.array(P.getDenseArray(), order="F")
-    D.destroy()
-    P.destroy()
-    return out
-
-
-def gram(comm, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
-    """Xᵀ Y summed over the ranks."""
-    return comm.allreduce(X.T @ Y, op=MPI.SUM)
 
 
 def project(A: PETSc.Mat, Phi: np.ndarray) -> np.ndarray:
@@ -237,7 +210,7 @@ class ShiftedSolver:
             x.destroy()
             return out
         for s in range(0, F.shape[1], self.block):
-            B = _dense(comm, F[:, s:s + self.block], n)
+            B = dense_matrix(comm, F[:, s:s + self.block], n)
             X = B.duplicate()
             self.factor.matSolve(B, X)
             out[:, s:s + self.block] = X.getDenseArray()

@@ -1,0 +1,35 @@
+"""Blocks of vectors as rank-local NumPy rows against PETSc matrices: A Φ, XᵀY over the ranks, and
+PETSc dense matrices sharing the rows' memory (for a factor's multiple-right-hand-side solve)."""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+
+def dense_matrix(comm, local: np.ndarray, n_global: int) -> PETSc.Mat:
+    """A PETSc dense matrix of the rank-local rows ``local``; it shares their memory when they are
+    column-major (PETSc's layout; a row-major array is copied and transposed, ~10× slower), so
+    ``local`` must outlive it."""
+    D = PETSc.Mat().createDense(((local.shape[0], n_global), (PETSc.DECIDE, local.shape[1])),
+                                array=np.asfortranarray(local), comm=comm)
+    D.assemble()
+    return D
+
+
+def apply(A: PETSc.Mat, Phi: np.ndarray) -> np.ndarray:
+    """A Φ, rank-local rows (n_local, m), column-major (as PETSc's dense matrices: no transposing
+    copies on the way in or out)."""
+    comm = A.getComm().tompi4py()
+    Phi = np.asfortranarray(Phi)
+    D = dense_matrix(comm, Phi, A.getSize()[1])
+    P = A.matMult(D)
+    out = np.array(P.getDenseArray(), order="F")
+    D.destroy()
+    P.destroy()
+    return out
+
+
+def gram(comm, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """Xᵀ Y summed over the ranks."""
+    return comm.allreduce(X.T @ Y, op=MPI.SUM)

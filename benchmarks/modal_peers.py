@@ -57,8 +57,9 @@ its 4-point run up to 100k.
 
 ``--speed`` (issue #23): real modes against the fastest peer, every code on one thread, on the 10, 6
 and 4 mm meshes (26k, 87k, 260k DOFs; ``--sizes``), 20 modes, ``--repeats`` interleaved runs (the
-fastest kept): fem_squeal with its defaults (CHOLMOD on one rank) and as before #23 (MUMPS LDLᵀ, tol
-1e-10, purified: the reference of Δf); GetFEM 5.4 (Debian ``python3-getfem``: P2 on the imported
+fastest kept): fem_squeal with its defaults (CHOLMOD on one rank, block Lanczos), with SLEPc's Krylov–Schur
+instead (``real_block_size = 0``) and as before #23 (MUMPS LDLᵀ, tol 1e-10, purified: the
+reference of Δf); GetFEM 5.4 (Debian ``python3-getfem``: P2 on the imported
 curved mesh, CHOLMOD from scikit-sparse, scipy ``eigsh`` shift-invert with the factor as ``OPinv``);
 scikit-fem with the same CHOLMOD + ``eigsh``; CalculiX.  The peers' ``eigsh`` tol is fem_squeal's
 (SPEED_TOL).  Writes benchmarks/out/modal_peers_speed_1ranks.md and .json.
@@ -647,8 +648,11 @@ def speed_cases(workdir: Path, mesh: dict, n_modes: int) -> dict[str, object]:
     old.write_text(scene_text(f"{s}.msh", n_modes, AUTO, OLD_DEFAULTS))
     new = workdir / f"{s}_q{AUTO}.toml"
     new.write_text(scene_text(f"{s}.msh", n_modes, AUTO))
+    ks = workdir / f"{s}_ks.toml"       # the same defaults with SLEPc's Krylov–Schur for block Lanczos
+    ks.write_text(scene_text(f"{s}.msh", n_modes, AUTO, {"real_block_size": 0}))
     cases = {"fem_squeal": lambda: spawn(["fem", new, "default"]),
-             "fem_squeal before": lambda: spawn(["fem", old, "1e-10"])}
+             "fem_squeal before": lambda: spawn(["fem", old, "1e-10"]),
+             "fem_squeal Krylov-Schur": lambda: spawn(["fem", ks, "default"])}
     if have_module("getfem") and have_module("sksparse"):
         cases["GetFEM"] = lambda: spawn(["getfem", msh, n_modes, SPEED_TOL])
     if have_skfem() and have_module("sksparse"):
@@ -665,14 +669,17 @@ def speed_cases(workdir: Path, mesh: dict, n_modes: int) -> dict[str, object]:
     return cases
 
 
-def run_speed(sizes: list[float], n_modes: int, repeats: int, workdir: Path) -> tuple[list[dict], dict]:
+def run_speed(sizes: list[float], n_modes: int, repeats: int, workdir: Path, codes: list[str] | None = None
+              ) -> tuple[list[dict], dict]:
     """Every code on every mesh, ``repeats`` times, interleaved (code after code, then again), so that
-    a change of the machine's load hits all codes alike; the fastest repeat of each code is kept."""
+    a change of the machine's load hits all codes alike; the fastest repeat of each code is kept.
+    ``codes``: the peers to run (fem_squeal's own cases always run)."""
     meshes = [spawn(["mesh", h, workdir, n_modes]) for h in sizes]
     fem_case(workdir, meshes[0]["stem"], n_modes, AUTO, 1)       # warm the JIT cache
     runs: dict[str, list[dict]] = {}
     for mesh in meshes:
-        cases = speed_cases(workdir, mesh, n_modes)
+        cases = {k: v for k, v in speed_cases(workdir, mesh, n_modes).items()
+                 if codes is None or k.startswith("fem_squeal") or k in codes}
         got: dict[str, list[dict]] = {name: [] for name in cases}
         for rep in range(repeats):
             for name, case in cases.items():
@@ -795,6 +802,8 @@ def main() -> None:
     ap.add_argument("--speed", action="store_true", help="real modes against the fastest peer (issue #23): "
                     "26k, 87k, 260k DOFs, every code on 1 thread, interleaved repeats")
     ap.add_argument("--repeats", type=int, default=3, help="--speed: repeats of each code")
+    ap.add_argument("--codes", nargs="+", help="--speed: the peers to run (GetFEM, scikit-fem, CalculiX; "
+                    "default all)")
     ap.add_argument("--sizes", type=float, nargs="+", help=f"--speed: mesh sizes [m] (default {SPEED_SIZES})")
     a = ap.parse_args()
     if a.case:
@@ -823,7 +832,8 @@ def main() -> None:
         with contextlib.ExitStack() as stack:
             workdir = Path(a.workdir or stack.enter_context(tempfile.TemporaryDirectory(prefix="modal_speed_")))
             workdir.mkdir(parents=True, exist_ok=True)
-            meshes, runs = run_speed(list(a.sizes or SPEED_SIZES), n_modes, a.repeats, workdir.resolve())
+            meshes, runs = run_speed(list(a.sizes or SPEED_SIZES), n_modes, a.repeats, workdir.resolve(),
+                                     a.codes)
         render_speed(meshes, runs, n_modes, a.repeats)
         print(json.dumps({"wall_s": time.perf_counter() - t_start}), file=sys.stderr)
         return

@@ -362,28 +362,19 @@ def _pairs_from_rows(K: PETSc.Mat, M: PETSc.Mat, lam: np.ndarray, X: np.ndarray
 
 
 def _real_pairs(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int
-                ) -> tuple[int, list[float], list[PETSc.Vec], np.ndarray]:
+                ) -> tuple[int, np.ndarray, list[PETSc.Vec], np.ndarray]:
     """The first ``nev`` converged pairs of ``eps``, M-normalised, with their relative residuals
-    ‖Kx − λMx‖ / (‖K‖∞ ‖x‖)."""
+    ‖Kx − λMx‖ / (‖K‖∞ ‖x‖) (:func:`_pairs_from_rows`)."""
     nconv = eps.getConverged()
-    vals, vecs, res = [], [], []
-    normK = _norm_inf(K)
+    if min(nconv, nev) == 0:
+        return nconv, np.zeros(0), [], np.zeros(0)
+    x = K.createVecRight()
+    lam, rows = [], []
     for i in range(min(nconv, nev)):
-        x = K.createVecRight()
-        lam = eps.getEigenpair(i, x).real
-        Mx, r = x.duplicate(), x.duplicate()
-        M.mult(x, Mx)
-        scale = 1.0 / np.sqrt(x.dot(Mx))
-        x.scale(scale)
-        Mx.scale(scale)
-        K.mult(x, r)
-        r.axpy(-lam, Mx)
-        res.append(r.norm() / (normK * x.norm()))
-        vals.append(lam)
-        vecs.append(x)
-        Mx.destroy()
-        r.destroy()
-    return nconv, vals, vecs, np.array(res)
+        lam.append(eps.getEigenpair(i, x).real)
+        rows.append(x.array_r.copy())
+    x.destroy()
+    return (nconv, *_pairs_from_rows(K, M, np.array(lam), np.column_stack(rows)))
 
 
 def drop_zeros(A: PETSc.Mat) -> PETSc.Mat:

@@ -167,6 +167,14 @@ class _Walker:
     def _mask(self, lam: np.ndarray):
         return self.watch(lam) if self.watch is not None else np.ones(lam.size, bool)
 
+    @staticmethod
+    def _predict(st: dict, p_b: float) -> np.ndarray:
+        """Each branch's eigenvalue at p_b, extrapolated linearly from its last two values (its
+        value at p_a where there is only one)."""
+        if st["p_prev"] is None or st["p"] == st["p_prev"]:
+            return st["lam"]
+        return st["lam"] + (st["lam"] - st["lam_prev"]) * (p_b - st["p"]) / (st["p"] - st["p_prev"])
+
     def values_step(self, st: dict, p_b: float) -> dict | None:
         """The step by eigenvalues alone where it is unambiguous (None: the vectors decide).
 
@@ -179,7 +187,7 @@ class _Walker:
         if self.values is None or st["p_prev"] is None or st["p"] == st["p_prev"]:
             return None
         lam_a = st["lam"]
-        pred = lam_a + (lam_a - st["lam_prev"]) * (p_b - st["p"]) / (st["p"] - st["p_prev"])
+        pred = self._predict(st, p_b)
         w = self._mask(lam_a)
         if not w.any():
             return None
@@ -229,7 +237,7 @@ class _Walker:
         assigned = np.empty_like(cols)
         assigned[rows] = cols
         best = _group_mac(mac, st["Y"], Y_b, st["lam"], lam_b, assigned, self.cluster_rtol)
-        w = self.watch(st["lam"]) if self.watch is not None else slice(None)
+        w = self._mask(st["lam"])
         ok = bool(np.all(best[w] >= self.mac_min)) and \
             not _order_swaps(st["lam"].imag[w], lam_b[assigned].imag[w], self.order_rtol)
         if not ok and depth < self.max_depth and self.left >= 2 and 0.5 * abs(p_b - st["p"]) >= self.min_step:
@@ -239,11 +247,7 @@ class _Walker:
         held = np.zeros(lam_b.size, bool)
         if not ok:
             self.ambiguous += 1
-            # eigenvalue prediction by linear extrapolation, mixed with the MAC
-            if st["p_prev"] is not None and st["p"] != st["p_prev"]:
-                pred = st["lam"] + (st["lam"] - st["lam_prev"]) * (p_b - st["p"]) / (st["p"] - st["p_prev"])
-            else:
-                pred = st["lam"]
+            pred = self._predict(st, p_b)   # the eigenvalue prediction, mixed with the MAC
             scale = np.maximum(np.abs(st["lam"] - pred), 1e-6 * np.abs(st["lam"]) + 1e-300)
             cost = np.abs(pred[:, None] - lam_b[None, :]) / scale[:, None] + (1.0 - mac)
             rows, cols = linear_sum_assignment(cost)

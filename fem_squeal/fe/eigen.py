@@ -22,6 +22,7 @@ from petsc4py import PETSc
 from slepc4py import SLEPc
 
 from fem_squeal.fe.dense import apply, dense_matrix, gram
+from fem_squeal.fe.ordering import nested_dissection, permuted
 from fem_squeal.util.errors import EigenSolveError, ModelError
 from fem_squeal.util.progress import ProgressBar
 
@@ -216,7 +217,9 @@ def _start_block(rows: np.ndarray, b: int) -> np.ndarray:
 
 def _m_orthonormal(comm, M: PETSc.Mat, W: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Q, MQ, R with W = Q R and QᵀMQ = I (Cholesky QR, twice); None if W is numerically rank
-    deficient (an invariant subspace: nothing new to add)."""
+    deficient (an invariant subspace: nothing new to add).  M is applied once: MQ follows W through
+    the same triangular transformations (MW R⁻¹ = M(W R⁻¹)), which keeps QᵀMQ = I to round-off
+    times the condition of W, as the second pass itself does."""
     R = np.eye(W.shape[1])
     MW = apply(M, W)
     for _ in range(2):
@@ -227,8 +230,7 @@ def _m_orthonormal(comm, M: PETSc.Mat, W: np.ndarray) -> tuple[np.ndarray, np.nd
             return None
         L = np.linalg.cholesky(G)
         Ri = np.linalg.inv(L.T)
-        W, R = W @ Ri, L.T @ R
-        MW = apply(M, W)
+        W, MW, R = W @ Ri, MW @ Ri, L.T @ R
     return W, MW, R
 
 
@@ -294,23 +296,28 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     """Real modes nearest ``target_hz``: K φ = ω² M φ, shift-and-invert at ω_t², by block Lanczos
     on the factor's block solves (:func:`_block_lanczos`; ``<prefix>block_size``, 0: off), else, or
     where it does not converge within its vector budget or misses ``max_residual``, by SLEPc's
-    Krylov–Schur on the same factorisation.  ``progress``: draw converged/requested pairs on rank
-    0's stderr (Krylov–Schur only)."""
+    Krylov–Schur on the same factorisation.  A CHOLMOD factorisation (one rank) works on K and M
+    in the nested-dissection order of their node graph (:mod:`fem_squeal.fe.ordering`;
+    ``<prefix>ordering solver`` leaves the ordering to CHOLMOD); the vectors come back in the
+    caller's order.  ``progress``: draw converged/requested pairs on rank 0's stderr (Krylov–Schur
+    only)."""
     if nev < 1:
         raise ModelError(f"n_modes: must be >= 1 (got {nev})")
     for A in (K, M):
         A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
     set_options(prefix, options, REAL_MODE_OPTIONS)
+    sigma, key = (TWO_PI * target_hz) ** 2, (K.handle, M.handle)
     Ms = drop_zeros(M)
-    eps, solver, t_factor = _factorised_eps(K, Ms, nev, (TWO_PI * target_hz) ** 2, tol, prefix,
-                                            (K.handle, M.handle))
+    perm = _fill_reducing_order(K, sigma, prefix, key)
+    Kw, Mw = (K, Ms) if perm is None else (permuted(K, perm), permuted(Ms, perm))
+    eps, solver, t_factor = _factorised_eps(Kw, Mw, nev, sigma, tol, prefix, key, ordered=perm is not None)
     try:
         t0 = time.perf_counter()
         b = PETSc.Options().getInt(f"{prefix}block_size", block_size(nev))
-        got = _block_lanczos(eps.getST().getKSP().getPC().getFactorMatrix(), K, Ms, nev,
-                             (TWO_PI * target_hz) ** 2, tol, b) if b > 0 else None
+        got = _block_lanczos(eps.getST().getKSP().getPC().getFactorMatrix(), Kw, Mw, nev, sigma, tol, b) \
+            if b > 0 else None
         if got is not None:
-            vals, vecs, res = _pairs_from_rows(K, Ms, *got)
+            vals, vecs, res = _pairs_from_rows(K, Ms, got[0], _caller_rows(got[1], perm))
             if np.all(res <= max_residual):
                 order = np.argsort(vals)
                 return RealModes(vals[order], [vecs[i] for i in order], res[order], solver,
@@ -320,26 +327,55 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
                 v.destroy()
         with _progress(eps, nev, "real modes", progress):
             eps.solve()
-        nconv, vals, vecs, res = _real_pairs(eps, K, Ms, nev)
+        nconv, vals, vecs, res = _real_pairs(eps, K, Ms, nev, perm)
         if nconv >= nev and not np.all(res <= max_residual) and tol > REAL_MODE_TOL_FALLBACK:
             # SLEPc's criterion is relative to the shift-inverted value 1/(λ − σ): pairs far from
             # the target can pass it and still miss our ‖Kx − λMx‖/(‖K‖‖x‖) bound.  Continue from
             # the pairs at hand with a tighter tolerance on the same factorisation (no new one).
             eps.setTolerances(REAL_MODE_TOL_FALLBACK, 200)
-            eps.setInitialSpace(vecs)
-            for v in vecs:
+            start = [_eps_vector(Kw, v, perm) for v in vecs]
+            eps.setInitialSpace(start)
+            for v in (*vecs, *start):
                 v.destroy()
             eps.solve()
-            nconv, vals, vecs, res = _real_pairs(eps, K, Ms, nev)
+            nconv, vals, vecs, res = _real_pairs(eps, K, Ms, nev, perm)
         t_solve = time.perf_counter() - t0
     finally:
         eps.destroy()
-        if Ms is not M:
-            Ms.destroy()
+        for A in {id(A): A for A in (Kw, Mw, Ms) if A is not K and A is not M}.values():
+            A.destroy()
     _check(nconv, nev, res, max_residual, "real-mode EPS", np.sqrt(np.abs(vals)) / TWO_PI)
     order = np.argsort(vals)
     return RealModes(np.array(vals)[order], [vecs[i] for i in order], res[order], solver,
                      {"factor": t_factor, "solve": t_solve}, "Krylov-Schur")
+
+
+def _fill_reducing_order(K: PETSc.Mat, sigma: float, prefix: str, key: tuple[int, int]) -> np.ndarray | None:
+    """The nested-dissection row order of K (:func:`fem_squeal.fe.ordering.nested_dissection`)
+    where CHOLMOD will factorise K − σM first and ``<prefix>ordering`` is ``metis`` (the default);
+    None otherwise (MUMPS orders in its own analysis, and in parallel)."""
+    how = PETSc.Options().getString(f"{prefix}ordering", "metis")
+    if how not in ("metis", "solver"):
+        raise ModelError(f"{prefix}ordering: must be 'metis' or 'solver' (got {how!r})")
+    if how != "metis" or _real_solvers(K, sigma, prefix, key)[0][0] != "cholmod":
+        return None
+    return nested_dissection(K)
+
+
+def _caller_rows(X: np.ndarray, perm: np.ndarray | None) -> np.ndarray:
+    """Rows of the permuted problem (row i = the caller's row perm[i]) in the caller's order."""
+    if perm is None:
+        return X
+    out = np.empty_like(X)
+    out[perm] = X
+    return out
+
+
+def _eps_vector(A: PETSc.Mat, v: PETSc.Vec, perm: np.ndarray | None) -> PETSc.Vec:
+    """The caller's vector ``v`` as a vector of the (permuted) problem of matrix ``A``."""
+    x = A.createVecRight()
+    x.array[:] = v.array_r if perm is None else v.array_r[perm]
+    return x
 
 
 def _pairs_from_rows(K: PETSc.Mat, M: PETSc.Mat, lam: np.ndarray, X: np.ndarray
@@ -361,20 +397,21 @@ def _pairs_from_rows(K: PETSc.Mat, M: PETSc.Mat, lam: np.ndarray, X: np.ndarray
     return np.asarray(lam, float), vecs, res
 
 
-def _real_pairs(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int
+def _real_pairs(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, perm: np.ndarray | None = None
                 ) -> tuple[int, np.ndarray, list[PETSc.Vec], np.ndarray]:
     """The first ``nev`` converged pairs of ``eps``, M-normalised, with their relative residuals
-    ‖Kx − λMx‖ / (‖K‖∞ ‖x‖) (:func:`_pairs_from_rows`)."""
+    ‖Kx − λMx‖ / (‖K‖∞ ‖x‖) (:func:`_pairs_from_rows`); ``perm``: the EPS works on K and M in that
+    row order, the pairs come back in K's."""
     nconv = eps.getConverged()
     if min(nconv, nev) == 0:
         return nconv, np.zeros(0), [], np.zeros(0)
-    x = K.createVecRight()
+    x = eps.getOperators()[0].createVecRight()
     lam, rows = [], []
     for i in range(min(nconv, nev)):
         lam.append(eps.getEigenpair(i, x).real)
         rows.append(x.array_r.copy())
     x.destroy()
-    return (nconv, *_pairs_from_rows(K, M, np.array(lam), np.column_stack(rows)))
+    return (nconv, *_pairs_from_rows(K, M, np.array(lam), _caller_rows(np.column_stack(rows), perm)))
 
 
 def drop_zeros(A: PETSc.Mat) -> PETSc.Mat:
@@ -397,32 +434,45 @@ def drop_zeros(A: PETSc.Mat) -> PETSc.Mat:
     return B
 
 
+def _real_solvers(K: PETSc.Mat, shift: float, prefix: str, key: tuple[int, int]) -> tuple[list[str], bool]:
+    """The factorisations to try for K − σM, in order, and whether the user chose one
+    (``<prefix>st_pc_factor_mat_solver_type``): else CHOLMOD on one rank (MUMPS LDLᵀ after it, for
+    K − σM not positive definite) and MUMPS on more ranks."""
+    chosen = PETSc.Options().getString(f"{prefix}st_pc_factor_mat_solver_type", "")
+    if chosen:
+        return [chosen], True
+    if (K.getComm().getSize() == 1 and PETSc.Sys.hasExternalPackage("suitesparse")
+            and shift < _NOT_DEFINITE.get(key, np.inf)):
+        return ["cholmod", "mumps"], False
+    return ["mumps"], False
+
+
 def _factorised_eps(K: PETSc.Mat, M: PETSc.Mat, nev: int, shift: float, tol: float, prefix: str,
-                    key: tuple[int, int]) -> tuple[SLEPc.EPS, str, float]:
-    """The real-mode EPS with K − σM factorised (``eps.setUp``): by the solver named in the options
-    (``<prefix>st_pc_factor_mat_solver_type``), else CHOLMOD on one rank, falling back to MUMPS
-    LDLᵀ when K − σM is not positive definite, and MUMPS on more ranks.  Returns the EPS, the
-    solver's name and the factorisation's wall time.  ``key``: the handles of the caller's K and M."""
+                    key: tuple[int, int], ordered: bool = False) -> tuple[SLEPc.EPS, str, float]:
+    """The real-mode EPS with K − σM factorised (``eps.setUp``) by the first of
+    :func:`_real_solvers` that succeeds.  ``ordered``: K and M are already in a fill-reducing order
+    (:func:`fem_squeal.fe.ordering.nested_dissection`), which CHOLMOD then keeps (natural ordering,
+    one method) instead of running its own analysis.  Returns the EPS, the solver's name and the
+    factorisation's wall time.  ``key``: the handles of the caller's K and M."""
     db = PETSc.Options()
     name = f"{prefix}st_pc_factor_mat_solver_type"
-    chosen = db.getString(name, "")
-    if chosen:
-        solvers = [chosen]
-    elif (K.getComm().getSize() == 1 and PETSc.Sys.hasExternalPackage("suitesparse")
-          and shift < _NOT_DEFINITE.get(key, np.inf)):
-        solvers = ["cholmod", "mumps"]
-    else:
-        solvers = ["mumps"]
+    solvers, chosen = _real_solvers(K, shift, prefix, key)
     t0 = time.perf_counter()       # a failed CHOLMOD attempt counts in the factorisation time
     for k, solver in enumerate(solvers):
         eps = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GHEP, nev, shift, tol, prefix)
-        if not chosen:     # a default for this solve only, not left in the options database
-            db[name] = solver
+        # defaults for this solve only, not left in the options database
+        temporary = {} if chosen else {name: solver}
+        if ordered and solver == "cholmod":
+            temporary.update({f"{prefix}st_pc_factor_mat_ordering_type": "natural",
+                              f"{prefix}st_mat_cholmod_nmethods": "1"})
+        temporary = {o: v for o, v in temporary.items() if not db.hasName(o)}
+        for o, v in temporary.items():
+            db[o] = v
         try:
             eps.setFromOptions()
         finally:
-            if not chosen:
-                db.delValue(name)
+            for o in temporary:
+                db.delValue(o)
         try:
             eps.setUp()    # the factorisation of K − σM
         except PETSc.Error:

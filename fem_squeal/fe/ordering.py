@@ -5,8 +5,9 @@ graph of its nodes has b² fewer edges than the graph of its rows.  METIS_NodeND
 expanded to the rows node by node, orders K as well as CHOLMOD's own METIS on the full graph
 (measured on the clamped P2 disc, 255k DOFs: 130.8M against 128.8M factor entries) at a fraction of
 the analysis cost: CHOLMOD's default analysis tries AMD and then METIS on the row graph (2.0 s there),
-this one takes 0.04 s for the graph and 0.7 s for METIS, and the factorisation it leads to took 5.9 s
-against 9.4 s for CHOLMOD's default path (analysis included; ``benchmarks/modal_peers.py --speed``).
+this one takes 0.04 s for the graph and 0.7 s for METIS, plus 0.55 s to permute K and M; ordering,
+permutation and factorisation took 7.5 s against 8.0 s for CHOLMOD's default path
+(``benchmarks/modal_peers.py --speed``, 2026-11-27).
 
 METIS is the ``libmetis.so.5`` that SuiteSparse's CHOLMOD itself links (Debian ``libmetis5``), called
 through ctypes.  Any failure (no library, another index width, a result that is not a permutation)

@@ -24,22 +24,15 @@ import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
 
+from fem_squeal.util.native import first_library
+
 _METIS_OK = 1
 _METIS_NOPTIONS = 40
 
 
 @lru_cache(maxsize=1)
 def _metis() -> ctypes.CDLL | None:
-    for name in ("libmetis.so.5", ctypes.util.find_library("metis")):
-        if not name:
-            continue
-        try:
-            lib = ctypes.CDLL(name)
-            lib.METIS_NodeND  # noqa: B018 - probe the symbol
-            return lib
-        except (OSError, AttributeError):
-            continue
-    return None
+    return first_library(("libmetis.so.5", ctypes.util.find_library("metis")), "METIS_NodeND")
 
 
 def metis_available() -> bool:

@@ -8,6 +8,8 @@ import ctypes
 import os
 from contextlib import contextmanager
 
+from fem_squeal.util.native import first_library
+
 
 def _openblas() -> ctypes.CDLL | None:
     try:
@@ -15,14 +17,7 @@ def _openblas() -> ctypes.CDLL | None:
             paths = {line.split()[-1] for line in f if "openblas" in line and line.split()[-1].startswith("/")}
     except OSError:
         return None
-    for path in sorted(paths):
-        try:
-            lib = ctypes.CDLL(path)
-            lib.openblas_set_num_threads  # noqa: B018 - probe the symbol
-            return lib
-        except (OSError, AttributeError):
-            continue
-    return None
+    return first_library(sorted(paths), "openblas_set_num_threads")
 
 
 def limit_threads(ranks_per_node: int) -> int | None:

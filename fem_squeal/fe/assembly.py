@@ -22,7 +22,6 @@ import scipy.sparse as sp
 import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
-from mpi4py import MPI
 from petsc4py import PETSc
 from ufl.algorithms.map_integrands import map_integrand_dags
 from ufl.corealg.multifunction import MultiFunction
@@ -134,53 +133,35 @@ def _block_masses(V, a_scalar, quadrature_degree, weights: list[np.ndarray], bc_
     what saves the time: 255k DOFs, P2: 0.17 s for M_s against 1.0 s for each vector mass.
 
     None on more than one rank (the vector forms are assembled instead: the expansion of ghost
-    columns has not been verified there) or when the scalar space does not number its nodes as V
-    numbers its blocks."""
-    comm = V.mesh.comm
-    if comm.size > 1:
+    rows and columns failed its 2-rank check and is not used) or when the scalar space does not
+    number its nodes as V numbers its blocks."""
+    if V.mesh.comm.size > 1:
         return None
     S = fem.FunctionSpace(V.mesh, V.ufl_element().sub_elements()[0])
-    imS, imV, bs = S.dofmap.index_map, V.dofmap.index_map, V.dofmap.index_map_bs
-    same = (imS.local_range == imV.local_range and np.array_equal(imS.ghosts, imV.ghosts)
-            and np.array_equal(S.dofmap.list.array, V.dofmap.list.array))
-    if not comm.allreduce(bool(same), op=MPI.LAND):
+    bs = V.dofmap.index_map_bs
+    if not np.array_equal(S.dofmap.list.array, V.dofmap.list.array):
         return None
     u, v = ufl.TrialFunction(S), ufl.TestFunction(S)
     f = _compile(a_scalar(u, v), quadrature_degree)
     Ms = _assemble(f, f, [], 0.0)
-    ai, aj, av = Ms.getValuesCSR()                  # owned node rows, global node columns
+    ai, node, av = Ms.getValuesCSR()                 # node rows and columns
     Ms.destroy()
-    n_own, r0 = imV.size_local, imV.local_range[0]
-    # Dirichlet flags of every node component this rank sees (owned and ghost): what any rank
-    # marked, gathered at the owner and sent back to the ghosts (a rank's own list can miss a ghost
-    # DOF that another rank's facets constrain; the Dirichlet assembly zeroes its columns)
-    marked = fem.Function(V)             # kept alive while its vector (a view of its array) is used
-    marks = marked.vector
-    with marks.localForm() as loc:
-        loc.array_w[bc_dofs] = 1.0
-    marks.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    marks.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-    with marks.localForm() as loc:
-        flag = loc.array_r > 0
-    ghosts = np.asarray(imV.ghosts, dtype=np.int64)
-    by_ghost = np.argsort(ghosts)
-    node = np.asarray(aj, dtype=np.int64)
-    local = node - r0
-    off = (local < 0) | (local >= n_own)
-    local[off] = n_own + by_ghost[np.searchsorted(ghosts, node[off], sorter=by_ghost)]
+    n_own = len(ai) - 1
+    flag = np.zeros(bs * n_own, dtype=bool)          # the Dirichlet DOFs
+    flag[bc_dofs] = True
     row = np.repeat(np.arange(n_own), np.diff(ai))
     out = []
     for W in weights:
         R, C, X = [], [], []
         for c, d in zip(*np.nonzero(W)):
-            keep = ~flag[bs * row + c] & ~flag[bs * local + d]
+            keep = ~flag[bs * row + c] & ~flag[bs * node + d]
             R.append(bs * row[keep] + c)
             C.append(bs * node[keep] + d)
             X.append(av[keep] * W[c, d])
         A = sp.csr_matrix((np.concatenate(X), (np.concatenate(R), np.concatenate(C))),
-                          shape=(bs * n_own, bs * imV.size_global))
+                          shape=(bs * n_own, bs * n_own))
         A.sort_indices()
-        M = PETSc.Mat().createAIJ(pattern.getSizes(), bsize=bs, comm=comm,
+        M = PETSc.Mat().createAIJ(pattern.getSizes(), bsize=bs, comm=pattern.getComm(),
                                   csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType), A.data))
         M.setLGMap(*pattern.getLGMap())
         out.append(M)
@@ -407,6 +388,7 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
     qd = spec.quadrature_degree
     fK = _compile(a_K, qd)
     K = _assemble(fK, fK, bcs, 1.0)
+
     def scalar_mass(us, vs):
         terms = [forms.mass_form(us, vs, m.rho, dx(mesh_data.volumes[p])) for p, m in spec.materials.items()]
         return functools.reduce(operator.add, terms)

@@ -62,10 +62,12 @@ def _node_nd(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray | None:
     return perm.astype(np.int64)
 
 
-def node_graph(A: PETSc.Mat, bs: int) -> tuple[np.ndarray, np.ndarray]:
+def node_graph(A: PETSc.Mat, bs: int, pattern: tuple[np.ndarray, np.ndarray] | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
     """The symmetric graph of the nodes of the serial matrix ``A`` (rows b·i … b·i + b − 1 are node
-    i), from the first row of each node, without self-loops, as CSR (indptr, indices)."""
-    ia, ja = A.getRowIJ(symmetric=False, compressed=False)
+    i), from the first row of each node, without self-loops, as CSR (indptr, indices).
+    ``pattern``: A's CSR (indptr, indices) where the caller has it already (else MatGetRowIJ)."""
+    ia, ja = pattern if pattern is not None else A.getRowIJ(symmetric=False, compressed=False)
     n = len(ia) - 1
     first = sp.csr_matrix((np.ones(len(ja), dtype=np.int8), ja, ia), shape=(n, n))[::bs]
     nn = first.shape[0]
@@ -77,15 +79,17 @@ def node_graph(A: PETSc.Mat, bs: int) -> tuple[np.ndarray, np.ndarray]:
     return G.indptr, G.indices
 
 
-def nested_dissection(A: PETSc.Mat) -> np.ndarray | None:
+def nested_dissection(A: PETSc.Mat, pattern: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
     """A fill-reducing row permutation p of the serial matrix ``A`` (new row i = old row p[i]): METIS
     nested dissection of its node graph (blocks of ``A.getBlockSize()`` rows), each node's rows kept
-    together.  None where it cannot be had (parallel matrix, no METIS): keep the solver's own."""
+    together.  ``pattern``: the CSR (indptr, indices) of the matrix to factorise where the caller has
+    it (A's, or one with more entries, such as A − σM); else A's own.  None where it cannot be had
+    (parallel matrix, no METIS): keep the solver's own."""
     if A.getComm().getSize() > 1 or not metis_available():
         return None
     n = A.getSize()[0]
     bs = A.getBlockSize() if A.getBlockSize() > 0 and n % A.getBlockSize() == 0 else 1
-    perm = _node_nd(*node_graph(A, bs))
+    perm = _node_nd(*node_graph(A, bs, pattern))
     if perm is None:
         return None
     return (bs * perm[:, None] + np.arange(bs)).ravel()

@@ -1,0 +1,127 @@
+"""CHOLMOD called directly (fem_squeal.fe.cholmod) and the real-mode path built on it: the factor
+solves what it should, reads one triangle, keeps a given order, refuses what is not positive
+definite; the modes it gives are those of PETSc's CHOLMOD interface."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from conftest import ring_operators
+
+from fem_squeal.fe import cholmod, eigen
+from fem_squeal.fe.eigen import solve_real_modes
+
+pytestmark = pytest.mark.skipif(not cholmod.available(), reason="libcholmod (SuiteSparse 5) not found")
+
+
+def _laplacian(m: int, shift: float = 0.0) -> sp.csr_matrix:
+    """The 3D 7-point Laplacian on an m³ grid (Dirichlet), minus ``shift`` I: SPD for shift below
+    its lowest eigenvalue 3·(2 − 2 cos(π/(m+1))); condition ~ (2(m+1)/π)² ≈ 120 for m = 16."""
+    T = sp.diags([-np.ones(m - 1), 2 * np.ones(m), -np.ones(m - 1)], [-1, 0, 1])
+    I = sp.identity(m)
+    A = sp.kron(sp.kron(T, I), I) + sp.kron(sp.kron(I, T), I) + sp.kron(sp.kron(I, I), T)
+    return (A - shift * sp.identity(m ** 3)).tocsr()
+
+
+def test_block_solve_to_round_off():
+    """A X = B for 5 right-hand sides: the relative residual is round-off times the condition
+    (~120 · 1e-16); 1e-12 leaves a margin of ~100 for the sums' order."""
+    A = _laplacian(16)
+    B = np.random.default_rng(0).standard_normal((A.shape[0], 5))
+    with cholmod.Cholesky(A.indptr, A.indices, A.data) as F:
+        X = F.solve(B)
+        x = F.solve(B[:, 2])
+        assert X.flags.f_contiguous and X.shape == B.shape and x.shape == (A.shape[0],)
+        assert np.linalg.norm(A @ X - B) <= 1e-12 * np.linalg.norm(B)
+        # one column takes other BLAS kernels than five: the same to round-off
+        assert np.linalg.norm(x - X[:, 2]) <= 1e-13 * np.linalg.norm(X[:, 2])
+        assert F.flops > 0 and F.factor_entries >= A.nnz / 2
+
+
+def test_only_the_upper_triangle_is_read():
+    """Entries below the diagonal are not read: garbage there changes nothing, bit for bit."""
+    A = _laplacian(10)
+    lower = sp.tril(A, -1).tocsr()
+    garbage = (sp.triu(A).tocsr() + 7.5 * lower).tocsr()
+    B = np.random.default_rng(1).standard_normal((A.shape[0], 3))
+    with cholmod.Cholesky(A.indptr, A.indices, A.data) as F, \
+            cholmod.Cholesky(garbage.indptr, garbage.indices, garbage.data) as G:
+        assert np.array_equal(F.solve(B), G.solve(B))
+
+
+def test_a_given_order_is_kept():
+    """The natural order of a 3D grid fills far more than CHOLMOD's own (nested dissection or AMD):
+    handed in, it is used as given (more factor entries); a random order too, and every order
+    solves the same system to round-off."""
+    A = _laplacian(12)
+    n = A.shape[0]
+    B = np.random.default_rng(2).standard_normal((n, 2))
+    with cholmod.Cholesky(A.indptr, A.indices, A.data) as own, \
+            cholmod.Cholesky(A.indptr, A.indices, A.data, np.arange(n)) as natural, \
+            cholmod.Cholesky(A.indptr, A.indices, A.data, np.random.default_rng(3).permutation(n)) as rand:
+        assert natural.factor_entries > 1.5 * own.factor_entries
+        assert rand.factor_entries > 1.5 * own.factor_entries
+        X = own.solve(B)
+        for F in (natural, rand):
+            assert np.linalg.norm(F.solve(B) - X) <= 1e-12 * np.linalg.norm(X)
+
+
+def test_not_positive_definite_is_refused():
+    A = _laplacian(6, shift=1.0)          # lowest eigenvalue 3(2 − 2cos(π/7)) = 0.65 < 1
+    with pytest.raises(cholmod.NotPositiveDefinite, match="not positive definite"):
+        cholmod.Cholesky(A.indptr, A.indices, A.data)
+
+
+def test_close_is_idempotent():
+    A = _laplacian(4)
+    F = cholmod.Cholesky(A.indptr, A.indices, A.data)
+    F.close()
+    F.close()
+
+
+# ------------------------------------------------------------------ the real-mode path
+
+def _same_modes(a, b, M) -> None:
+    """The same frequencies to 1e-10 (both converge to residuals ~1e-14: tol 1e-7 on the
+    shift-inverted operator, eigenvalue error ~ residual²) and each vector of ``a`` in the span of
+    ``b``'s vectors of the same frequency (the ring's sin/cos pairs are double): M-projection
+    norm 1 to 1e-8."""
+    assert np.max(np.abs(a.freqs_hz / b.freqs_hz - 1)) < 1e-10
+    Xa = np.column_stack([v.array_r for v in a.vectors])
+    MXb = []
+    for v in b.vectors:
+        y = M.createVecLeft()
+        M.mult(v, y)
+        MXb.append(y.array_r.copy())
+    MXb = np.column_stack(MXb)
+    for j in range(len(a.freqs_hz)):
+        twins = np.flatnonzero(np.abs(b.freqs_hz / a.freqs_hz[j] - 1) < 1e-6)
+        assert abs(np.linalg.norm(MXb[:, twins].T @ Xa[:, j]) - 1) < 1e-8
+
+
+def test_direct_path_gives_the_modes_of_petscs_cholmod():
+    """The default on one rank (CHOLMOD called directly, METIS order handed in, block Lanczos)
+    against PETSc's CHOLMOD interface (chosen by name: K, M permuted, MatMatSolve): the same modes."""
+    ops = ring_operators(kn=0, clamped=("inner",))
+    direct = solve_real_modes(ops.K, ops.M, 12, 0.0, prefix="d_")
+    petsc = solve_real_modes(ops.K, ops.M, 12, 0.0, prefix="p_",
+                             options={"p_st_pc_factor_mat_solver_type": "cholmod"})
+    assert direct.solver == petsc.solver == "cholmod"
+    assert direct.method == petsc.method == "block Lanczos, 8 columns"
+    assert np.all(direct.residuals < 1e-8)
+    _same_modes(direct, petsc, ops.M)
+
+
+def test_shifted_factor_and_the_krylov_schur_fallback(monkeypatch):
+    """σ > 0 below the lowest mode (K − σM factorised directly), and a block Lanczos that cannot
+    run (no vector budget: Krylov–Schur on PETSc's factorisation takes over): the modes of the
+    unshifted default."""
+    ops = ring_operators(kn=0, clamped=("inner",))
+    ref = solve_real_modes(ops.K, ops.M, 12, 0.0, prefix="r_")
+    shifted = solve_real_modes(ops.K, ops.M, 12, 0.5 * ref.freqs_hz[0], prefix="s_")
+    assert shifted.solver == "cholmod" and shifted.method.startswith("block Lanczos")
+    _same_modes(shifted, ref, ops.M)
+    monkeypatch.setattr(eigen, "BLOCK_MEMORY", 0.0)
+    fallback = solve_real_modes(ops.K, ops.M, 12, 0.0, prefix="f_")
+    assert fallback.solver == "cholmod" and fallback.method == "Krylov-Schur"
+    _same_modes(fallback, ref, ops.M)

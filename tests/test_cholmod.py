@@ -18,8 +18,8 @@ def _laplacian(m: int, shift: float = 0.0) -> sp.csr_matrix:
     """The 3D 7-point Laplacian on an m³ grid (Dirichlet), minus ``shift`` I: SPD for shift below
     its lowest eigenvalue 3·(2 − 2 cos(π/(m+1))); condition ~ (2(m+1)/π)² ≈ 120 for m = 16."""
     T = sp.diags([-np.ones(m - 1), 2 * np.ones(m), -np.ones(m - 1)], [-1, 0, 1])
-    I = sp.identity(m)
-    A = sp.kron(sp.kron(T, I), I) + sp.kron(sp.kron(I, T), I) + sp.kron(sp.kron(I, I), T)
+    Id = sp.identity(m)
+    A = sp.kron(sp.kron(T, Id), Id) + sp.kron(sp.kron(Id, T), Id) + sp.kron(sp.kron(Id, Id), T)
     return (A - shift * sp.identity(m ** 3)).tocsr()
 
 

@@ -226,7 +226,7 @@ class Cholesky:
         lib.cholmod_finish(ctypes.byref(c))
         self._c = None
 
-    def __enter__(self) -> "Cholesky":
+    def __enter__(self) -> Cholesky:
         return self
 
     def __exit__(self, *exc) -> None:

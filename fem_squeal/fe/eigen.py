@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
-from scipy.linalg import blas
 from petsc4py import PETSc
+from scipy.linalg import blas
 from slepc4py import SLEPc
 
 from fem_squeal.fe import cholmod

@@ -66,8 +66,9 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
             rows[-1]["energy_shares"] = e
     timings["cea_descriptors"] = time.perf_counter() - t
     n_unstable = sum(r["unstable"] for r in rows)
-    ctx.say(f"[fem_squeal] CEA ({cm.method}): {len(rows)} modes in {lo:g}-{hi:g} Hz, "
-            f"{n_unstable} unstable, {timings['cea']:.2f} s")
+    ctx.say(f"[fem_squeal] CEA ({cm.method}, {cm.algorithm}): {len(rows)} modes in {lo:g}-{hi:g} Hz, "
+            f"{n_unstable} unstable, {timings['cea']:.2f} s (factorisation {cm.seconds['factor']:.2f} s, "
+            f"iterations {cm.seconds['solve']:.2f} s)")
     if ctx.write_fields:
         t = time.perf_counter()
         write_modes_xdmf(ctx.comm, work / "complex_modes.xdmf", ops.V, fields)

@@ -23,7 +23,6 @@ Writes benchmarks/out/cea_peers_1ranks.md and .json.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
@@ -87,7 +86,8 @@ def run_fem(path: str, block: str) -> dict:
     cm = solve_complex_modes(mats[0], mats[1], None, N_MODES, TARGET_HZ, method="linear", tol=TOL, band_hz=BAND,
                              options=None if block == "block" else {"cea_block_size": 0})
     t = time.perf_counter() - t0
-    return {"code": "fem_squeal" if block == "block" else "fem_squeal before", "solver": f"MUMPS LU + {cm.algorithm}",
+    return {"code": "fem_squeal" if block == "block" else "fem_squeal before",
+            "solver": f"MUMPS LU + {cm.algorithm}",
             "t_factor": cm.seconds["factor"], "t_iterations": cm.seconds["solve"], "t_total": t,
             "lam": [[z.real, z.imag] for z in _in_band(cm.eigenvalues)], "max_residual": float(cm.residuals.max())}
 
@@ -128,9 +128,9 @@ def main() -> None:
         casework.report({"export": lambda: export(*args), "fem": lambda: run_fem(*args),
                          "scipy": lambda: run_scipy(*args)}[kind]())
         return
-    rows, lines = [], ["## CEA shift-invert eigensolve against SciPy/ARPACK, linearised brake corner, 1 rank, 1 thread",
-                       "", f"{N_MODES} pairs of K x = ν M x nearest σ = (2π·{TARGET_HZ:g} Hz)², tol {TOL:g}; the same "
-                       "matrices for every code; fresh process per run, interleaved repeats, fastest kept.  "
+    title = "## CEA shift-invert eigensolve against SciPy/ARPACK, linearised brake corner, 1 rank, 1 thread"
+    rows, lines = [], [title, "", f"{N_MODES} pairs of K x = ν M x nearest σ = (2π·{TARGET_HZ:g} Hz)², "
+                       f"tol {TOL:g}; the same matrices for every code; fresh process per run, interleaved repeats, fastest kept.  "
                        "Δλ: largest relative difference of the eigenvalues in 0–10 kHz against fem_squeal before "
                        "(SLEPc Krylov–Schur on MUMPS).  Times in s.", "",
                        "| DOFs | code | solver | factor | iterations | total | modes in band | Δλ |",

@@ -130,8 +130,8 @@ def main() -> None:
         return
     title = "## CEA shift-invert eigensolve against SciPy/ARPACK, linearised brake corner, 1 rank, 1 thread"
     rows, lines = [], [title, "", f"{N_MODES} pairs of K x = ν M x nearest σ = (2π·{TARGET_HZ:g} Hz)², "
-                       f"tol {TOL:g}; the same matrices for every code; fresh process per run, interleaved repeats, "
-                       "fastest kept.  "
+                       f"tol {TOL:g}; the same matrices for every code; fresh process per run, interleaved "
+                       "repeats, fastest kept.  "
                        "Δλ: largest relative difference of the eigenvalues in 0–10 kHz against fem_squeal before "
                        "(SLEPc Krylov–Schur on MUMPS).  Times in s.", "",
                        "| DOFs | code | solver | factor | iterations | total | modes in band | Δλ |",

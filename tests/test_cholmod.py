@@ -125,3 +125,24 @@ def test_shifted_factor_and_the_krylov_schur_fallback(monkeypatch):
     fallback = solve_real_modes(ops.K, ops.M, 12, 0.0, prefix="f_")
     assert fallback.solver == "cholmod" and fallback.method == "Krylov-Schur"
     _same_modes(fallback, ref, ops.M)
+
+
+def test_csr_view_is_petscs_csr_without_a_copy():
+    """csr_view lends PETSc's own arrays (read-only, no copy) equal to getValuesCSR's copies; the
+    matrix is intact afterwards (restored: MatMult still works and gives the same product)."""
+    from petsc4py import PETSc
+
+    from fem_squeal.fe.csr import csr_view
+
+    A = _laplacian(6)
+    P = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
+                                            A.data))
+    want = P.getValuesCSR()
+    with csr_view(P) as got:
+        for g, w in zip(got, want):
+            assert np.array_equal(g, w) and not g.flags.writeable and not g.flags.owndata
+    x = P.createVecRight()
+    x.array[:] = np.arange(A.shape[0], dtype=float)
+    y = P.createVecLeft()
+    P.mult(x, y)
+    assert np.allclose(y.array_r, A @ x.array_r, rtol=1e-15, atol=0)

@@ -26,6 +26,7 @@ from scipy.linalg import blas
 from slepc4py import SLEPc
 
 from fem_squeal.fe import cholmod
+from fem_squeal.fe.csr import csr_view
 from fem_squeal.fe.dense import apply, dense_matrix, gram
 from fem_squeal.fe.ordering import nested_dissection, permuted
 from fem_squeal.util.errors import EigenSolveError, ModelError
@@ -502,23 +503,25 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
         return None
     t0 = time.perf_counter()
     n = K.getSize()[0]
-    A = sp.csr_matrix(K.getValuesCSR()[::-1], shape=(n, n))
-    Msp = sp.csr_matrix(Ms.getValuesCSR()[::-1], shape=(n, n))
-    if sigma != 0.0:
-        A = (A - sigma * Msp).tocsr()
-    perm = _fill_reducing_order(K, sigma, prefix, key, (A.indptr, A.indices))
-    try:
-        factor = cholmod.Cholesky(A.indptr, A.indices, A.data, perm)
-    except cholmod.NotPositiveDefinite:
-        # σ above the lowest mode, or a free body: neither is K − σ'M definite for σ' ≥ σ
-        _NOT_DEFINITE[key] = min(sigma, _NOT_DEFINITE.get(key, np.inf))
-        return None
-    del A
-    t1 = time.perf_counter()
-    try:
-        got = _block_lanczos(factor.solve, Msp.__matmul__, K.getComm().tompi4py(), (0, n), n, nev, sigma, tol, b)
-    finally:
-        factor.close()
+    with csr_view(K) as k_csr, csr_view(Ms) as m_csr:      # PETSc's arrays, not copies
+        A = sp.csr_matrix(k_csr[::-1], shape=(n, n))
+        Msp = sp.csr_matrix(m_csr[::-1], shape=(n, n))
+        if sigma != 0.0:
+            A = (A - sigma * Msp).tocsr()
+        perm = _fill_reducing_order(K, sigma, prefix, key, (A.indptr, A.indices))
+        try:
+            factor = cholmod.Cholesky(A.indptr, A.indices, A.data, perm)
+        except cholmod.NotPositiveDefinite:
+            # σ above the lowest mode, or a free body: neither is K − σ'M definite for σ' ≥ σ
+            _NOT_DEFINITE[key] = min(sigma, _NOT_DEFINITE.get(key, np.inf))
+            return None
+        del A
+        t1 = time.perf_counter()
+        try:
+            got = _block_lanczos(factor.solve, Msp.__matmul__, K.getComm().tompi4py(), (0, n), n, nev, sigma,
+                                 tol, b)
+        finally:
+            factor.close()
     seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1}
     return (None, None, seconds) if got is None else (*got, seconds)
 
@@ -596,13 +599,13 @@ def drop_zeros(A: PETSc.Mat) -> PETSc.Mat:
     the operator and the M-inner product) reads a third of the memory."""
     if "aij" not in A.getType():
         return A
-    ai, aj, av = A.getValuesCSR()
-    keep = av != 0.0
-    if A.getComm().tompi4py().allreduce(bool(keep.all()), op=MPI.LAND):
-        return A
-    counts = np.concatenate([[0], np.cumsum(keep)])
-    B = PETSc.Mat().createAIJ(A.getSizes(), csr=(counts[ai].astype(PETSc.IntType), aj[keep], av[keep]),
-                              comm=A.getComm())
+    with csr_view(A) as (ai, aj, av):       # serial: PETSc's arrays (the check alone copies nothing)
+        keep = av != 0.0
+        if A.getComm().tompi4py().allreduce(bool(keep.all()), op=MPI.LAND):
+            return A
+        counts = np.concatenate([[0], np.cumsum(keep)])
+        B = PETSc.Mat().createAIJ(A.getSizes(), csr=(counts[ai].astype(PETSc.IntType), aj[keep], av[keep]),
+                                  comm=A.getComm())
     known, symmetric = A.isSymmetricKnown()
     if known:
         B.setOption(PETSc.Mat.Option.SYMMETRIC, symmetric)

@@ -23,6 +23,11 @@ points gives 0.97 and 2.12 GiB at 88,869 and 184,506 DOFs (measured 1.080 and 2.
 blr (ICNTL(35) = 2, CNTL(7) = 1e-8, one refinement step: frequencies within 1e-11) lowered no peak:
 1.60 against 1.57 GiB at 88,869 DOFs, and above the in-core 7.46 GiB at 347,853 (MUMPS still touches
 its full-rank workspace), so it uses the exact fit.
+The fits were measured with SLEPc's Krylov–Schur in the CEA.  Its block Arnoldi (the default for
+the undamped CEA since 2026-11-27) keeps up to 6·nev vectors and runs only where they take at most
+5 % of a machine's memory per rank (``fem_squeal.fe.eigen.ARNOLDI_MEMORY_SHARE``; the brake's 60 modes
+converged with 176 vectors against Krylov–Schur's 120), so a prediction stays within that margin;
+larger models (the 1.32M-DOF run) keep Krylov–Schur.
 The DOFs come from the cell estimate of ``geometry.estimate`` and :func:`dofs_per_cell` (P2: fewer
 DOFs per tetrahedron as the mesh grows and its surface share falls; fitted on the brake at 0.0056
 and 0.003 m, 5.17 and 4.66, and 8 % high at 0.016 m, where it is 5.89).

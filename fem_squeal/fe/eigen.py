@@ -413,10 +413,12 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     """Real modes nearest ``target_hz``: K φ = ω² M φ, shift-and-invert at ω_t², by block Lanczos
     on the factor's block solves (:func:`_block_lanczos`; ``<prefix>block_size``, 0: off), else, or
     where it does not converge within its vector budget or misses ``max_residual``, by SLEPc's
-    Krylov–Schur on the same factorisation.  A CHOLMOD factorisation (one rank) works on K and M
-    in the nested-dissection order of their node graph (:mod:`fem_squeal.fe.ordering`;
-    ``<prefix>ordering solver`` leaves the ordering to CHOLMOD); the vectors come back in the
-    caller's order.  ``progress``: draw converged/requested pairs on rank 0's stderr (Krylov–Schur
+    Krylov–Schur on the same factorisation.  On one rank, unless a factorisation is named
+    (``<prefix>st_pc_factor_mat_solver_type``), CHOLMOD is called directly
+    (:func:`_cholmod_block_lanczos`) with the nested-dissection order of the node graph handed in
+    (:mod:`fem_squeal.fe.ordering`; ``<prefix>ordering solver`` leaves the ordering to CHOLMOD);
+    PETSc's CHOLMOD works on K and M permuted to that order; the vectors come back in the caller's
+    order.  ``progress``: draw converged/requested pairs on rank 0's stderr (Krylov–Schur
     only)."""
     if nev < 1:
         raise ModelError(f"n_modes: must be >= 1 (got {nev})")

@@ -16,7 +16,7 @@ near σ = (2π·7071 Hz)², 60 pairs at tol 1e-10, is solved by
 
 Eigenvalues are compared in the band 0–10 kHz (matched pair by pair, relative difference).
 
-    .venv/bin/python benchmarks/cea_peers.py [--mesh-sizes 0.016 0.008] [--repeats 2] [--permc MMD_AT_PLUS_A COLAMD]
+    .venv/bin/python benchmarks/cea_peers.py [--mesh-sizes 0.016 0.008] [--repeats 2] [--permc MMD_AT_PLUS_A …]
 
 Writes benchmarks/out/cea_peers_1ranks.md and .json.
 """

@@ -2,6 +2,8 @@
 PETSc dense matrices sharing the rows' memory (for a factor's multiple-right-hand-side solve)."""
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -33,3 +35,19 @@ def apply(A: PETSc.Mat, Phi: np.ndarray) -> np.ndarray:
 def gram(comm, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     """Xᵀ Y summed over the ranks."""
     return comm.allreduce(X.T @ Y, op=MPI.SUM)
+
+
+def block_solve(factor: PETSc.Mat) -> Callable[[np.ndarray], np.ndarray]:
+    """B ↦ A⁻¹B for rank-local column-major blocks, by the PETSc factor matrix of A (MatMatSolve:
+    one multiple-right-hand-side solve per block)."""
+    comm, n = factor.getComm().tompi4py(), factor.getSize()[0]
+
+    def solve(B: np.ndarray) -> np.ndarray:
+        Bm = dense_matrix(comm, B, n)
+        Xm = Bm.duplicate()
+        factor.matSolve(Bm, Xm)
+        X = np.array(Xm.getDenseArray(), order="F")
+        Bm.destroy()
+        Xm.destroy()
+        return X
+    return solve

@@ -27,7 +27,7 @@ from slepc4py import SLEPc
 
 from fem_squeal.fe import cholmod
 from fem_squeal.fe.csr import csr_view
-from fem_squeal.fe.dense import apply, dense_matrix, gram
+from fem_squeal.fe.dense import apply, block_solve, gram
 from fem_squeal.fe.ordering import nested_dissection, permuted
 from fem_squeal.util.errors import EigenSolveError, ModelError
 from fem_squeal.util.progress import ProgressBar
@@ -217,6 +217,23 @@ def block_size(nev: int) -> int:
     return int(min(max(8, -(-nev // 8)), 16))
 
 
+def _block_columns(nev: int, prefix: str) -> int:
+    """``<prefix>block_size`` if given (0: SLEPc's own iteration), else :func:`block_size`."""
+    return PETSc.Options().getInt(f"{prefix}block_size", block_size(nev))
+
+
+def _krylov_dim(nev: int, b: int, n: int) -> int:
+    """The vector budget of a block Krylov space without restart: max(6 nev, nev + 16 b, 256)
+    columns, at most n − b, in whole blocks."""
+    return min(max(6 * nev, nev + 16 * b, 256), n - b) // b * b
+
+
+def _project_out(comm, V: np.ndarray, MV: np.ndarray, W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """C = (MV)ᵀW summed over the ranks and W − V C, in place on column-major W (BLAS dgemm)."""
+    C = gram(comm, MV, W)
+    return C, blas.dgemm(-1.0, V, C, beta=1.0, c=W, overwrite_c=1)
+
+
 def _start_block(rows: np.ndarray, b: int) -> np.ndarray:
     """A start block that depends on the global row numbers only (the same on any rank count)."""
     x = np.sin(np.outer(rows.astype(float) + 1.0, 12.9898 + 78.233 * np.arange(1, b + 1))) * 43758.5453
@@ -247,21 +264,6 @@ def _m_orthonormal(comm, mass: Callable[[np.ndarray], np.ndarray], W: np.ndarray
     return W, MW, R
 
 
-def _factor_solve(factor: PETSc.Mat) -> Callable[[np.ndarray], np.ndarray]:
-    """B ↦ A⁻¹B for rank-local column-major blocks, by the PETSc factor matrix of A (MatMatSolve)."""
-    comm, n = factor.getComm().tompi4py(), factor.getSize()[0]
-
-    def solve(B: np.ndarray) -> np.ndarray:
-        Bm = dense_matrix(comm, B, n)
-        Xm = Bm.duplicate()
-        factor.matSolve(Bm, Xm)
-        X = np.array(Xm.getDenseArray(), order="F")
-        Bm.destroy()
-        Xm.destroy()
-        return X
-    return solve
-
-
 def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np.ndarray], np.ndarray],
                    comm, rows: tuple[int, int], n: int, nev: int, sigma: float, tol: float, b: int
                    ) -> tuple[np.ndarray, np.ndarray] | None:
@@ -280,7 +282,7 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     components lie), then once against all of V (what round-off leaves along the older blocks), then
     the Cholesky QR of :func:`_m_orthonormal`."""
     r0, r1 = rows
-    dim = min(max(6 * nev, nev + 16 * b, 256), n - b) // b * b
+    dim = _krylov_dim(nev, b, n)
     if dim < nev or comm.allreduce(2 * 8 * (r1 - r0) * dim, op=MPI.MAX) > BLOCK_MEMORY:
         return None
     V = np.zeros((r1 - r0, dim), order="F")
@@ -295,10 +297,8 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
         W = np.asfortranarray(solve(MV[:, k - b:k]))
         lo = max(0, k - 2 * b)
         C = np.zeros((k, b))
-        C[lo:] = gram(comm, MV[:, lo:k], W)    # the recurrence: the last two blocks
-        W = blas.dgemm(-1.0, V[:, lo:k], C[lo:], beta=1.0, c=W, overwrite_c=1)    # in place: W −= V C
-        C2 = gram(comm, MV[:, :k], W)          # full reorthogonalisation
-        W = blas.dgemm(-1.0, V[:, :k], C2, beta=1.0, c=W, overwrite_c=1)
+        C[lo:], W = _project_out(comm, V[:, lo:k], MV[:, lo:k], W)   # the recurrence: the last two blocks
+        C2, W = _project_out(comm, V[:, :k], MV[:, :k], W)            # full reorthogonalisation
         C += C2
         T[:k, k - b:k] = C
         T[k - b:k, :k] = C.T
@@ -358,7 +358,7 @@ def _block_arnoldi(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     give the same modes).  The vectors are at most :func:`_arnoldi_memory` bytes per rank.
     ``progress``: called with (converged wanted pairs, vectors) after each step."""
     r0, r1 = rows
-    dim = min(max(6 * nev, nev + 16 * b, 256), n - b) // b * b
+    dim = _krylov_dim(nev, b, n)
     if dim < nev + 1 or comm.allreduce(8 * (r1 - r0) * dim > _arnoldi_memory(comm), op=MPI.LOR):
         return None
 
@@ -374,10 +374,8 @@ def _block_arnoldi(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     k = b
     while True:
         W = np.asfortranarray(solve(np.asfortranarray(mass(V[:, k - b:k]))))
-        C = gram(comm, V[:, :k], W)
-        W = blas.dgemm(-1.0, V[:, :k], C, beta=1.0, c=W, overwrite_c=1)
-        C2 = gram(comm, V[:, :k], W)           # the second pass: orthogonal to round-off
-        W = blas.dgemm(-1.0, V[:, :k], C2, beta=1.0, c=W, overwrite_c=1)
+        C, W = _project_out(comm, V[:, :k], V[:, :k], W)
+        C2, W = _project_out(comm, V[:, :k], V[:, :k], W)     # the second pass: orthogonal to round-off
         H[:k, k - b:k] = C + C2
         nxt = _m_orthonormal(comm, unit, W)
         if k >= nev + 1:
@@ -427,7 +425,7 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     set_options(prefix, options, REAL_MODE_OPTIONS)
     sigma, key = (TWO_PI * target_hz) ** 2, (K.handle, M.handle)
     Ms = drop_zeros(M)
-    b = PETSc.Options().getInt(f"{prefix}block_size", block_size(nev))
+    b = _block_columns(nev, prefix)
     direct = _cholmod_block_lanczos(K, Ms, nev, sigma, tol, b, prefix, key) if b > 0 else None
     if direct is not None:
         t0 = time.perf_counter()
@@ -451,7 +449,7 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     try:
         t0 = time.perf_counter()
         comm = K.getComm().tompi4py()
-        got = _block_lanczos(_factor_solve(eps.getST().getKSP().getPC().getFactorMatrix()),
+        got = _block_lanczos(block_solve(eps.getST().getKSP().getPC().getFactorMatrix()),
                              lambda W: apply(Mw, W), comm, Kw.getOwnershipRange(), Kw.getSize()[0], nev,
                              sigma, tol, b) if b > 0 else None
         if got is not None:
@@ -751,7 +749,7 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
                 xrs.append(xr)
                 xis.append(xi)
             nconv = 0
-            algorithm = f"block Arnoldi, {_cea_block_size(nev, prefix)} columns"
+            algorithm = f"block Arnoldi, {_block_columns(nev, prefix)} columns"
         else:
             algorithm = "Krylov-Schur" if method == "linear" else "TOAR"
             with _progress(solver, nev if method == "linear" else 2 * nev, "CEA", progress):
@@ -798,10 +796,6 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
 SLEPC_SOLVER_OPTIONS = ("type", "ncv", "mpd", "max_it", "krylovschur_restart", "krylovschur_locking")
 
 
-def _cea_block_size(nev: int, prefix: str) -> int:
-    return PETSc.Options().getInt(f"{prefix}block_size", block_size(nev))
-
-
 def _cea_block(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: float, prefix: str,
                progress: bool) -> tuple[np.ndarray, np.ndarray] | None:
     """The linear CEA's pairs by block Arnoldi (:func:`_block_arnoldi`) on the factorisation the
@@ -809,7 +803,7 @@ def _cea_block(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: floa
     is not 0 and no option of SLEPc's own iteration is given (:data:`SLEPC_SOLVER_OPTIONS`); None
     otherwise or where it does not converge (then the EPS solves as before).
     Measured on the brake corner (163k DOFs, 1 rank, 60 modes, tol 1e-10): see docs/validation.md."""
-    b = _cea_block_size(nev, prefix)
+    b = _block_columns(nev, prefix)
     ksp = eps.getST().getKSP()
     db = PETSc.Options()
     if (b <= 0 or ksp.getType() != "preonly" or ksp.getPC().getType() not in ("lu", "cholesky")
@@ -817,7 +811,7 @@ def _cea_block(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: floa
         return None
     comm = K.getComm().tompi4py()
     with ProgressBar(nev, "CEA", unit=" pairs", enabled=progress and comm.rank == 0) as bar:
-        return _block_arnoldi(_factor_solve(ksp.getPC().getFactorMatrix()), lambda W: apply(M, W), comm,
+        return _block_arnoldi(block_solve(ksp.getPC().getFactorMatrix()), lambda W: apply(M, W), comm,
                               K.getOwnershipRange(), K.getSize()[0], nev, sigma, tol, b,
                               lambda done, k: bar.update(min(done, nev), extra=f"{k} vectors"))
 

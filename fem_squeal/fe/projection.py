@@ -28,7 +28,7 @@ from scipy.sparse import csr_matrix
 
 from fem_squeal.fe import interface as itf
 from fem_squeal.fe.assembly import OperatingTerms, Operators, _add, _owned_global_rows, combination
-from fem_squeal.fe.dense import apply, dense_matrix, gram
+from fem_squeal.fe.dense import apply, block_solve, gram
 from fem_squeal.fe.eigen import (
     DIRECT_SOLVER_OPTIONS,
     TWO_PI,
@@ -197,8 +197,6 @@ class ShiftedSolver:
 
     def solve(self, F: np.ndarray) -> np.ndarray:
         """(K + σM)⁻¹ F for the rank-local columns F (n_local, k)."""
-        comm = self.A.getComm().tompi4py()
-        n = self.A.getSize()[0]
         out = np.empty_like(F)
         if self.factor is None:  # an iterative or non-factor solver: one column at a time
             b, x = self.A.createVecs()
@@ -209,13 +207,9 @@ class ShiftedSolver:
             b.destroy()
             x.destroy()
             return out
+        solve = block_solve(self.factor)
         for s in range(0, F.shape[1], self.block):
-            B = dense_matrix(comm, F[:, s:s + self.block], n)
-            X = B.duplicate()
-            self.factor.matSolve(B, X)
-            out[:, s:s + self.block] = X.getDenseArray()
-            B.destroy()
-            X.destroy()
+            out[:, s:s + self.block] = solve(F[:, s:s + self.block])
         return out
 
     def destroy(self):

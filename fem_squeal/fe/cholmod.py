@@ -159,18 +159,18 @@ class Cholesky:
         c.nrelax[:] = NRELAX
         c.zrelax[:] = ZRELAX
         n = len(indptr) - 1
-        # CSR of a symmetric matrix = CSC of the same: "upper" in CHOLMOD's column view is "lower" here
-        self._arrays = (np.ascontiguousarray(indptr, np.int32), np.ascontiguousarray(indices, np.int32),
-                        np.ascontiguousarray(data, np.float64))
-        ip, ii, x = self._arrays
+        # CSR of a symmetric matrix = CSC of the same: "upper" in CHOLMOD's column view is "lower" here;
+        # the arrays need to live only through analysis and factorisation (the factor is CHOLMOD's own)
+        ip, ii, x = (np.ascontiguousarray(indptr, np.int32), np.ascontiguousarray(indices, np.int32),
+                     np.ascontiguousarray(data, np.float64))
         A = _Sparse(nrow=n, ncol=n, nzmax=len(ii), p=ip.ctypes.data, i=ii.ctypes.data, nz=None,
                     x=x.ctypes.data, z=None, stype=-1, itype=_INT, xtype=_REAL, dtype=_DOUBLE, sorted=0,
                     packed=1)
         self.n = n
         user = None
         if perm is not None:
-            self._perm = np.ascontiguousarray(perm, np.int32)
-            user = self._perm.ctypes.data
+            perm = np.ascontiguousarray(perm, np.int32)
+            user = perm.ctypes.data
             c.nmethods, c.method[0].ordering = 1, _GIVEN
         try:
             t0 = time.perf_counter()
@@ -183,8 +183,6 @@ class Cholesky:
         except BaseException:
             self.close()
             raise
-        finally:
-            self._arrays = None               # CHOLMOD keeps its own copy (the factor)
         self.flops, self.factor_entries = float(c.fl), float(c.lnz)
 
     def _raise(self, what: str) -> None:

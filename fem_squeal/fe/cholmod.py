@@ -14,7 +14,6 @@ CHOLMOD is the ``libcholmod.so.3`` that Debian's PETSc links (SuiteSparse 5), wi
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import time
 from functools import lru_cache
 
@@ -98,7 +97,7 @@ class NotPositiveDefinite(ArithmeticError):
 
 @lru_cache(maxsize=1)
 def _lib() -> ctypes.CDLL | None:
-    lib = first_library(("libcholmod.so.3", ctypes.util.find_library("cholmod")), "cholmod_analyze_p")
+    lib = first_library(("libcholmod.so.3",), "cholmod_analyze_p", search=("cholmod",))
     if lib is None:
         return None
     c = _P(_Common)

@@ -11,7 +11,6 @@ not answer as expected) it yields ``getValuesCSR``'s copies instead: the same nu
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 from collections.abc import Iterator
 from contextlib import contextmanager
 from functools import lru_cache
@@ -27,19 +26,23 @@ _PDOUBLE = ctypes.POINTER(ctypes.c_double)
 
 
 @lru_cache(maxsize=1)
-def _petsc() -> ctypes.CDLL | None:
+def petsc_library() -> ctypes.CDLL | None:
+    """The real-scalar ``libpetsc`` petsc4py links (ctypes), with the prototypes used here; None
+    where it cannot be found or PETSc's scalars are not double."""
     if np.dtype(PETSc.ScalarType) != np.float64:
         return None
     version = ".".join(str(v) for v in PETSc.Sys.getVersion()[:2])
-    lib = first_library((f"libpetsc_real.so.{version}", ctypes.util.find_library("petsc_real"),
-                         f"libpetsc.so.{version}", ctypes.util.find_library("petsc")), "MatSeqAIJGetArrayRead")
+    lib = first_library((f"libpetsc_real.so.{version}", f"libpetsc.so.{version}"), "MatSeqAIJGetArrayRead",
+                        search=("petsc_real", "petsc"))
     if lib is None:
         return None
     row_ij = [ctypes.c_void_p, _INT, ctypes.c_int, ctypes.c_int, _PINT, ctypes.POINTER(_PINT),
               ctypes.POINTER(_PINT), ctypes.POINTER(ctypes.c_int)]
     for name, args in (("MatGetRowIJ", row_ij), ("MatRestoreRowIJ", row_ij),
                        ("MatSeqAIJGetArrayRead", [ctypes.c_void_p, ctypes.POINTER(_PDOUBLE)]),
-                       ("MatSeqAIJRestoreArrayRead", [ctypes.c_void_p, ctypes.POINTER(_PDOUBLE)])):
+                       ("MatSeqAIJRestoreArrayRead", [ctypes.c_void_p, ctypes.POINTER(_PDOUBLE)]),
+                       ("MatSeqAIJGetArray", [ctypes.c_void_p, ctypes.POINTER(_PDOUBLE)]),
+                       ("MatSeqAIJRestoreArray", [ctypes.c_void_p, ctypes.POINTER(_PDOUBLE)])):
         getattr(lib, name).argtypes, getattr(lib, name).restype = args, ctypes.c_int
     return lib
 
@@ -48,7 +51,7 @@ def _petsc() -> ctypes.CDLL | None:
 def csr_view(A: PETSc.Mat) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """(indptr, indices, data) of the serial AIJ matrix ``A``: read-only views of PETSc's arrays,
     valid inside the ``with`` block while ``A`` is neither changed nor destroyed; else copies."""
-    lib = _petsc()
+    lib = petsc_library()
     if lib is None or A.getComm().getSize() > 1 or A.getType() != "seqaij":
         yield _copies(A)
         return
@@ -82,3 +85,21 @@ def csr_view(A: PETSc.Mat) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]
 
 def _copies(A: PETSc.Mat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return A.getValuesCSR()
+
+
+@contextmanager
+def csr_values(A: PETSc.Mat) -> Iterator[np.ndarray]:
+    """The value array of the serial AIJ matrix ``A`` (CSR order) as a writable view of PETSc's
+    memory, inside the ``with`` block (``MatSeqAIJGetArray``; restoring it marks ``A`` changed).
+    Raises where that cannot be had (the caller then has nothing to write into)."""
+    lib = petsc_library()
+    if lib is None or A.getComm().getSize() > 1 or A.getType() != "seqaij":
+        raise RuntimeError("csr_values: a serial seqaij matrix and PETSc's library are needed")
+    h = ctypes.c_void_p(A.handle)
+    a = _PDOUBLE()
+    if lib.MatSeqAIJGetArray(h, ctypes.byref(a)):
+        raise RuntimeError("csr_values: MatSeqAIJGetArray failed")
+    try:
+        yield np.ctypeslib.as_array(a, shape=(int(A.getInfo()["nz_used"]),))
+    finally:
+        lib.MatSeqAIJRestoreArray(h, ctypes.byref(a))

@@ -17,7 +17,6 @@ never the solution.
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 from functools import lru_cache
 
 import numpy as np
@@ -32,7 +31,7 @@ _METIS_NOPTIONS = 40
 
 @lru_cache(maxsize=1)
 def _metis() -> ctypes.CDLL | None:
-    return first_library(("libmetis.so.5", ctypes.util.find_library("metis")), "METIS_NodeND")
+    return first_library(("libmetis.so.5",), "METIS_NodeND", search=("metis",))
 
 
 def metis_available() -> bool:

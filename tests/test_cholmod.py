@@ -38,6 +38,28 @@ def test_block_solve_to_round_off():
         assert F.flops > 0 and F.factor_entries >= A.nnz / 2
 
 
+@pytest.mark.skipif(cholmod._solve_lib() is None, reason="no compiled block solve here (needs GCC, x86-64, AVX2)")
+@pytest.mark.parametrize("k", [4, 5, 8])
+def test_compiled_block_solve_equals_cholmods(k):
+    """The supernodal block solve (compiled, 8 columns per sweep) against cholmod_solve2 on the same
+    factor: the same solution to round-off.  Both apply the same L in another order of the sums;
+    1e-13 of max |x| is 100 ulp times the growth of the Laplacian's triangular solves (~10 here).
+    The factor has panels of every width mod 4 (the kernel's 4-column blocks and their tails)."""
+    A = _laplacian(14)
+    B = np.asfortranarray(np.random.default_rng(5).standard_normal((A.shape[0], k)))
+    with cholmod.Cholesky(A.indptr, A.indices, A.data) as F:
+        assert F._panels is not None
+        widths = np.diff(F._panels[2])
+        assert set(widths % 4) == {0, 1, 2, 3}
+        X = F.solve(B)
+        panels, F._panels = F._panels, None          # CHOLMOD's own solve on the same factor
+        Xc = F.solve(B)
+        F._panels = panels
+    assert X.flags.f_contiguous and X.shape == B.shape
+    assert np.max(np.abs(X - Xc)) <= 1e-13 * np.max(np.abs(Xc))
+    assert np.linalg.norm(A @ X - B) <= 1e-12 * np.linalg.norm(B)
+
+
 def test_only_the_upper_triangle_is_read():
     """Entries below the diagonal are not read: garbage there changes nothing, bit for bit."""
     A = _laplacian(10)

@@ -11,14 +11,14 @@ not answer as expected) it yields ``getValuesCSR``'s copies instead: the same nu
 from __future__ import annotations
 
 import ctypes
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from functools import lru_cache
 
 import numpy as np
 from petsc4py import PETSc
 
-from fem_squeal.util.native import first_library
+from fem_squeal.util.native import compiled_library, first_library
 
 _INT = {np.dtype(np.int32): ctypes.c_int32, np.dtype(np.int64): ctypes.c_int64}[np.dtype(PETSc.IntType)]
 _PINT = ctypes.POINTER(_INT)
@@ -103,3 +103,83 @@ def csr_values(A: PETSc.Mat) -> Iterator[np.ndarray]:
         yield np.ctypeslib.as_array(a, shape=(int(A.getInfo()["nz_used"]),))
     finally:
         lib.MatSeqAIJRestoreArray(h, ctypes.byref(a))
+
+
+# Y = A X for a CSR matrix A and a column-major block X of k columns, 8 columns per sweep over A.
+# SciPy's csr_matvecs wants row-major blocks (a transposing copy in and out of a Krylov method's
+# column-major ones) and does not vectorise its inner loop: the P2 mass at 255k DOFs (6.4M entries)
+# times 8 columns took 33 ms with SciPy, 14 ms here (1.0 against 3 ms at 26k).
+_PRODUCT_SOURCE = r"""
+#include <stdint.h>
+
+__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+void csr_block(int32_t n, const int32_t *ai, const int32_t *aj, const double *av, int32_t k,
+               const double *X, int64_t ldx, double *Y, int64_t ldy)
+{
+    for (int32_t c0 = 0; c0 < k; c0 += 8) {
+        const int32_t m = k - c0 < 8 ? k - c0 : 8;
+        const double *Xc = X + ldx * c0;
+        double *Yc = Y + ldy * c0;
+        if (m == 8) {
+            for (int32_t i = 0; i < n; ++i) {
+                double acc[8] = {0};
+                for (int32_t p = ai[i]; p < ai[i + 1]; ++p) {
+                    const double a = av[p];
+                    const double *x = Xc + aj[p];
+                    for (int c = 0; c < 8; ++c)
+                        acc[c] += a * x[ldx * c];
+                }
+                for (int c = 0; c < 8; ++c)
+                    Yc[i + ldy * c] = acc[c];
+            }
+        } else {
+            for (int32_t i = 0; i < n; ++i) {
+                double acc[8] = {0};
+                for (int32_t p = ai[i]; p < ai[i + 1]; ++p) {
+                    const double a = av[p];
+                    const double *x = Xc + aj[p];
+                    for (int c = 0; c < m; ++c)
+                        acc[c] += a * x[ldx * c];
+                }
+                for (int c = 0; c < m; ++c)
+                    Yc[i + ldy * c] = acc[c];
+            }
+        }
+    }
+}
+"""
+
+
+@lru_cache(maxsize=1)
+def _product_lib() -> ctypes.CDLL | None:
+    lib = compiled_library("csr_block", _PRODUCT_SOURCE, ("-O3",))
+    if lib is None:
+        return None
+    i32, i64, p = ctypes.c_int32, ctypes.c_int64, ctypes.c_void_p
+    lib.csr_block.argtypes = [i32, p, p, p, i32, p, i64, p, i64]
+    lib.csr_block.restype = None
+    return lib
+
+
+def block_product(csr: tuple[np.ndarray, np.ndarray, np.ndarray]) -> Callable[[np.ndarray], np.ndarray] | None:
+    """X ↦ A X for the square CSR matrix ``csr`` = (indptr, indices, data) with 32-bit indices and
+    column-major blocks X (n, k); the result is a new column-major array.  The arrays must outlive
+    the function (views of PETSc's memory: inside the ``csr_view`` block).  None where the compiled
+    kernel cannot be had (the caller keeps SciPy's product)."""
+    lib = _product_lib()
+    ai, aj, av = csr
+    if lib is None or ai.dtype != np.int32 or aj.dtype != np.int32 or av.dtype != np.float64:
+        return None
+    ai, aj, av = (np.ascontiguousarray(a) for a in (ai, aj, av))
+    n = len(ai) - 1
+
+    def ptr(a):
+        return a.ctypes.data_as(ctypes.c_void_p)
+
+    def product(X: np.ndarray) -> np.ndarray:
+        X = np.asfortranarray(X, dtype=np.float64)
+        X2 = X.reshape(n, -1, order="F")
+        Y = np.empty(X2.shape, order="F")
+        lib.csr_block(n, ptr(ai), ptr(aj), ptr(av), X2.shape[1], ptr(X2), n, ptr(Y), n)
+        return Y.reshape(X.shape, order="F")
+    return product

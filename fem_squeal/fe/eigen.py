@@ -26,7 +26,7 @@ from scipy.linalg import blas
 from slepc4py import SLEPc
 
 from fem_squeal.fe import cholmod
-from fem_squeal.fe.csr import csr_view
+from fem_squeal.fe.csr import block_product, csr_view
 from fem_squeal.fe.dense import apply, block_solve, gram
 from fem_squeal.fe.ordering import nested_dissection, permuted
 from fem_squeal.util.errors import EigenSolveError, ModelError
@@ -518,8 +518,8 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
         del A
         t1 = time.perf_counter()
         try:
-            got = _block_lanczos(factor.solve, Msp.__matmul__, K.getComm().tompi4py(), (0, n), n, nev, sigma,
-                                 tol, b)
+            mass = block_product(m_csr) or Msp.__matmul__
+            got = _block_lanczos(factor.solve, mass, K.getComm().tompi4py(), (0, n), n, nev, sigma, tol, b)
         finally:
             factor.close()
     seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1}

@@ -87,6 +87,14 @@ def test_scalar_mass_and_a_part_of_the_cells():
     assert np.any(np.diff(fast.getValuesCSR()[0]) == 0)
 
 
+def test_a_form_over_all_cells_without_subdomains():
+    """``dx`` without a subdomain (integral id −1: every cell) on the unclamped space."""
+    md, V, dx, bcs, bc_dofs = ring_case()
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    f = _compile(ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx(domain=md.mesh), None)
+    assert_same(cell_assembly.assemble_matrix(f, np.zeros(0, np.int32), 0.0), dolfinx_matrix(f, [], 0.0))
+
+
 def test_the_matrix_takes_later_additions_like_dolfinx_s():
     """MAT_SORTED_FULL is switched off after the pattern is written: a later MatSetValues adds one
     entry, not a row; a new non-zero is an error, as on dolfinx's matrix."""

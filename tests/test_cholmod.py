@@ -1,6 +1,7 @@
 """CHOLMOD called directly (fem_squeal.fe.cholmod) and the real-mode path built on it: the factor
-solves what it should, reads one triangle, keeps a given order, refuses what is not positive
-definite; the modes it gives are those of PETSc's CHOLMOD interface."""
+solves what it should (CHOLMOD's solve and the compiled block solve alike), reads one triangle,
+keeps a given order, refuses what is not positive definite; the modes it gives are those of PETSc's
+CHOLMOD interface; the compiled CSR block product is SciPy's."""
 from __future__ import annotations
 
 import numpy as np

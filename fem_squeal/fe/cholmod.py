@@ -198,6 +198,23 @@ INLINE void backward(int32_t nscol, int32_t nsrow, const double *L, double *buf)
     }
 }
 
+/* One panel of a sweep: its rows of Y into buf, the panel's solve, back into Y (forward: all its
+   rows changed; backward: its own columns only). */
+INLINE void sweep(int32_t sn, int back, const int32_t *super, const int32_t *pi, const int32_t *px,
+                  const int32_t *s, const double *Lx, double *Y, double *buf)
+{
+    const int32_t nscol = super[sn + 1] - super[sn], nsrow = pi[sn + 1] - pi[sn];
+    const int32_t *rows = s + pi[sn];
+    for (int32_t r = 0; r < nsrow; ++r)
+        st(buf + (int64_t)r * 8, ld(Y + (int64_t)rows[r] * 8));
+    if (back)
+        backward(nscol, nsrow, Lx + px[sn], buf);
+    else
+        forward(nscol, nsrow, Lx + px[sn], buf);
+    for (int32_t r = 0; r < (back ? nscol : nsrow); ++r)
+        st(Y + (int64_t)rows[r] * 8, ld(buf + (int64_t)r * 8));
+}
+
 int sn_supported(void)
 {
     __builtin_cpu_init();
@@ -216,24 +233,10 @@ void sn_solve(int32_t n, int32_t nsuper, const int32_t *super, const int32_t *pi
         for (int32_t i = 0; i < n; ++i)
             for (int32_t j = 0; j < 8; ++j)
                 Y[(int64_t)i * 8 + j] = j < m ? B[perm[i] + ldb * (j0 + j)] : 0.0;
-        for (int32_t sn = 0; sn < nsuper; ++sn) {
-            const int32_t nscol = super[sn + 1] - super[sn], nsrow = pi[sn + 1] - pi[sn];
-            const int32_t *rows = s + pi[sn];
-            for (int32_t r = 0; r < nsrow; ++r)
-                st(buf + (int64_t)r * 8, ld(Y + (int64_t)rows[r] * 8));
-            forward(nscol, nsrow, Lx + px[sn], buf);
-            for (int32_t r = 0; r < nsrow; ++r)
-                st(Y + (int64_t)rows[r] * 8, ld(buf + (int64_t)r * 8));
-        }
-        for (int32_t sn = nsuper - 1; sn >= 0; --sn) {
-            const int32_t nscol = super[sn + 1] - super[sn], nsrow = pi[sn + 1] - pi[sn];
-            const int32_t *rows = s + pi[sn];
-            for (int32_t r = 0; r < nsrow; ++r)
-                st(buf + (int64_t)r * 8, ld(Y + (int64_t)rows[r] * 8));
-            backward(nscol, nsrow, Lx + px[sn], buf);
-            for (int32_t r = 0; r < nscol; ++r)
-                st(Y + (int64_t)rows[r] * 8, ld(buf + (int64_t)r * 8));
-        }
+        for (int32_t sn = 0; sn < nsuper; ++sn)               /* L y = b, panel by panel */
+            sweep(sn, 0, super, pi, px, s, Lx, Y, buf);
+        for (int32_t sn = nsuper - 1; sn >= 0; --sn)          /* Lᵀ x = y, in reverse */
+            sweep(sn, 1, super, pi, px, s, Lx, Y, buf);
         for (int32_t i = 0; i < n; ++i)
             for (int32_t j = 0; j < m; ++j)
                 X[perm[i] + ldx * (j0 + j)] = Y[(int64_t)i * 8 + j];

@@ -28,7 +28,7 @@ from slepc4py import SLEPc
 from fem_squeal.fe import cholmod
 from fem_squeal.fe.csr import block_product, csr_view
 from fem_squeal.fe.dense import apply, block_solve, gram
-from fem_squeal.fe.ordering import nested_dissection, permuted
+from fem_squeal.fe.ordering import ORDERINGS, fill_reducing_order, permuted
 from fem_squeal.util.errors import EigenSolveError, ModelError
 from fem_squeal.util.progress import ProgressBar
 
@@ -413,7 +413,7 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     where it does not converge within its vector budget or misses ``max_residual``, by SLEPc's
     Krylov–Schur on the same factorisation.  On one rank, unless a factorisation is named
     (``<prefix>st_pc_factor_mat_solver_type``), CHOLMOD is called directly
-    (:func:`_cholmod_block_lanczos`) with the nested-dissection order of the node graph handed in
+    (:func:`_cholmod_block_lanczos`) with the fill-reducing order of the node graph handed in
     (:mod:`fem_squeal.fe.ordering`; ``<prefix>ordering solver`` leaves the ordering to CHOLMOD);
     PETSc's CHOLMOD works on K and M permuted to that order; the vectors come back in the caller's
     order.  ``progress``: draw converged/requested pairs on rank 0's stderr (Krylov–Schur
@@ -489,10 +489,11 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
 def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, tol: float, b: int, prefix: str,
                            key: tuple[int, int]) -> tuple[np.ndarray | None, np.ndarray | None, dict] | None:
     """Block Lanczos (:func:`_block_lanczos`) on CHOLMOD's supernodal factorisation of K − σM,
-    called directly (:mod:`fem_squeal.fe.cholmod`) with the nested-dissection order of K's node
+    called directly (:mod:`fem_squeal.fe.cholmod`) with the fill-reducing order of K's node
     graph handed in (:func:`_fill_reducing_order`): no permuted copies of K and M, no PETSc dense
-    matrices per block solve, and M applied by SciPy (0.03 s against PETSc's 0.05 s for 8 columns at
-    255k DOFs).  The path of one rank where no factorisation is chosen
+    matrices per block solve (:meth:`fem_squeal.fe.cholmod.Cholesky.solve`), and M applied by the
+    compiled CSR block product (:func:`fem_squeal.fe.csr.block_product`; SciPy's where it cannot be
+    had).  The path of one rank where no factorisation is chosen
     (``<prefix>st_pc_factor_mat_solver_type``; choosing ``cholmod`` there takes PETSc's interface to
     it, with all its options).  Returns None where it does not apply or K − σM is not positive
     definite (then recorded for these K, M: MUMPS takes over); else (λ, rows of the vectors,
@@ -528,16 +529,17 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
 
 def _fill_reducing_order(K: PETSc.Mat, sigma: float, prefix: str, key: tuple[int, int],
                          pattern: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
-    """The nested-dissection row order of K (:func:`fem_squeal.fe.ordering.nested_dissection`;
+    """The fill-reducing row order of K's node graph (:func:`fem_squeal.fe.ordering.fill_reducing_order`;
     ``pattern``: the CSR pattern of K − σM where the caller has it) where CHOLMOD will factorise
-    K − σM first and ``<prefix>ordering`` is ``metis`` (the default); None otherwise (MUMPS orders
-    in its own analysis, and in parallel)."""
-    how = PETSc.Options().getString(f"{prefix}ordering", "metis")
-    if how not in ("metis", "solver"):
-        raise ModelError(f"{prefix}ordering: must be 'metis' or 'solver' (got {how!r})")
-    if how != "metis" or _real_solvers(K, sigma, prefix, key)[0][0] != "cholmod":
+    K − σM first: ``<prefix>ordering`` ``auto`` (the default: AMD, or METIS where it pays for
+    itself), ``metis`` or ``amd``; None for ``solver`` and where MUMPS factorises (it orders in its
+    own analysis, and in parallel)."""
+    how = PETSc.Options().getString(f"{prefix}ordering", "auto")
+    if how not in (*ORDERINGS, "solver"):
+        raise ModelError(f"{prefix}ordering: must be one of {', '.join((*ORDERINGS, 'solver'))} (got {how!r})")
+    if how == "solver" or _real_solvers(K, sigma, prefix, key)[0][0] != "cholmod":
         return None
-    return nested_dissection(K, pattern)
+    return fill_reducing_order(K, pattern, how)
 
 
 def _caller_rows(X: np.ndarray, perm: np.ndarray | None) -> np.ndarray:
@@ -629,7 +631,7 @@ def _factorised_eps(K: PETSc.Mat, M: PETSc.Mat, nev: int, shift: float, tol: flo
                     key: tuple[int, int], ordered: bool = False) -> tuple[SLEPc.EPS, str, float]:
     """The real-mode EPS with K − σM factorised (``eps.setUp``) by the first of
     :func:`_real_solvers` that succeeds.  ``ordered``: K and M are already in a fill-reducing order
-    (:func:`fem_squeal.fe.ordering.nested_dissection`), which CHOLMOD then keeps (natural ordering,
+    (:func:`fem_squeal.fe.ordering.fill_reducing_order`), which CHOLMOD then keeps (natural ordering,
     one method) instead of running its own analysis.  Returns the EPS, the solver's name and the
     factorisation's wall time.  ``key``: the handles of the caller's K and M."""
     db = PETSc.Options()

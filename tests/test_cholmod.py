@@ -40,9 +40,9 @@ def test_block_solve_to_round_off():
 
 
 @pytest.mark.skipif(cholmod._solve_lib() is None, reason="no compiled block solve here (needs GCC, x86-64, AVX2)")
-@pytest.mark.parametrize("k", [4, 5, 8])
+@pytest.mark.parametrize("k", [4, 5, 8, 12, 16])
 def test_compiled_block_solve_equals_cholmods(k):
-    """The supernodal block solve (compiled, 8 columns per sweep) against cholmod_solve2 on the same
+    """The supernodal block solve (compiled, 8 or 16 columns per pass) against cholmod_solve2 on the same
     factor: the same solution to round-off.  Both apply the same L in another order of the sums;
     1e-13 of max |x| is 100 ulp times the growth of the Laplacian's triangular solves (~10 here).
     The factor has panels of every width mod 4 (the kernel's 4-column blocks and their tails)."""

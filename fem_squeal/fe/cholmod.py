@@ -104,14 +104,16 @@ class _Factor(ctypes.Structure):
 
 _P = ctypes.POINTER
 
-# The block solve L Lᵀ X = B on CHOLMOD's supernodal factor, 8 right-hand sides at a time: CHOLMOD's
-# own (cholmod_solve2) calls BLAS dtrsm and dgemm per supernode, whose packing of L doubles the
-# memory traffic when B has 8 columns.  Here each supernode's column panel (nsrow × nscol, column
-# major, L->x + px[s]; rows L->s[pi[s] ...]) is read once per sweep, 4 columns at a time against the
-# panel's rows of Y gathered into a small row-major buffer (a row of 8 right-hand sides is one
-# 64-byte line).  AVX2 + FMA (or AVX-512) builds only (target_clones; sn_supported checks the CPU):
-# without them CHOLMOD's solve is faster.  Clamped P2 disc, 8 columns, 1 thread: 26k DOFs 13.1 ->
-# 9.5 ms, 87k 64 -> 48 ms, 260k 267 -> 183 ms; the same solution to round-off (1e-20 of max |x|).
+# The block solve L Lᵀ X = B on CHOLMOD's supernodal factor, up to 16 right-hand sides per pass:
+# CHOLMOD's own (cholmod_solve2) calls BLAS dtrsm and dgemm per supernode, whose packing of L
+# doubles the memory traffic when B has a few columns.  Here each supernode's column panel
+# (nsrow × nscol, column major, L->x + px[s]; rows L->s[pi[s] ...]) is read from memory once per
+# sweep, 4 columns at a time against the panel's rows of Y gathered into a small row-major buffer
+# (8 right-hand sides are one 64-byte line; a second 8 reuse the 4 columns from cache).  AVX2 + FMA
+# (or AVX-512) builds only (target_clones; sn_supported checks the CPU): without them CHOLMOD's
+# solve is faster.  Clamped P2 disc, 1 thread: 8 columns 13.1 -> 9.5 ms at 26k DOFs, 64 -> 48 ms at
+# 87k, 267 -> 183 ms at 260k; 16 columns 19.6 -> 16.4 ms at 26k, 372 -> 291 ms at 260k; the same
+# solution to round-off (1e-20 of max |x|).
 _SOLVE_SOURCE = r"""
 #include <stdint.h>
 
@@ -126,74 +128,82 @@ INLINE v8 fms(v8 y, double a, v8 x) { y.lo -= a * x.lo; y.hi -= a * x.hi; return
 INLINE v8 sub(v8 y, v8 x) { y.lo -= x.lo; y.hi -= x.hi; return y; }
 INLINE v8 divs(v8 y, double d) { y.lo /= d; y.hi /= d; return y; }
 
-/* L y = b on one panel: buf holds the panel's rows of Y (the first nscol are its own columns) */
-INLINE void forward(int32_t nscol, int32_t nsrow, const double *L, double *buf)
+/* L y = b on one panel: buf holds the panel's rows of Y (the first nscol are its own columns), w
+   right-hand sides per row (a multiple of 8), 8 at a time against each 4-column block of the panel
+   (the block stays in cache between them: the panel is read from memory once) */
+INLINE void forward(int32_t nscol, int32_t nsrow, const double *L, double *buf, int32_t w)
 {
     for (int32_t c0 = 0; c0 < nscol; c0 += CB) {
         const int32_t cb = nscol - c0 < CB ? nscol - c0 : CB;
-        v8 x[CB];
-        for (int32_t c = 0; c < cb; ++c) {                 /* the block's triangle */
-            const double *Lc = L + (int64_t)(c0 + c) * nsrow;
-            x[c] = divs(ld(buf + (int64_t)(c0 + c) * 8), Lc[c0 + c]);
-            st(buf + (int64_t)(c0 + c) * 8, x[c]);
-            for (int32_t r = c0 + c + 1; r < c0 + cb; ++r)
-                st(buf + (int64_t)r * 8, fms(ld(buf + (int64_t)r * 8), Lc[r], x[c]));
-        }
         const double *L0 = L + (int64_t)c0 * nsrow;
-        if (cb == CB) {
-            const double *L1 = L0 + nsrow, *L2 = L1 + nsrow, *L3 = L2 + nsrow;
-            const v8 x0 = x[0], x1 = x[1], x2 = x[2], x3 = x[3];
-            for (int32_t r = c0 + CB; r < nsrow; ++r) {
-                double *br = buf + (int64_t)r * 8;
-                st(br, fms(fms(fms(fms(ld(br), L0[r], x0), L1[r], x1), L2[r], x2), L3[r], x3));
+        for (int32_t q = 0; q < w; q += 8) {
+            double *b = buf + q;
+            v8 x[CB];
+            for (int32_t c = 0; c < cb; ++c) {                 /* the block's triangle */
+                const double *Lc = L + (int64_t)(c0 + c) * nsrow;
+                x[c] = divs(ld(b + (int64_t)(c0 + c) * w), Lc[c0 + c]);
+                st(b + (int64_t)(c0 + c) * w, x[c]);
+                for (int32_t r = c0 + c + 1; r < c0 + cb; ++r)
+                    st(b + (int64_t)r * w, fms(ld(b + (int64_t)r * w), Lc[r], x[c]));
             }
-        } else {
-            for (int32_t r = c0 + cb; r < nsrow; ++r) {
-                v8 v = ld(buf + (int64_t)r * 8);
-                for (int32_t c = 0; c < cb; ++c)
-                    v = fms(v, L0[(int64_t)c * nsrow + r], x[c]);
-                st(buf + (int64_t)r * 8, v);
+            if (cb == CB) {
+                const double *L1 = L0 + nsrow, *L2 = L1 + nsrow, *L3 = L2 + nsrow;
+                const v8 x0 = x[0], x1 = x[1], x2 = x[2], x3 = x[3];
+                for (int32_t r = c0 + CB; r < nsrow; ++r) {
+                    double *br = b + (int64_t)r * w;
+                    st(br, fms(fms(fms(fms(ld(br), L0[r], x0), L1[r], x1), L2[r], x2), L3[r], x3));
+                }
+            } else {
+                for (int32_t r = c0 + cb; r < nsrow; ++r) {
+                    v8 v = ld(b + (int64_t)r * w);
+                    for (int32_t c = 0; c < cb; ++c)
+                        v = fms(v, L0[(int64_t)c * nsrow + r], x[c]);
+                    st(b + (int64_t)r * w, v);
+                }
             }
         }
     }
 }
 
 /* Lᵀ x = y on one panel: rows past nscol of buf hold the solution already */
-INLINE void backward(int32_t nscol, int32_t nsrow, const double *L, double *buf)
+INLINE void backward(int32_t nscol, int32_t nsrow, const double *L, double *buf, int32_t w)
 {
     for (int32_t c0 = (nscol - 1) / CB * CB; c0 >= 0; c0 -= CB) {
         const int32_t cb = nscol - c0 < CB ? nscol - c0 : CB;
         const double *L0 = L + (int64_t)c0 * nsrow;
-        v8 acc[CB];
-        if (cb == CB) {
-            const double *L1 = L0 + nsrow, *L2 = L1 + nsrow, *L3 = L2 + nsrow;
-            v4 a0l = {0}, a0h = {0}, a1l = {0}, a1h = {0}, a2l = {0}, a2h = {0}, a3l = {0}, a3h = {0};
-            for (int32_t r = c0 + CB; r < nsrow; ++r) {
-                const v4 yl = *(const v4 *)(buf + (int64_t)r * 8), yh = *(const v4 *)(buf + (int64_t)r * 8 + 4);
-                const double l0 = L0[r], l1 = L1[r], l2 = L2[r], l3 = L3[r];
-                a0l += l0 * yl; a0h += l0 * yh; a1l += l1 * yl; a1h += l1 * yh;
-                a2l += l2 * yl; a2h += l2 * yh; a3l += l3 * yl; a3h += l3 * yh;
-            }
-            acc[0].lo = a0l; acc[0].hi = a0h; acc[1].lo = a1l; acc[1].hi = a1h;
-            acc[2].lo = a2l; acc[2].hi = a2h; acc[3].lo = a3l; acc[3].hi = a3h;
-        } else {
-            for (int32_t c = 0; c < cb; ++c)
-                acc[c].lo = acc[c].hi = (v4){0, 0, 0, 0};
-            for (int32_t r = c0 + cb; r < nsrow; ++r) {
-                const v8 y = ld(buf + (int64_t)r * 8);
-                for (int32_t c = 0; c < cb; ++c) {
-                    const double a = L0[(int64_t)c * nsrow + r];
-                    acc[c].lo += a * y.lo;
-                    acc[c].hi += a * y.hi;
+        for (int32_t q = 0; q < w; q += 8) {
+            double *b = buf + q;
+            v8 acc[CB];
+            if (cb == CB) {
+                const double *L1 = L0 + nsrow, *L2 = L1 + nsrow, *L3 = L2 + nsrow;
+                v4 a0l = {0}, a0h = {0}, a1l = {0}, a1h = {0}, a2l = {0}, a2h = {0}, a3l = {0}, a3h = {0};
+                for (int32_t r = c0 + CB; r < nsrow; ++r) {
+                    const v4 yl = *(const v4 *)(b + (int64_t)r * w), yh = *(const v4 *)(b + (int64_t)r * w + 4);
+                    const double l0 = L0[r], l1 = L1[r], l2 = L2[r], l3 = L3[r];
+                    a0l += l0 * yl; a0h += l0 * yh; a1l += l1 * yl; a1h += l1 * yh;
+                    a2l += l2 * yl; a2h += l2 * yh; a3l += l3 * yl; a3h += l3 * yh;
+                }
+                acc[0].lo = a0l; acc[0].hi = a0h; acc[1].lo = a1l; acc[1].hi = a1h;
+                acc[2].lo = a2l; acc[2].hi = a2h; acc[3].lo = a3l; acc[3].hi = a3h;
+            } else {
+                for (int32_t c = 0; c < cb; ++c)
+                    acc[c].lo = acc[c].hi = (v4){0, 0, 0, 0};
+                for (int32_t r = c0 + cb; r < nsrow; ++r) {
+                    const v8 y = ld(b + (int64_t)r * w);
+                    for (int32_t c = 0; c < cb; ++c) {
+                        const double a = L0[(int64_t)c * nsrow + r];
+                        acc[c].lo += a * y.lo;
+                        acc[c].hi += a * y.hi;
+                    }
                 }
             }
-        }
-        for (int32_t c = cb - 1; c >= 0; --c) {             /* the block's triangle */
-            const double *Lc = L + (int64_t)(c0 + c) * nsrow;
-            v8 v = sub(ld(buf + (int64_t)(c0 + c) * 8), acc[c]);
-            for (int32_t r = c0 + c + 1; r < c0 + cb; ++r)
-                v = fms(v, Lc[r], ld(buf + (int64_t)r * 8));
-            st(buf + (int64_t)(c0 + c) * 8, divs(v, Lc[c0 + c]));
+            for (int32_t c = cb - 1; c >= 0; --c) {             /* the block's triangle */
+                const double *Lc = L + (int64_t)(c0 + c) * nsrow;
+                v8 v = sub(ld(b + (int64_t)(c0 + c) * w), acc[c]);
+                for (int32_t r = c0 + c + 1; r < c0 + cb; ++r)
+                    v = fms(v, Lc[r], ld(b + (int64_t)r * w));
+                st(b + (int64_t)(c0 + c) * w, divs(v, Lc[c0 + c]));
+            }
         }
     }
 }
@@ -201,18 +211,20 @@ INLINE void backward(int32_t nscol, int32_t nsrow, const double *L, double *buf)
 /* One panel of a sweep: its rows of Y into buf, the panel's solve, back into Y (forward: all its
    rows changed; backward: its own columns only). */
 INLINE void sweep(int32_t sn, int back, const int32_t *super, const int32_t *pi, const int32_t *px,
-                  const int32_t *s, const double *Lx, double *Y, double *buf)
+                  const int32_t *s, const double *Lx, double *Y, double *buf, int32_t w)
 {
     const int32_t nscol = super[sn + 1] - super[sn], nsrow = pi[sn + 1] - pi[sn];
     const int32_t *rows = s + pi[sn];
     for (int32_t r = 0; r < nsrow; ++r)
-        st(buf + (int64_t)r * 8, ld(Y + (int64_t)rows[r] * 8));
+        for (int32_t q = 0; q < w; q += 8)
+            st(buf + (int64_t)r * w + q, ld(Y + (int64_t)rows[r] * w + q));
     if (back)
-        backward(nscol, nsrow, Lx + px[sn], buf);
+        backward(nscol, nsrow, Lx + px[sn], buf, w);
     else
-        forward(nscol, nsrow, Lx + px[sn], buf);
+        forward(nscol, nsrow, Lx + px[sn], buf, w);
     for (int32_t r = 0; r < (back ? nscol : nsrow); ++r)
-        st(Y + (int64_t)rows[r] * 8, ld(buf + (int64_t)r * 8));
+        for (int32_t q = 0; q < w; q += 8)
+            st(Y + (int64_t)rows[r] * w + q, ld(buf + (int64_t)r * w + q));
 }
 
 int sn_supported(void)
@@ -222,31 +234,33 @@ int sn_supported(void)
 }
 
 /* X = A⁻¹ B, A = Pᵀ L Lᵀ P (row i of P A Pᵀ is row perm[i] of A); B and X column-major n × k with
-   leading dimensions ldb, ldx; Y: n × 8 and buf: maxrows × 8 doubles, both 64-byte aligned. */
+   leading dimensions ldb, ldx; Y: n × WMAX and buf: maxrows × WMAX doubles, both 64-byte aligned.
+   Up to WMAX right-hand sides per pass over the factor, padded to a multiple of 8. */
+#define WMAX 16
 __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 void sn_solve(int32_t n, int32_t nsuper, const int32_t *super, const int32_t *pi, const int32_t *px,
               const int32_t *s, const double *Lx, const int32_t *perm, int32_t k, const double *B, int64_t ldb,
               double *X, int64_t ldx, double *Y, double *buf)
 {
-    for (int32_t j0 = 0; j0 < k; j0 += 8) {
-        const int32_t m = k - j0 < 8 ? k - j0 : 8;
+    for (int32_t j0 = 0; j0 < k; j0 += WMAX) {
+        const int32_t m = k - j0 < WMAX ? k - j0 : WMAX, w = (m + 7) / 8 * 8;
         for (int32_t i = 0; i < n; ++i)
-            for (int32_t j = 0; j < 8; ++j)
-                Y[(int64_t)i * 8 + j] = j < m ? B[perm[i] + ldb * (j0 + j)] : 0.0;
+            for (int32_t j = 0; j < w; ++j)
+                Y[(int64_t)i * w + j] = j < m ? B[perm[i] + ldb * (j0 + j)] : 0.0;
         for (int32_t sn = 0; sn < nsuper; ++sn)               /* L y = b, panel by panel */
-            sweep(sn, 0, super, pi, px, s, Lx, Y, buf);
+            sweep(sn, 0, super, pi, px, s, Lx, Y, buf, w);
         for (int32_t sn = nsuper - 1; sn >= 0; --sn)          /* Lᵀ x = y, in reverse */
-            sweep(sn, 1, super, pi, px, s, Lx, Y, buf);
+            sweep(sn, 1, super, pi, px, s, Lx, Y, buf, w);
         for (int32_t i = 0; i < n; ++i)
             for (int32_t j = 0; j < m; ++j)
-                X[perm[i] + ldx * (j0 + j)] = Y[(int64_t)i * 8 + j];
+                X[perm[i] + ldx * (j0 + j)] = Y[(int64_t)i * w + j];
     }
 }
 """
-# Blocks of MIN_BLOCK to 8 columns take the compiled solve (it pads to 8 columns); others CHOLMOD's:
-# at 260k DOFs 3 columns cost the same in both, 12 and 16 columns (two sweeps) 0.386 / 0.381 s here
-# against CHOLMOD's 0.344 / 0.373 s.
-MIN_BLOCK, MAX_BLOCK = 4, 8
+# Blocks of MIN_BLOCK to MAX_BLOCK columns take the compiled solve (padded to a multiple of 8);
+# others CHOLMOD's: at 260k DOFs 3 columns cost the same in both, and a single column is CHOLMOD's.
+WMAX = 16        # right-hand sides per pass of the compiled solve (its C constant)
+MIN_BLOCK, MAX_BLOCK = 4, WMAX
 
 
 @lru_cache(maxsize=1)
@@ -389,8 +403,8 @@ class Cholesky:
                 and np.array_equal(np.sort(perm), np.arange(n))):
             return None
         s = ints(L.s, L.ssize)
-        return (lib, ns, sup, pi, px, s, ctypes.c_void_p(L.x), perm, _aligned(8 * n),
-                _aligned(8 * int(np.max(np.diff(pi)))))
+        return (lib, ns, sup, pi, px, s, ctypes.c_void_p(L.x), perm, _aligned(WMAX * n),
+                _aligned(WMAX * int(np.max(np.diff(pi)))))
 
     def _raise(self, what: str) -> None:
         status = self._c.status

@@ -16,7 +16,7 @@ needs_metis = pytest.mark.skipif(not ordering.metis_available(), reason="libmeti
 @needs_metis
 def test_nested_dissection_permutes_whole_nodes():
     ops = ring_operators(kn=0, clamped=("inner",))
-    p = ordering.nested_dissection(ops.K)
+    p = ordering.fill_reducing_order(ops.K, how="metis")
     n = ops.K.getSize()[0]
     assert np.array_equal(np.sort(p), np.arange(n))
     blocks = p.reshape(-1, 3)            # each node's three rows stay together, in order

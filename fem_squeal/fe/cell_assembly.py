@@ -33,7 +33,7 @@ from dolfinx.fem.assemble import pack_constants
 from petsc4py import PETSc
 
 from fem_squeal.fe.csr import csr_values, csr_view, petsc_library
-from fem_squeal.util.native import compiled_library
+from fem_squeal.util.native import address, compiled_library
 
 # cffi's own cast, without building an FFI (which imports pycparser: 30 ms in a fresh process)
 _UINTPTR = _cffi_backend.new_primitive_type("uintptr_t")
@@ -200,16 +200,30 @@ def node_pattern(dofmap: np.ndarray, n_nodes: int) -> sp.csr_matrix:
     return G
 
 
-def _ptr(a: np.ndarray | None) -> ctypes.c_void_p | None:
-    return None if a is None else a.ctypes.data_as(ctypes.c_void_p)
+def _native(comm) -> ctypes.CDLL | None:
+    """The compiled loops where they apply: one rank, 32-bit PETSc indices, PETSc's library at hand."""
+    if comm.size > 1 or np.dtype(PETSc.IntType) != np.int32 or petsc_library() is None:
+        return None
+    return _library()
 
 
 def _applies(form: fem.FormMetaClass) -> bool:
     V0, V1 = form.function_spaces
     types = set(form.integral_types)
-    return (V0.mesh.comm.size == 1 and V0 is V1 and types <= {fem.IntegralType.cell}
-            and form.ufcx_form.num_coefficients == 0 and not V0.element.needs_dof_transformations
-            and np.dtype(PETSc.IntType) == np.int32 and _library() is not None and petsc_library() is not None)
+    return (V0 is V1 and types <= {fem.IntegralType.cell} and form.ufcx_form.num_coefficients == 0
+            and not V0.element.needs_dof_transformations and _native(V0.mesh.comm) is not None)
+
+
+def _write_rows(M: PETSc.Mat, fill) -> None:
+    """Run ``fill(set_values, mat)``, a compiled loop that hands M its preallocated rows whole and in
+    order to MatSetValues, with MAT_SORTED_FULL on (a copy per row, no search) and off again
+    afterwards (later insertions search as usual); then assemble M."""
+    M.setOption(PETSc.Mat.Option.SORTED_FULL, True)
+    rc = fill(_set_values(), ctypes.c_void_p(M.handle))
+    M.setOption(PETSc.Mat.Option.SORTED_FULL, False)
+    if rc != 0:
+        raise RuntimeError(f"cell_assembly: MatSetValues returned {rc}")
+    M.assemble()
 
 
 def assemble_matrix(form: fem.FormMetaClass, bc_dofs: np.ndarray, diagonal: float) -> PETSc.Mat | None:
@@ -250,14 +264,10 @@ def assemble_matrix(form: fem.FormMetaClass, bc_dofs: np.ndarray, diagonal: floa
     lib = _library()
     M = PETSc.Mat().createAIJ((b * imap.size_local, b * imap.size_global), bsize=b, comm=mesh.comm,
                               nnz=length.astype(PETSc.IntType))
-    M.setOption(PETSc.Mat.Option.SORTED_FULL, True)
     longest = int(length.max(initial=0))
-    rc = lib.fill_pattern(_set_values(), ctypes.c_void_p(M.handle), n_nodes, b, _ptr(node_ptr), _ptr(node_col),
-                          _ptr(np.empty(longest, dtype=np.int32)), _ptr(np.zeros(longest)))
-    M.setOption(PETSc.Mat.Option.SORTED_FULL, False)
-    if rc != 0:
-        raise RuntimeError(f"cell_assembly: MatSetValues returned {rc}")
-    M.assemble()
+    cols, zeros = np.empty(longest, dtype=np.int32), np.zeros(longest)
+    _write_rows(M, lambda set_values, mat: lib.fill_pattern(set_values, mat, n_nodes, b, address(node_ptr),
+                                                            address(node_col), address(cols), address(zeros)))
     bc = np.zeros(b * n_nodes, dtype=np.int8)
     bc[rows_bc] = 1
     geo = mesh.geometry
@@ -272,9 +282,10 @@ def assemble_matrix(form: fem.FormMetaClass, bc_dofs: np.ndarray, diagonal: floa
     with csr_values(M) as val:
         for i, cells in enumerate(domains):
             kernel = ctypes.c_void_p(int(_cffi_backend.cast(_UINTPTR, uf.integrals(0)[i].tabulate_tensor_float64)))
-            rc = lib.assemble_cells(kernel, len(cells), _ptr(cells), _ptr(dofs32), n, b, _ptr(x), _ptr(xdofs), nx,
-                                    _ptr(constants), _ptr(node_ptr), _ptr(node_col), _ptr(row_ptr), _ptr(bc),
-                                    _ptr(A), _ptr(coords), _ptr(pos), _ptr(val))
+            rc = lib.assemble_cells(kernel, len(cells), address(cells), address(dofs32), n, b, address(x),
+                                    address(xdofs), nx, address(constants), address(node_ptr),
+                                    address(node_col), address(row_ptr), address(bc), address(A),
+                                    address(coords), address(pos), address(val))
             if rc != 0:
                 raise RuntimeError("cell_assembly: a node pair of a cell is missing from the pattern")
         val[diagonal_at] = diagonal
@@ -293,8 +304,8 @@ def kronecker(A: PETSc.Mat, W: np.ndarray, drop: np.ndarray, like: PETSc.Mat) ->
     MatSetValues on exactly preallocated rows (255k DOFs, P2 mass: 6.4M entries in 0.05 s, against
     0.35 s for NumPy index arrays and PETSc's copy of them).  None where the compiled loop or
     PETSc's library cannot be had."""
-    lib = _library()
-    if lib is None or petsc_library() is None or np.dtype(PETSc.IntType) != np.int32 or A.getComm().getSize() > 1:
+    lib = _native(A.getComm())
+    if lib is None:
         return None
     b = W.shape[0]
     Wc = np.ascontiguousarray(W, dtype=np.float64)
@@ -303,17 +314,13 @@ def kronecker(A: PETSc.Mat, W: np.ndarray, drop: np.ndarray, like: PETSc.Mat) ->
         n = len(ai) - 1
         ai, aj, av = (np.ascontiguousarray(a) for a in (ai, aj, av))
         count = np.empty(b * n, dtype=np.int32)
-        lib.kronecker_rows(n, b, _ptr(ai), _ptr(aj), _ptr(Wc), _ptr(flag), _ptr(count))
+        lib.kronecker_rows(n, b, address(ai), address(aj), address(Wc), address(flag), address(count))
         M = PETSc.Mat().createAIJ(like.getSizes(), bsize=b, comm=like.getComm(), nnz=count)
-        M.setOption(PETSc.Mat.Option.SORTED_FULL, True)
         longest = int(count.max(initial=0))
-        rc = lib.fill_kronecker(_set_values(), ctypes.c_void_p(M.handle), n, b, _ptr(ai), _ptr(aj), _ptr(av),
-                                _ptr(Wc), _ptr(flag), _ptr(np.empty(longest, dtype=np.int32)),
-                                _ptr(np.empty(longest)))
-        M.setOption(PETSc.Mat.Option.SORTED_FULL, False)
-    if rc != 0:
-        raise RuntimeError(f"cell_assembly.kronecker: MatSetValues returned {rc}")
-    M.assemble()
+        cols, vals = np.empty(longest, dtype=np.int32), np.empty(longest)
+        _write_rows(M, lambda set_values, mat: lib.fill_kronecker(
+            set_values, mat, n, b, address(ai), address(aj), address(av), address(Wc), address(flag),
+            address(cols), address(vals)))
     M.setLGMap(*like.getLGMap())
     M.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
     return M

@@ -19,7 +19,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from fem_squeal.util.native import compiled_library, first_library
+from fem_squeal.fe.ordering import is_permutation
+from fem_squeal.util.native import address, compiled_library, first_library
 
 # cholmod_core.h / cholmod_cholesky.h (SuiteSparse 5.12)
 _INT, _REAL, _DOUBLE = 0, 1, 0         # itype, xtype, dtype
@@ -400,7 +401,7 @@ class Cholesky:
         perm = ints(L.Perm, n)
         if not (sup[0] == 0 and sup[-1] == n and pi[0] == 0 and pi[-1] == L.ssize and px[0] == 0
                 and px[-1] == L.xsize and np.all(np.diff(sup) > 0) and np.all(np.diff(pi) >= np.diff(sup))
-                and np.array_equal(np.sort(perm), np.arange(n))):
+                and is_permutation(perm)):
             return None
         s = ints(L.s, L.ssize)
         return (lib, ns, sup, pi, px, s, ctypes.c_void_p(L.x), perm, _aligned(WMAX * n),
@@ -426,11 +427,8 @@ class Cholesky:
         if self._panels is not None and MIN_BLOCK <= k <= MAX_BLOCK:
             lib, ns, sup, pi, px, s, Lx, perm, Y, buf = self._panels
             out = np.empty((self.n, k), order="F")
-
-            def ptr(a):
-                return a.ctypes.data_as(ctypes.c_void_p)
-            lib.sn_solve(self.n, ns, ptr(sup), ptr(pi), ptr(px), ptr(s), Lx, ptr(perm), k, ptr(B2), self.n,
-                         ptr(out), self.n, ptr(Y), ptr(buf))
+            lib.sn_solve(self.n, ns, address(sup), address(pi), address(px), address(s), Lx, address(perm), k,
+                         address(B2), self.n, address(out), self.n, address(Y), address(buf))
             return out
         D = _Dense(nrow=self.n, ncol=k, nzmax=self.n * k, d=self.n, x=B2.ctypes.data, z=None, xtype=_REAL,
                    dtype=_DOUBLE)

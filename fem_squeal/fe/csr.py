@@ -18,7 +18,7 @@ from functools import lru_cache
 import numpy as np
 from petsc4py import PETSc
 
-from fem_squeal.util.native import compiled_library, first_library
+from fem_squeal.util.native import address, compiled_library, first_library
 
 _INT = {np.dtype(np.int32): ctypes.c_int32, np.dtype(np.int64): ctypes.c_int64}[np.dtype(PETSc.IntType)]
 _PINT = ctypes.POINTER(_INT)
@@ -112,6 +112,24 @@ def csr_values(A: PETSc.Mat) -> Iterator[np.ndarray]:
 _PRODUCT_SOURCE = r"""
 #include <stdint.h>
 
+/* Y = A X for m <= 8 columns */
+static inline __attribute__((always_inline))
+void rows(int32_t n, const int32_t *ai, const int32_t *aj, const double *av, int32_t m,
+          const double *X, int64_t ldx, double *Y, int64_t ldy)
+{
+    for (int32_t i = 0; i < n; ++i) {
+        double acc[8] = {0};
+        for (int32_t p = ai[i]; p < ai[i + 1]; ++p) {
+            const double a = av[p];
+            const double *x = X + aj[p];
+            for (int c = 0; c < m; ++c)
+                acc[c] += a * x[ldx * c];
+        }
+        for (int c = 0; c < m; ++c)
+            Y[i + ldy * c] = acc[c];
+    }
+}
+
 __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 void csr_block(int32_t n, const int32_t *ai, const int32_t *aj, const double *av, int32_t k,
                const double *X, int64_t ldx, double *Y, int64_t ldy)
@@ -120,31 +138,10 @@ void csr_block(int32_t n, const int32_t *ai, const int32_t *aj, const double *av
         const int32_t m = k - c0 < 8 ? k - c0 : 8;
         const double *Xc = X + ldx * c0;
         double *Yc = Y + ldy * c0;
-        if (m == 8) {
-            for (int32_t i = 0; i < n; ++i) {
-                double acc[8] = {0};
-                for (int32_t p = ai[i]; p < ai[i + 1]; ++p) {
-                    const double a = av[p];
-                    const double *x = Xc + aj[p];
-                    for (int c = 0; c < 8; ++c)
-                        acc[c] += a * x[ldx * c];
-                }
-                for (int c = 0; c < 8; ++c)
-                    Yc[i + ldy * c] = acc[c];
-            }
-        } else {
-            for (int32_t i = 0; i < n; ++i) {
-                double acc[8] = {0};
-                for (int32_t p = ai[i]; p < ai[i + 1]; ++p) {
-                    const double a = av[p];
-                    const double *x = Xc + aj[p];
-                    for (int c = 0; c < m; ++c)
-                        acc[c] += a * x[ldx * c];
-                }
-                for (int c = 0; c < m; ++c)
-                    Yc[i + ldy * c] = acc[c];
-            }
-        }
+        if (m == 8)                     /* the same loop with a constant width: unrolled */
+            rows(n, ai, aj, av, 8, Xc, ldx, Yc, ldy);
+        else
+            rows(n, ai, aj, av, m, Xc, ldx, Yc, ldy);
     }
 }
 """
@@ -173,13 +170,10 @@ def block_product(csr: tuple[np.ndarray, np.ndarray, np.ndarray]) -> Callable[[n
     ai, aj, av = (np.ascontiguousarray(a) for a in (ai, aj, av))
     n = len(ai) - 1
 
-    def ptr(a):
-        return a.ctypes.data_as(ctypes.c_void_p)
-
     def product(X: np.ndarray) -> np.ndarray:
         X = np.asfortranarray(X, dtype=np.float64)
         X2 = X.reshape(n, -1, order="F")
         Y = np.empty(X2.shape, order="F")
-        lib.csr_block(n, ptr(ai), ptr(aj), ptr(av), X2.shape[1], ptr(X2), n, ptr(Y), n)
+        lib.csr_block(n, address(ai), address(aj), address(av), X2.shape[1], address(X2), n, address(Y), n)
         return Y.reshape(X.shape, order="F")
     return product

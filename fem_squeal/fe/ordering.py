@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
 
-from fem_squeal.util.native import first_library
+from fem_squeal.util.native import address, first_library
 
 _METIS_OK = 1
 _METIS_NOPTIONS = 40
@@ -52,14 +52,17 @@ def _node_nd(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray | None:
     xadj = np.ascontiguousarray(indptr, dtype=np.int32)
     adjncy = np.ascontiguousarray(indices, dtype=np.int32)
     perm, iperm = np.full(n, -1, np.int32), np.full(n, -1, np.int32)
-
-    def ptr(a):
-        return a.ctypes.data_as(ctypes.c_void_p)
-    rc = lib.METIS_NodeND(ctypes.byref(ctypes.c_int32(n)), ptr(xadj), ptr(adjncy), None, opts,
-                          ptr(perm), ptr(iperm))
-    if rc != _METIS_OK or perm.min() < 0 or perm.max() >= n or np.bincount(perm, minlength=n).max() != 1:
+    rc = lib.METIS_NodeND(ctypes.byref(ctypes.c_int32(n)), address(xadj), address(adjncy), None, opts,
+                          address(perm), address(iperm))
+    if rc != _METIS_OK or not is_permutation(perm):
         return None
     return perm.astype(np.int64)
+
+
+def is_permutation(p: np.ndarray) -> bool:
+    """``p`` holds each of 0 … len(p) − 1 once (what a library returned is an order to trust)."""
+    n = len(p)
+    return n == 0 or (p.min() >= 0 and p.max() < n and np.bincount(p, minlength=n).max() == 1)
 
 
 def node_graph(A: PETSc.Mat, bs: int, pattern: tuple[np.ndarray, np.ndarray] | None = None
@@ -108,10 +111,8 @@ def _amd(indptr: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, float] | 
     perm = np.full(n, -1, np.int32)
     control, info = (ctypes.c_double * 5)(), (ctypes.c_double * 20)()
     lib.amd_defaults(control)
-    rc = lib.amd_order(ctypes.c_int32(n), ap.ctypes.data_as(ctypes.c_void_p), ai.ctypes.data_as(ctypes.c_void_p),
-                       perm.ctypes.data_as(ctypes.c_void_p), control, info)
-    ok = rc in (0, 1)                   # AMD_OK, AMD_OK_BUT_JUMBLED
-    if not ok or perm.min() < 0 or np.bincount(perm, minlength=n).max() != 1:
+    rc = lib.amd_order(ctypes.c_int32(n), address(ap), address(ai), address(perm), control, info)
+    if rc not in (0, 1) or not is_permutation(perm):      # AMD_OK, AMD_OK_BUT_JUMBLED
         return None
     return perm.astype(np.int64), float(info[11])
 
@@ -148,11 +149,6 @@ def fill_reducing_order(A: PETSc.Mat, pattern: tuple[np.ndarray, np.ndarray] | N
     if perm is None:
         return None
     return (bs * perm[:, None] + np.arange(bs)).ravel()
-
-
-def nested_dissection(A: PETSc.Mat, pattern: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
-    """METIS nested dissection of the node graph (:func:`fill_reducing_order` with "metis")."""
-    return fill_reducing_order(A, pattern, "metis")
 
 
 def permuted(A: PETSc.Mat, p: np.ndarray) -> PETSc.Mat:

@@ -34,6 +34,11 @@ def first_library(candidates: Iterable[str | None], symbol: str, search: Iterabl
     return None
 
 
+def address(a) -> ctypes.c_void_p:
+    """The address of a NumPy array's data, for a ctypes call."""
+    return a.ctypes.data_as(ctypes.c_void_p)
+
+
 def cache_dir() -> Path:
     """``$XDG_CACHE_HOME/fem_squeal``, else ``~/.cache/fem_squeal`` (beside FFCx's ``fenics``)."""
     root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")

@@ -36,7 +36,7 @@ fem_squeal's 4-pt runs set ``discretisation.quadrature_degree = 2`` (it goes int
 metadata; before this benchmark it was silently ignored by FFCx 0.5 as a form-compiler parameter).
 
 Timings (mesh generation excluded; every case a fresh process; threads pinned with OMP_NUM_THREADS,
-OPENBLAS_NUM_THREADS, CCX_NPROC_*; fem_squeal 1 thread per rank):
+OMP_THREAD_LIMIT, OPENBLAS_NUM_THREADS, CCX_NPROC_*; fem_squeal 1 thread per rank):
 - read: fem_squeal reading the .msh + quality check + distribution; scikit-fem meshio + MeshTet2; ccx:
   a run of the same deck without ``*STEP`` (parse only).
 - assembly, eigensolve: in-process wall times (fem_squeal: K, M and the axial mass it also
@@ -55,7 +55,8 @@ its 4-point run up to 100k.
     .venv/bin/python benchmarks/modal_peers.py [--quick] [--ranks 2] [--workdir DIR]
     .venv/bin/python benchmarks/modal_peers.py --render benchmarks/out/modal_peers_2ranks.json --ranks 2
 
-``--speed`` (issue #23): real modes against the fastest peer, every code on one thread, on the 10, 6
+``--speed`` (issue #23): real modes against the fastest peer, every code on one thread (OpenMP's
+thread limit included: see ``thread_env``), on the 10, 6
 and 4 mm meshes (26k, 87k, 260k DOFs; ``--sizes``), 20 modes, ``--repeats`` interleaved runs (the
 fastest kept): fem_squeal with its defaults (CHOLMOD on one rank, block Lanczos), with SLEPc's Krylov–Schur
 instead (``real_block_size = 0``) and as before #23 (MUMPS LDLᵀ, tol 1e-10, purified: the
@@ -347,8 +348,12 @@ def run_getfem(msh: str, n_modes: int, tol: float) -> dict:
 
 
 def thread_env(threads: int) -> dict[str, str]:
+    """The thread counts of every code's libraries.  OMP_THREAD_LIMIT too: CHOLMOD (SuiteSparse 5,
+    in every code here) asks for 4 OpenMP threads in its factorisation whatever OMP_NUM_THREADS
+    says; fem_squeal switches them off itself (fem_squeal.util.blas.serial_openmp), the peers'
+    CHOLMOD needs the limit (GetFEM's factorisation at 26k DOFs: 0.27 s without it, 0.12 s with)."""
     n = str(threads)
-    return {"OMP_NUM_THREADS": n, "OPENBLAS_NUM_THREADS": n, "MKL_NUM_THREADS": n,
+    return {"OMP_NUM_THREADS": n, "OMP_THREAD_LIMIT": n, "OPENBLAS_NUM_THREADS": n, "MKL_NUM_THREADS": n,
             "CCX_NPROC_EQUATION_SOLVER": n, "CCX_NPROC_STIFFNESS": n, "CCX_NPROC_RESULTS": n,
             "NUMBER_OF_CPUS": n}
 

@@ -4,6 +4,9 @@ keeps a given order, refuses what is not positive definite; the modes it gives a
 CHOLMOD interface; the compiled CSR block product is SciPy's."""
 from __future__ import annotations
 
+import ctypes
+from contextlib import nullcontext
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -11,6 +14,7 @@ from conftest import ring_operators
 
 from fem_squeal.fe import cholmod, eigen
 from fem_squeal.fe.eigen import solve_real_modes
+from fem_squeal.util import blas
 
 pytestmark = pytest.mark.skipif(not cholmod.available(), reason="libcholmod (SuiteSparse 5) not found")
 
@@ -39,23 +43,37 @@ def test_block_solve_to_round_off():
         assert F.flops > 0 and F.factor_entries >= A.nnz / 2
 
 
+def _levels() -> list[int]:
+    """The builds of the compiled block solve this CPU runs (3: AVX2, 4: AVX-512 too)."""
+    got = cholmod._solve_lib()
+    return [] if got is None else list(range(3, got[1] + 1))
+
+
 @pytest.mark.skipif(cholmod._solve_lib() is None, reason="no compiled block solve here (needs GCC, x86-64, AVX2)")
 @pytest.mark.parametrize("k", [4, 5, 8, 12, 16])
 def test_compiled_block_solve_equals_cholmods(k):
-    """The supernodal block solve (compiled, 8 or 16 columns per pass) against cholmod_solve2 on the same
-    factor: the same solution to round-off.  Both apply the same L in another order of the sums;
-    1e-13 of max |x| is 100 ulp times the growth of the Laplacian's triangular solves (~10 here).
-    The factor has panels of every width mod 4 (the kernel's 4-column blocks and their tails)."""
+    """The supernodal block solve (compiled, 8 or 16 columns per pass; each build this CPU runs)
+    against cholmod_solve2 on the same factor: the same solution to round-off.  Both apply the same
+    L in another order of the sums; 1e-13 of max |x| is 100 ulp times the growth of the
+    Laplacian's triangular solves (~10 here).  The builds make the same operations per right-hand
+    side (8 in one AVX-512 register or two AVX2 ones): equal to the bit.  The factor has panels of
+    every width mod 12 (the kernel's 12-column blocks and their tails)."""
     A = _laplacian(14)
     B = np.asfortranarray(np.random.default_rng(5).standard_normal((A.shape[0], k)))
     with cholmod.Cholesky(A.indptr, A.indices, A.data) as F:
         assert F._panels is not None
-        widths = np.diff(F._panels[2])
-        assert set(widths % 4) == {0, 1, 2, 3}
-        X = F.solve(B)
-        panels, F._panels = F._panels, None          # CHOLMOD's own solve on the same factor
+        widths = np.diff(F._panels[4])
+        assert set(widths % 12) == set(range(12)) and np.any(widths >= 24)
+        panels = F._panels
+        Xs = []
+        for level in _levels():
+            F._panels = (panels[0], level, *panels[2:])
+            Xs.append(F.solve(B))
+        F._panels = None                              # CHOLMOD's own solve on the same factor
         Xc = F.solve(B)
         F._panels = panels
+    X = Xs[0]
+    assert all(np.array_equal(X, Y) for Y in Xs[1:])
     assert X.flags.f_contiguous and X.shape == B.shape
     assert np.max(np.abs(X - Xc)) <= 1e-13 * np.max(np.abs(Xc))
     # residual: round-off times the condition (~100 for m = 14), with a margin of ~100 as above
@@ -101,6 +119,27 @@ def test_close_is_idempotent():
     F = cholmod.Cholesky(A.indptr, A.indices, A.data)
     F.close()
     F.close()
+
+
+def _factor_values(A: sp.csr_matrix) -> np.ndarray:
+    with cholmod.Cholesky(A.indptr, A.indices, A.data) as F:
+        L = ctypes.cast(F._L, ctypes.POINTER(cholmod._Factor)).contents
+        return np.ctypeslib.as_array(ctypes.cast(L.x, ctypes.POINTER(ctypes.c_double)), shape=(L.xsize,)).copy()
+
+
+def test_the_factor_is_the_same_without_cholmods_openmp_threads(monkeypatch):
+    """The factorisation runs with OpenMP's regions off (:func:`fem_squeal.util.blas.serial_openmp`).
+    CHOLMOD's OpenMP loops only zero, copy and scatter-subtract (each entry once per update, in the
+    same order), so the factor must be identical to the bit.  The 3D Laplacian on 16³ has
+    supernodes far above the loops' thresholds (1024 entries, 64 rows)."""
+    gomp = blas._gomp()
+    if gomp is None or gomp.omp_get_max_active_levels() < 1:
+        pytest.skip("no libgomp, or its regions are off in this process: nothing to compare")
+    A = _laplacian(16)
+    guarded = _factor_values(A)
+    monkeypatch.setattr(cholmod, "serial_openmp", nullcontext)
+    threaded = _factor_values(A)
+    assert guarded.size == threaded.size and np.array_equal(guarded, threaded)
 
 
 # ------------------------------------------------------------------ the real-mode path

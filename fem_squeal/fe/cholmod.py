@@ -20,6 +20,7 @@ from functools import lru_cache
 import numpy as np
 
 from fem_squeal.fe.ordering import is_permutation
+from fem_squeal.util.blas import serial_openmp
 from fem_squeal.util.native import address, compiled_library, first_library
 
 # cholmod_core.h / cholmod_cholesky.h (SuiteSparse 5.12)
@@ -33,12 +34,14 @@ _HOST_BUFFERS = 8
 # Relaxed supernode amalgamation: fundamental supernodes merge into larger ones (more BLAS-3 work
 # per call, a few explicit zeros) while a merged supernode has fewer than nrelax[0] columns, or
 # fewer than nrelax[1] / nrelax[2] with at most zrelax[0] / [1] / [2] of its entries zero.  CHOLMOD's
-# defaults are (4, 16, 48) and (0.8, 0.1, 0.05).  Measured on the clamped P2 disc, 255k DOFs, METIS
-# node order, 4 interleaved repeats (min / median seconds of analysis + factorisation): defaults
-# 3.71 / 3.95, (16, 48, 128) with the default zrelax 3.11 / 3.49, (16, 64, 192) with
-# (0.9, 0.2, 0.1) 2.98 / 3.22; block solves of 8 and 16 columns unchanged (0.25, 0.29 s).
-NRELAX = (16, 64, 192)
-ZRELAX = (0.9, 0.2, 0.1)
+# defaults are (4, 16, 48) and (0.8, 0.1, 0.05).  Chosen by the sum of analysis + factorisation
+# and 13 block solves of 8 columns (the 20 modes' Lanczos), clamped P2 disc, CHOLMOD's OpenMP off
+# (fem_squeal.util.blas.serial_openmp), the 12-column solve kernel, min of 2-5 repeats, seconds at
+# 26k / 87k / 255k DOFs: defaults 0.171 / 0.946 / 4.97; (16, 64, 192) with (0.9, 0.2, 0.1), the
+# choice while CHOLMOD's 4 OpenMP threads woke for every supernode, 0.174 / 0.983 / 5.20; these
+# 0.164 / 0.938 / 4.91 (and (16, 64, 192) with these zrelax 0.167 / 0.935 / 4.89).
+NRELAX = (8, 32, 64)
+ZRELAX = (0.5, 0.1, 0.05)
 
 
 class _Method(ctypes.Structure):
@@ -109,57 +112,74 @@ _P = ctypes.POINTER
 # CHOLMOD's own (cholmod_solve2) calls BLAS dtrsm and dgemm per supernode, whose packing of L
 # doubles the memory traffic when B has a few columns.  Here each supernode's column panel
 # (nsrow × nscol, column major, L->x + px[s]; rows L->s[pi[s] ...]) is read from memory once per
-# sweep, 4 columns at a time against the panel's rows of Y gathered into a small row-major buffer
-# (8 right-hand sides are one 64-byte line; a second 8 reuse the 4 columns from cache).  AVX2 + FMA
-# (or AVX-512) builds only (target_clones; sn_supported checks the CPU): without them CHOLMOD's
-# solve is faster.  Clamped P2 disc, 1 thread: 8 columns 13.1 -> 9.5 ms at 26k DOFs, 64 -> 48 ms at
-# 87k, 267 -> 183 ms at 260k; 16 columns 19.6 -> 16.4 ms at 26k, 372 -> 291 ms at 260k; the same
-# solution to round-off (1e-20 of max |x|).
-_SOLVE_SOURCE = r"""
-#include <stdint.h>
-
-typedef double v4 __attribute__((vector_size(32)));          /* Y and buf rows are 64-byte aligned */
-typedef struct { v4 lo, hi; } v8;
-#define INLINE static inline __attribute__((always_inline))
-#define CB 4
-
-INLINE v8 ld(const double *p) { v8 v; v.lo = *(const v4 *)p; v.hi = *(const v4 *)(p + 4); return v; }
-INLINE void st(double *p, v8 v) { *(v4 *)p = v.lo; *(v4 *)(p + 4) = v.hi; }
-INLINE v8 fms(v8 y, double a, v8 x) { y.lo -= a * x.lo; y.hi -= a * x.hi; return y; }
-INLINE v8 sub(v8 y, v8 x) { y.lo -= x.lo; y.hi -= x.hi; return y; }
-INLINE v8 divs(v8 y, double d) { y.lo /= d; y.hi /= d; return y; }
-
+# sweep, CB columns at a time against the panel's rows of Y gathered into a small row-major buffer
+# (8 right-hand sides are one 64-byte line; a second 8 reuse the CB columns from cache).
+# Built twice from one text (_SOLVE_KERNEL): for AVX-512 (x86-64-v4) with the 8 right-hand sides
+# of a row in one 512-bit register, and for AVX2 + FMA (x86-64-v3) with them in two 256-bit ones
+# (GCC splits a 512-bit vector type badly there: 2.5× slower); sn_level picks one for the CPU, and
+# without AVX2 CHOLMOD's solve is used (faster than this kernel there).  Both make the same
+# operations in the same order: the same result to the bit.  Clamped P2 disc, 1 thread, 8 columns
+# at 26k / 87k / 260k DOFs: CHOLMOD 13.1 / 64 / 267 ms; this kernel with 4 columns per pass
+# (AVX2) 10.9 / 49 / 186 ms; with 12 (CB) 8.4 / 38 / 147 ms (AVX2) and 6.7 / 31 / 120 ms
+# (AVX-512, Zen 5).  16 columns at 26k / 260k: CHOLMOD 19.6 / 372 ms, AVX-512 10.1 / 171 ms.  The
+# same solution as CHOLMOD's to round-off (1e-20 of max |x|).
+_SOLVE_VECTORS = {
+    "v3": r"""
+typedef double v4_v3 __attribute__((vector_size(32)));       /* Y and buf rows are 64-byte aligned */
+typedef struct { v4_v3 lo, hi; } v8_v3;
+INLINE v8_v3 ld_v3(const double *p)
+{ v8_v3 v; v.lo = *(const v4_v3 *)p; v.hi = *(const v4_v3 *)(p + 4); return v; }
+INLINE void st_v3(double *p, v8_v3 v) { *(v4_v3 *)p = v.lo; *(v4_v3 *)(p + 4) = v.hi; }
+INLINE v8_v3 zero_v3(void) { v8_v3 v; v.lo = v.hi = (v4_v3){0, 0, 0, 0}; return v; }
+INLINE v8_v3 fms_v3(v8_v3 y, double a, v8_v3 x) { y.lo -= a * x.lo; y.hi -= a * x.hi; return y; }
+INLINE v8_v3 fma_v3(v8_v3 y, double a, v8_v3 x) { y.lo += a * x.lo; y.hi += a * x.hi; return y; }
+INLINE v8_v3 sub_v3(v8_v3 y, v8_v3 x) { y.lo -= x.lo; y.hi -= x.hi; return y; }
+INLINE v8_v3 divs_v3(v8_v3 y, double d) { y.lo /= d; y.hi /= d; return y; }
+""",
+    "v4": r"""
+typedef double v8_v4 __attribute__((vector_size(64)));       /* Y and buf rows are 64-byte aligned */
+INLINE v8_v4 ld_v4(const double *p) { return *(const v8_v4 *)p; }
+INLINE void st_v4(double *p, v8_v4 v) { *(v8_v4 *)p = v; }
+INLINE v8_v4 zero_v4(void) { return (v8_v4){0, 0, 0, 0, 0, 0, 0, 0}; }
+INLINE v8_v4 fms_v4(v8_v4 y, double a, v8_v4 x) { return y - a * x; }
+INLINE v8_v4 fma_v4(v8_v4 y, double a, v8_v4 x) { return y + a * x; }
+INLINE v8_v4 sub_v4(v8_v4 y, v8_v4 x) { return y - x; }
+INLINE v8_v4 divs_v4(v8_v4 y, double d) { return y / d; }
+"""}
+# One build of the kernel: "_V" names its vector type and helpers, replaced by "_v3" or "_v4".
+_SOLVE_KERNEL = r"""
 /* L y = b on one panel: buf holds the panel's rows of Y (the first nscol are its own columns), w
-   right-hand sides per row (a multiple of 8), 8 at a time against each 4-column block of the panel
+   right-hand sides per row (a multiple of 8), 8 at a time against each CB-column block of the panel
    (the block stays in cache between them: the panel is read from memory once) */
-INLINE void forward(int32_t nscol, int32_t nsrow, const double *L, double *buf, int32_t w)
+INLINE void forward_V(int32_t nscol, int32_t nsrow, const double *L, double *buf, int32_t w)
 {
     for (int32_t c0 = 0; c0 < nscol; c0 += CB) {
         const int32_t cb = nscol - c0 < CB ? nscol - c0 : CB;
         const double *L0 = L + (int64_t)c0 * nsrow;
         for (int32_t q = 0; q < w; q += 8) {
             double *b = buf + q;
-            v8 x[CB];
+            v8_V x[CB];
             for (int32_t c = 0; c < cb; ++c) {                 /* the block's triangle */
                 const double *Lc = L + (int64_t)(c0 + c) * nsrow;
-                x[c] = divs(ld(b + (int64_t)(c0 + c) * w), Lc[c0 + c]);
-                st(b + (int64_t)(c0 + c) * w, x[c]);
+                x[c] = divs_V(ld_V(b + (int64_t)(c0 + c) * w), Lc[c0 + c]);
+                st_V(b + (int64_t)(c0 + c) * w, x[c]);
                 for (int32_t r = c0 + c + 1; r < c0 + cb; ++r)
-                    st(b + (int64_t)r * w, fms(ld(b + (int64_t)r * w), Lc[r], x[c]));
+                    st_V(b + (int64_t)r * w, fms_V(ld_V(b + (int64_t)r * w), Lc[r], x[c]));
             }
             if (cb == CB) {
-                const double *L1 = L0 + nsrow, *L2 = L1 + nsrow, *L3 = L2 + nsrow;
-                const v8 x0 = x[0], x1 = x[1], x2 = x[2], x3 = x[3];
                 for (int32_t r = c0 + CB; r < nsrow; ++r) {
                     double *br = b + (int64_t)r * w;
-                    st(br, fms(fms(fms(fms(ld(br), L0[r], x0), L1[r], x1), L2[r], x2), L3[r], x3));
+                    v8_V v = ld_V(br);
+                    for (int32_t c = 0; c < CB; ++c)
+                        v = fms_V(v, L0[(int64_t)c * nsrow + r], x[c]);
+                    st_V(br, v);
                 }
             } else {
                 for (int32_t r = c0 + cb; r < nsrow; ++r) {
-                    v8 v = ld(b + (int64_t)r * w);
+                    v8_V v = ld_V(b + (int64_t)r * w);
                     for (int32_t c = 0; c < cb; ++c)
-                        v = fms(v, L0[(int64_t)c * nsrow + r], x[c]);
-                    st(b + (int64_t)r * w, v);
+                        v = fms_V(v, L0[(int64_t)c * nsrow + r], x[c]);
+                    st_V(b + (int64_t)r * w, v);
                 }
             }
         }
@@ -167,43 +187,37 @@ INLINE void forward(int32_t nscol, int32_t nsrow, const double *L, double *buf, 
 }
 
 /* Lᵀ x = y on one panel: rows past nscol of buf hold the solution already */
-INLINE void backward(int32_t nscol, int32_t nsrow, const double *L, double *buf, int32_t w)
+INLINE void backward_V(int32_t nscol, int32_t nsrow, const double *L, double *buf, int32_t w)
 {
     for (int32_t c0 = (nscol - 1) / CB * CB; c0 >= 0; c0 -= CB) {
         const int32_t cb = nscol - c0 < CB ? nscol - c0 : CB;
         const double *L0 = L + (int64_t)c0 * nsrow;
         for (int32_t q = 0; q < w; q += 8) {
             double *b = buf + q;
-            v8 acc[CB];
+            v8_V acc[CB];
             if (cb == CB) {
-                const double *L1 = L0 + nsrow, *L2 = L1 + nsrow, *L3 = L2 + nsrow;
-                v4 a0l = {0}, a0h = {0}, a1l = {0}, a1h = {0}, a2l = {0}, a2h = {0}, a3l = {0}, a3h = {0};
+                for (int32_t c = 0; c < CB; ++c)
+                    acc[c] = zero_V();
                 for (int32_t r = c0 + CB; r < nsrow; ++r) {
-                    const v4 yl = *(const v4 *)(b + (int64_t)r * w), yh = *(const v4 *)(b + (int64_t)r * w + 4);
-                    const double l0 = L0[r], l1 = L1[r], l2 = L2[r], l3 = L3[r];
-                    a0l += l0 * yl; a0h += l0 * yh; a1l += l1 * yl; a1h += l1 * yh;
-                    a2l += l2 * yl; a2h += l2 * yh; a3l += l3 * yl; a3h += l3 * yh;
+                    const v8_V y = ld_V(b + (int64_t)r * w);
+                    for (int32_t c = 0; c < CB; ++c)
+                        acc[c] = fma_V(acc[c], L0[(int64_t)c * nsrow + r], y);
                 }
-                acc[0].lo = a0l; acc[0].hi = a0h; acc[1].lo = a1l; acc[1].hi = a1h;
-                acc[2].lo = a2l; acc[2].hi = a2h; acc[3].lo = a3l; acc[3].hi = a3h;
             } else {
                 for (int32_t c = 0; c < cb; ++c)
-                    acc[c].lo = acc[c].hi = (v4){0, 0, 0, 0};
+                    acc[c] = zero_V();
                 for (int32_t r = c0 + cb; r < nsrow; ++r) {
-                    const v8 y = ld(b + (int64_t)r * w);
-                    for (int32_t c = 0; c < cb; ++c) {
-                        const double a = L0[(int64_t)c * nsrow + r];
-                        acc[c].lo += a * y.lo;
-                        acc[c].hi += a * y.hi;
-                    }
+                    const v8_V y = ld_V(b + (int64_t)r * w);
+                    for (int32_t c = 0; c < cb; ++c)
+                        acc[c] = fma_V(acc[c], L0[(int64_t)c * nsrow + r], y);
                 }
             }
             for (int32_t c = cb - 1; c >= 0; --c) {             /* the block's triangle */
                 const double *Lc = L + (int64_t)(c0 + c) * nsrow;
-                v8 v = sub(ld(b + (int64_t)(c0 + c) * w), acc[c]);
+                v8_V v = sub_V(ld_V(b + (int64_t)(c0 + c) * w), acc[c]);
                 for (int32_t r = c0 + c + 1; r < c0 + cb; ++r)
-                    v = fms(v, Lc[r], ld(b + (int64_t)r * w));
-                st(b + (int64_t)(c0 + c) * w, divs(v, Lc[c0 + c]));
+                    v = fms_V(v, Lc[r], ld_V(b + (int64_t)r * w));
+                st_V(b + (int64_t)(c0 + c) * w, divs_V(v, Lc[c0 + c]));
             }
         }
     }
@@ -211,37 +225,26 @@ INLINE void backward(int32_t nscol, int32_t nsrow, const double *L, double *buf,
 
 /* One panel of a sweep: its rows of Y into buf, the panel's solve, back into Y (forward: all its
    rows changed; backward: its own columns only). */
-INLINE void sweep(int32_t sn, int back, const int32_t *super, const int32_t *pi, const int32_t *px,
-                  const int32_t *s, const double *Lx, double *Y, double *buf, int32_t w)
+INLINE void sweep_V(int32_t sn, int back, const int32_t *super, const int32_t *pi, const int32_t *px,
+                    const int32_t *s, const double *Lx, double *Y, double *buf, int32_t w)
 {
     const int32_t nscol = super[sn + 1] - super[sn], nsrow = pi[sn + 1] - pi[sn];
     const int32_t *rows = s + pi[sn];
     for (int32_t r = 0; r < nsrow; ++r)
         for (int32_t q = 0; q < w; q += 8)
-            st(buf + (int64_t)r * w + q, ld(Y + (int64_t)rows[r] * w + q));
+            st_V(buf + (int64_t)r * w + q, ld_V(Y + (int64_t)rows[r] * w + q));
     if (back)
-        backward(nscol, nsrow, Lx + px[sn], buf, w);
+        backward_V(nscol, nsrow, Lx + px[sn], buf, w);
     else
-        forward(nscol, nsrow, Lx + px[sn], buf, w);
+        forward_V(nscol, nsrow, Lx + px[sn], buf, w);
     for (int32_t r = 0; r < (back ? nscol : nsrow); ++r)
         for (int32_t q = 0; q < w; q += 8)
-            st(Y + (int64_t)rows[r] * w + q, ld(buf + (int64_t)r * w + q));
+            st_V(Y + (int64_t)rows[r] * w + q, ld_V(buf + (int64_t)r * w + q));
 }
 
-int sn_supported(void)
-{
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-}
-
-/* X = A⁻¹ B, A = Pᵀ L Lᵀ P (row i of P A Pᵀ is row perm[i] of A); B and X column-major n × k with
-   leading dimensions ldb, ldx; Y: n × WMAX and buf: maxrows × WMAX doubles, both 64-byte aligned.
-   Up to WMAX right-hand sides per pass over the factor, padded to a multiple of 8. */
-#define WMAX 16
-__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-void sn_solve(int32_t n, int32_t nsuper, const int32_t *super, const int32_t *pi, const int32_t *px,
-              const int32_t *s, const double *Lx, const int32_t *perm, int32_t k, const double *B, int64_t ldb,
-              double *X, int64_t ldx, double *Y, double *buf)
+static void solve_V(int32_t n, int32_t nsuper, const int32_t *super, const int32_t *pi, const int32_t *px,
+                    const int32_t *s, const double *Lx, const int32_t *perm, int32_t k, const double *B,
+                    int64_t ldb, double *X, int64_t ldx, double *Y, double *buf)
 {
     for (int32_t j0 = 0; j0 < k; j0 += WMAX) {
         const int32_t m = k - j0 < WMAX ? k - j0 : WMAX, w = (m + 7) / 8 * 8;
@@ -249,13 +252,52 @@ void sn_solve(int32_t n, int32_t nsuper, const int32_t *super, const int32_t *pi
             for (int32_t j = 0; j < w; ++j)
                 Y[(int64_t)i * w + j] = j < m ? B[perm[i] + ldb * (j0 + j)] : 0.0;
         for (int32_t sn = 0; sn < nsuper; ++sn)               /* L y = b, panel by panel */
-            sweep(sn, 0, super, pi, px, s, Lx, Y, buf, w);
+            sweep_V(sn, 0, super, pi, px, s, Lx, Y, buf, w);
         for (int32_t sn = nsuper - 1; sn >= 0; --sn)          /* Lᵀ x = y, in reverse */
-            sweep(sn, 1, super, pi, px, s, Lx, Y, buf, w);
+            sweep_V(sn, 1, super, pi, px, s, Lx, Y, buf, w);
         for (int32_t i = 0; i < n; ++i)
             for (int32_t j = 0; j < m; ++j)
                 X[perm[i] + ldx * (j0 + j)] = Y[(int64_t)i * w + j];
     }
+}
+"""
+_SOLVE_SOURCE = r"""
+#include <stdint.h>
+#define INLINE static inline __attribute__((always_inline))
+/* Columns of a panel per pass over its rows: each row of buf is loaded and stored once per CB
+   columns, and those loads and stores bound the row loops (8-column solve at 26k DOFs, AVX2 /
+   AVX-512: 4 columns 10.9 / 9.4 ms, 8: 8.7 / 7.4, 12: 8.5 / 6.6, 16: 9.8 / 6.6, 20: 8.4 / 12.1 ms,
+   the AVX-512 registers exhausted).  The same in both builds: the same sums in the same order. */
+#define CB 12
+#define WMAX 16     /* right-hand sides per pass over the factor, padded to a multiple of 8 */
+""" + "".join(f"""
+#pragma GCC push_options
+#pragma GCC target("arch=x86-64-{isa}")
+{_SOLVE_VECTORS[isa]}{_SOLVE_KERNEL.replace("_V", "_" + isa)}
+#pragma GCC pop_options
+""" for isa in ("v3", "v4")) + r"""
+/* 4: AVX-512 (x86-64-v4), 3: AVX2 + FMA, 0: neither (the caller keeps CHOLMOD's solve) */
+int sn_level(void)
+{
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq")
+            && __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl")
+            && __builtin_cpu_supports("avx512cd"))
+        return 4;
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") ? 3 : 0;
+}
+
+/* X = A⁻¹ B, A = Pᵀ L Lᵀ P (row i of P A Pᵀ is row perm[i] of A); B and X column-major n × k with
+   leading dimensions ldb, ldx; Y: n × WMAX and buf: maxrows × WMAX doubles, both 64-byte aligned.
+   level: sn_level's. */
+void sn_solve(int32_t level, int32_t n, int32_t nsuper, const int32_t *super, const int32_t *pi,
+              const int32_t *px, const int32_t *s, const double *Lx, const int32_t *perm, int32_t k,
+              const double *B, int64_t ldb, double *X, int64_t ldx, double *Y, double *buf)
+{
+    if (level == 4)
+        solve_v4(n, nsuper, super, pi, px, s, Lx, perm, k, B, ldb, X, ldx, Y, buf);
+    else
+        solve_v3(n, nsuper, super, pi, px, s, Lx, perm, k, B, ldb, X, ldx, Y, buf);
 }
 """
 # Blocks of MIN_BLOCK to MAX_BLOCK columns take the compiled solve (padded to a multiple of 8);
@@ -265,19 +307,20 @@ MIN_BLOCK, MAX_BLOCK = 4, WMAX
 
 
 @lru_cache(maxsize=1)
-def _solve_lib() -> ctypes.CDLL | None:
-    """The compiled block solve, where it builds (GCC's target_clones, x86-64) and the CPU has AVX2
-    and FMA; else None (CHOLMOD's solve)."""
+def _solve_lib() -> tuple[ctypes.CDLL, int] | None:
+    """The compiled block solve and the CPU's level for it (4: AVX-512, 3: AVX2 + FMA), where it
+    builds (GCC, x86-64) and the CPU has at least AVX2 and FMA; else None (CHOLMOD's solve)."""
     lib = compiled_library("supernodal_solve", _SOLVE_SOURCE, ("-O3",))
     if lib is None:
         return None
-    lib.sn_supported.restype = ctypes.c_int
-    if not lib.sn_supported():
+    lib.sn_level.restype = ctypes.c_int
+    level = lib.sn_level()
+    if level < 3:
         return None
     i32, i64, p = ctypes.c_int32, ctypes.c_int64, ctypes.c_void_p
-    lib.sn_solve.argtypes = [i32, i32, p, p, p, p, p, p, i32, p, i64, p, i64, p, p]
+    lib.sn_solve.argtypes = [i32, i32, i32, p, p, p, p, p, p, i32, p, i64, p, i64, p, p]
     lib.sn_solve.restype = None
-    return lib
+    return lib, level
 
 
 def _aligned(n: int) -> np.ndarray:
@@ -368,12 +411,13 @@ class Cholesky:
             user = perm.ctypes.data
             c.nmethods, c.method[0].ordering = 1, _GIVEN
         try:
-            t0 = time.perf_counter()
-            self._L.value = lib.cholmod_analyze_p(ctypes.byref(A), user, None, 0, ctypes.byref(c))
-            self._raise("analysis")
-            t1 = time.perf_counter()
-            lib.cholmod_factorize(ctypes.byref(A), self._L, ctypes.byref(c))
-            self._raise("factorisation")
+            with serial_openmp():         # CHOLMOD's 4 OpenMP threads cost more than they save
+                t0 = time.perf_counter()
+                self._L.value = lib.cholmod_analyze_p(ctypes.byref(A), user, None, 0, ctypes.byref(c))
+                self._raise("analysis")
+                t1 = time.perf_counter()
+                lib.cholmod_factorize(ctypes.byref(A), self._L, ctypes.byref(c))
+                self._raise("factorisation")
             self.seconds = {"analysis": t1 - t0, "numeric": time.perf_counter() - t1}
         except BaseException:
             self.close()
@@ -386,8 +430,8 @@ class Cholesky:
         while it lives) and its workspace; None where it does not apply.  The layout is checked
         against what is known: a supernodal LLᵀ of this size whose last pointers close the arrays
         and whose permutation is one."""
-        lib = _solve_lib()
-        if lib is None:
+        got = _solve_lib()
+        if got is None:
             return None
         L = ctypes.cast(self._L, _P(_Factor)).contents
         n, ns = self.n, L.nsuper
@@ -404,7 +448,7 @@ class Cholesky:
                 and is_permutation(perm)):
             return None
         s = ints(L.s, L.ssize)
-        return (lib, ns, sup, pi, px, s, ctypes.c_void_p(L.x), perm, _aligned(WMAX * n),
+        return (*got, ns, sup, pi, px, s, ctypes.c_void_p(L.x), perm, _aligned(WMAX * n),
                 _aligned(WMAX * int(np.max(np.diff(pi)))))
 
     def _raise(self, what: str) -> None:
@@ -425,10 +469,10 @@ class Cholesky:
         B2 = B.reshape(self.n, -1, order="F")
         k = B2.shape[1]
         if self._panels is not None and MIN_BLOCK <= k <= MAX_BLOCK:
-            lib, ns, sup, pi, px, s, Lx, perm, Y, buf = self._panels
+            lib, level, ns, sup, pi, px, s, Lx, perm, Y, buf = self._panels
             out = np.empty((self.n, k), order="F")
-            lib.sn_solve(self.n, ns, address(sup), address(pi), address(px), address(s), Lx, address(perm), k,
-                         address(B2), self.n, address(out), self.n, address(Y), address(buf))
+            lib.sn_solve(level, self.n, ns, address(sup), address(pi), address(px), address(s), Lx,
+                         address(perm), k, address(B2), self.n, address(out), self.n, address(Y), address(buf))
             return out
         D = _Dense(nrow=self.n, ncol=k, nzmax=self.n * k, d=self.n, x=B2.ctypes.data, z=None, xtype=_REAL,
                    dtype=_DOUBLE)

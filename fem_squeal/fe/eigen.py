@@ -29,6 +29,7 @@ from fem_squeal.fe import cholmod
 from fem_squeal.fe.csr import block_product, csr_view
 from fem_squeal.fe.dense import apply, block_solve, gram
 from fem_squeal.fe.ordering import ORDERINGS, fill_reducing_order, permuted
+from fem_squeal.util.blas import serial_openmp
 from fem_squeal.util.errors import EigenSolveError, ModelError
 from fem_squeal.util.progress import ProgressBar
 
@@ -650,7 +651,8 @@ def _factorised_eps(K: PETSc.Mat, M: PETSc.Mat, nev: int, shift: float, tol: flo
             db[o] = v
         try:
             eps.setFromOptions()
-            eps.setUp()    # the factorisation of K − σM (it reads the factor's options)
+            with serial_openmp():      # CHOLMOD's OpenMP loops: see fem_squeal.util.blas
+                eps.setUp()    # the factorisation of K − σM (it reads the factor's options)
         except PETSc.Error:
             eps.destroy()
             if k + 1 == len(solvers):

@@ -1,7 +1,13 @@
-"""BLAS threads.  Debian's OpenBLAS (libopenblas0-pthread) starts one thread per core in every
-process; under ``mpirun -n N`` with N ranks on N cores that oversubscribes the machine and
-OpenBLAS's spinning threads slow dense work by 10-100× (measured: a batch of 100×100
-eigenvalue problems went from ~3 ms to 212 ms each with 2 ranks on 2 cores)."""
+"""Threads of the numerical libraries.
+
+- OpenBLAS: Debian's (libopenblas0-pthread) starts one thread per core in every process; under
+  ``mpirun -n N`` with N ranks on N cores that oversubscribes the machine and OpenBLAS's spinning
+  threads slow dense work by 10-100× (measured: a batch of 100×100 eigenvalue problems went from
+  ~3 ms to 212 ms each with 2 ranks on 2 cores).
+- OpenMP: CHOLMOD 3 (SuiteSparse 5, Debian's) runs the loops of its supernodal factorisation
+  (zeroing a supernode, scattering A and the descendants' updates into it) with
+  ``num_threads(CHOLMOD_OMP_NUM_THREADS)``, compiled in as 4, which OMP_NUM_THREADS does not
+  override: :func:`serial_openmp`."""
 from __future__ import annotations
 
 import ctypes
@@ -11,13 +17,31 @@ from contextlib import contextmanager
 from fem_squeal.util.native import first_library
 
 
-def _openblas() -> ctypes.CDLL | None:
+def _loaded(fragment: str, symbol: str) -> ctypes.CDLL | None:
+    """The library this process has loaded whose path contains ``fragment`` and that exports
+    ``symbol``; None if there is none."""
     try:
         with open("/proc/self/maps") as f:
-            paths = {line.split()[-1] for line in f if "openblas" in line and line.split()[-1].startswith("/")}
+            paths = {line.split()[-1] for line in f if fragment in line and line.split()[-1].startswith("/")}
     except OSError:
         return None
-    return first_library(sorted(paths), "openblas_set_num_threads")
+    return first_library(sorted(paths), symbol)
+
+
+def _openblas() -> ctypes.CDLL | None:
+    return _loaded("openblas", "openblas_set_num_threads")
+
+
+_GOMP: list[ctypes.CDLL] = []      # libgomp once found (it is never unloaded)
+
+
+def _gomp() -> ctypes.CDLL | None:
+    if not _GOMP:
+        lib = _loaded("libgomp", "omp_set_max_active_levels")
+        if lib is None:
+            return None
+        _GOMP.append(lib)
+    return _GOMP[0]
 
 
 def limit_threads(ranks_per_node: int) -> int | None:
@@ -61,3 +85,27 @@ def single_threaded():
         yield
     finally:
         lib.openblas_set_num_threads(n)
+
+
+@contextmanager
+def serial_openmp():
+    """Run the block with OpenMP's parallel regions on the calling thread alone (the
+    max-active-levels ICV set to 0), then restore the previous value.  Nothing changes where
+    libgomp is not loaded.
+
+    For CHOLMOD's factorisation (see the module's note): its OpenMP loops are memory-bound scatters
+    between BLAS calls, and waking 4 threads for each of them costs more than they save.  Measured
+    on the clamped P2 disc (CHOLMOD's numeric factorisation, 4 repeats in one process; 2-core
+    machine): 26k DOFs, one BLAS thread, 0.17 s with them and 0.076 s without; two BLAS threads
+    0.10 and 0.06 s; 255k DOFs, one BLAS thread, 4.4 and 3.3 s.  The factor is the same to the
+    bit (the loops move and add the same numbers)."""
+    lib = _gomp()
+    if lib is None:
+        yield
+        return
+    old = lib.omp_get_max_active_levels()
+    lib.omp_set_max_active_levels(0)
+    try:
+        yield
+    finally:
+        lib.omp_set_max_active_levels(old)

@@ -263,6 +263,9 @@ static void solve_V(int32_t n, int32_t nsuper, const int32_t *super, const int32
 """
 _SOLVE_SOURCE = r"""
 #include <stdint.h>
+#if !defined(__GNUC__) || defined(__clang__) || !defined(__x86_64__)
+#error "GCC on x86-64 only (#pragma GCC target per build)"   /* no build: CHOLMOD's solve is used */
+#endif
 #define INLINE static inline __attribute__((always_inline))
 /* Columns of a panel per pass over its rows: each row of buf is loaded and stored once per CB
    columns, and those loads and stores bound the row loops (8-column solve at 26k DOFs, AVX2 /

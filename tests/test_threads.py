@@ -1,7 +1,7 @@
 """Threads of the numerical libraries (fem_squeal.util.blas): the OpenMP guard around CHOLMOD's
 factorisation switches parallel regions off inside its block and restores the previous setting
 after it, also on an exception and when nested (that the factor is the same to the bit with and
-without it: tests/test_cholmod.py)."""
+without it: tests/test_cholmod.py); the one-BLAS-thread block of the transients likewise."""
 from __future__ import annotations
 
 import pytest
@@ -32,3 +32,14 @@ def test_serial_openmp_switches_regions_off_and_restores():
     with pytest.raises(RuntimeError), blas.serial_openmp():
         raise RuntimeError("inside")
     assert lib.omp_get_max_active_levels() == before
+
+
+def test_single_threaded_sets_one_blas_thread_and_restores():
+    lib = blas._openblas()
+    if lib is None:
+        pytest.skip("OpenBLAS is not loaded in this process")
+    before = lib.openblas_get_num_threads()
+    with pytest.raises(RuntimeError), blas.single_threaded():
+        assert lib.openblas_get_num_threads() == 1
+        raise RuntimeError("inside")
+    assert lib.openblas_get_num_threads() == before

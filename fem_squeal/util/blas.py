@@ -44,6 +44,21 @@ def _gomp() -> ctypes.CDLL | None:
     return _GOMP[0]
 
 
+@contextmanager
+def _temporarily(lib: ctypes.CDLL | None, get: str, put: str, value: int):
+    """``lib.<put>(value)`` for the block, then ``lib.<put>`` of what ``lib.<get>()`` returned
+    before it (also on an exception); nothing where ``lib`` is None."""
+    if lib is None:
+        yield
+        return
+    old = getattr(lib, get)()
+    getattr(lib, put)(value)
+    try:
+        yield
+    finally:
+        getattr(lib, put)(old)
+
+
 def limit_threads(ranks_per_node: int) -> int | None:
     """Give each of ``ranks_per_node`` ranks cores/ranks BLAS threads (at least 1), unless the
     user set OPENBLAS_NUM_THREADS or OMP_NUM_THREADS; returns the count set (None: no OpenBLAS)."""
@@ -75,16 +90,8 @@ def single_threaded():
     Time integration of friction-induced vibration is chaotic in stick-slip: a last-bit change
     (a BLAS reduction split over another number of threads) grows into a different trajectory.
     One thread makes a transient the same whatever the rank count or core count of the run."""
-    lib = _openblas()
-    if lib is None:
+    with _temporarily(_openblas(), "openblas_get_num_threads", "openblas_set_num_threads", 1):
         yield
-        return
-    n = lib.openblas_get_num_threads()
-    lib.openblas_set_num_threads(1)
-    try:
-        yield
-    finally:
-        lib.openblas_set_num_threads(n)
 
 
 @contextmanager
@@ -99,13 +106,5 @@ def serial_openmp():
     machine): 26k DOFs, one BLAS thread, 0.17 s with them and 0.076 s without; two BLAS threads
     0.10 and 0.06 s; 255k DOFs, one BLAS thread, 4.4 and 3.3 s.  The factor is the same to the
     bit (the loops move and add the same numbers)."""
-    lib = _gomp()
-    if lib is None:
+    with _temporarily(_gomp(), "omp_get_max_active_levels", "omp_set_max_active_levels", 0):
         yield
-        return
-    old = lib.omp_get_max_active_levels()
-    lib.omp_set_max_active_levels(0)
-    try:
-        yield
-    finally:
-        lib.omp_set_max_active_levels(old)

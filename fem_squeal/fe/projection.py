@@ -91,10 +91,15 @@ def m_extend(M: PETSc.Mat, V: np.ndarray, rtol: float = 1e-8, Phi: np.ndarray | 
     Each column of V is M-orthogonalised against Phi (two passes of block Gram–Schmidt, using
     ΦᵀMW = (MΦ)ᵀW) and scaled by its original M-norm; then G = WᵀMW = Q diag(s) Qᵀ and directions
     with s < rtol² (new content below ``rtol`` of the vector) are dropped, W Q s^(-1/2) is appended.
-    A final pass and the Cholesky factor of the whole Gram matrix make Φ'ᵀMΦ' = I to round-off.
-    M is applied twice, to V and to the kept directions (the latter afresh: s^(-1/2) amplifies
-    the round-off of a tracked product by up to 1/rtol), never to Φ when MΦ is given (issue 23:
-    the basis of the 50k-DOF brake spent 5.5 s re-applying M to the whole basis)."""
+    A final pass against Φ and the Cholesky factor of the new block's Gram matrix make
+    Φ'ᵀMΦ' = I to round-off; Φ itself is kept as it is (the whole basis was once re-multiplied by
+    the Cholesky factor of its whole Gram matrix: 2·2·n·m² flops per call, 1.3 s of the 50k-DOF
+    brake's 11 s basis, to move Φ by round-off).
+    M is applied to V, to W after the passes and to the kept directions, before and after their
+    Cholesky factor (afresh each time: s^(-1/2) amplifies the round-off of a tracked product by up
+    to 1/rtol, and a sparse product costs less than the dense updates that would carry it), never
+    to Φ when MΦ is given (issue 23: the basis of the 50k-DOF brake spent 5.5 s re-applying M to the
+    whole basis)."""
     comm = M.getComm().tompi4py()
     # collective calls depend on column counts only: a rank may own no rows of V
     extend = Phi is not None and Phi.shape[1] > 0
@@ -103,25 +108,27 @@ def m_extend(M: PETSc.Mat, V: np.ndarray, rtol: float = 1e-8, Phi: np.ndarray | 
     MV = apply(M, V)
     norms = np.sqrt(np.maximum(comm.allreduce(np.einsum("ij,ij->j", V, MV), op=MPI.SUM), 0.0))
     ok = norms > 0
-    W, MW = V[:, ok] / norms[ok], MV[:, ok] / norms[ok]
+    W = V[:, ok] / norms[ok]
     dropped = int(np.sum(~ok))
     for _ in range(2 if extend else 0):
-        C = gram(comm, MPhi, W)
-        W, MW = W - Phi @ C, MW - MPhi @ C
-    G = gram(comm, W, MW)
+        W = W - Phi @ gram(comm, MPhi, W)
+    # M applied afresh rather than carried through the passes (a sparse product costs less than
+    # the two dense updates n × m × k it replaces)
+    G = gram(comm, W, apply(M, W)) if extend else gram(comm, W, MV[:, ok] / norms[ok])
     s, Q = np.linalg.eigh(0.5 * (G + G.T))
     keep = s > rtol ** 2
     dropped += int(np.sum(~keep))
     W = W @ (Q[:, keep] / np.sqrt(s[keep]))
     if extend:
         W = W - Phi @ gram(comm, MPhi, W)
+    if W.shape[1]:
+        # the new block's Cholesky QR: W L⁻ᵀ as one matrix product (L well conditioned, G ≈ I)
+        G = gram(comm, W, apply(M, W))
+        W = W @ solve_triangular(np.linalg.cholesky(0.5 * (G + G.T)), np.eye(G.shape[0]), lower=True).T
     MW = apply(M, W)
     if extend:
         W, MW = np.hstack([Phi, W]), np.hstack([MPhi, MW])
-    G = gram(comm, W, MW)
-    # W L⁻ᵀ as one matrix product (the inverse of the well-conditioned L: G ≈ I but for the new block)
-    T = solve_triangular(np.linalg.cholesky(0.5 * (G + G.T)), np.eye(G.shape[0]), lower=True).T
-    return W @ T, MW @ T, dropped
+    return W, MW, dropped
 
 
 def _local_array(vecs: list[PETSc.Vec]) -> np.ndarray:

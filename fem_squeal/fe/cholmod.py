@@ -148,6 +148,29 @@ INLINE v8_v4 divs_v4(v8_v4 y, double d) { return y / d; }
 """}
 # One build of the kernel: "_V" names its vector type and helpers, replaced by "_v3" or "_v4".
 _SOLVE_KERNEL = r"""
+/* rows r0 … nsrow−1 of b −= Σ_{c<n} L0[c·nsrow + r] x[c] (the panel's rows below a block) */
+INLINE void update_V(int32_t n, int32_t r0, int32_t nsrow, const double *L0, const v8_V *x, double *b, int32_t w)
+{
+    for (int32_t r = r0; r < nsrow; ++r) {
+        v8_V v = ld_V(b + (int64_t)r * w);
+        for (int32_t c = 0; c < n; ++c)
+            v = fms_V(v, L0[(int64_t)c * nsrow + r], x[c]);
+        st_V(b + (int64_t)r * w, v);
+    }
+}
+
+/* acc[c] = Σ_{r ≥ r0} L0[c·nsrow + r] b[r] for c < n (a block's products with the rows below it) */
+INLINE void sums_V(int32_t n, int32_t r0, int32_t nsrow, const double *L0, const double *b, int32_t w, v8_V *acc)
+{
+    for (int32_t c = 0; c < n; ++c)
+        acc[c] = zero_V();
+    for (int32_t r = r0; r < nsrow; ++r) {
+        const v8_V y = ld_V(b + (int64_t)r * w);
+        for (int32_t c = 0; c < n; ++c)
+            acc[c] = fma_V(acc[c], L0[(int64_t)c * nsrow + r], y);
+    }
+}
+
 /* L y = b on one panel: buf holds the panel's rows of Y (the first nscol are its own columns), w
    right-hand sides per row (a multiple of 8), 8 at a time against each CB-column block of the panel
    (the block stays in cache between them: the panel is read from memory once) */
@@ -166,22 +189,10 @@ INLINE void forward_V(int32_t nscol, int32_t nsrow, const double *L, double *buf
                 for (int32_t r = c0 + c + 1; r < c0 + cb; ++r)
                     st_V(b + (int64_t)r * w, fms_V(ld_V(b + (int64_t)r * w), Lc[r], x[c]));
             }
-            if (cb == CB) {
-                for (int32_t r = c0 + CB; r < nsrow; ++r) {
-                    double *br = b + (int64_t)r * w;
-                    v8_V v = ld_V(br);
-                    for (int32_t c = 0; c < CB; ++c)
-                        v = fms_V(v, L0[(int64_t)c * nsrow + r], x[c]);
-                    st_V(br, v);
-                }
-            } else {
-                for (int32_t r = c0 + cb; r < nsrow; ++r) {
-                    v8_V v = ld_V(b + (int64_t)r * w);
-                    for (int32_t c = 0; c < cb; ++c)
-                        v = fms_V(v, L0[(int64_t)c * nsrow + r], x[c]);
-                    st_V(b + (int64_t)r * w, v);
-                }
-            }
+            if (cb == CB)       /* the same loop; a constant count lets the compiler unroll it */
+                update_V(CB, c0 + CB, nsrow, L0, x, b, w);
+            else
+                update_V(cb, c0 + cb, nsrow, L0, x, b, w);
         }
     }
 }
@@ -195,23 +206,10 @@ INLINE void backward_V(int32_t nscol, int32_t nsrow, const double *L, double *bu
         for (int32_t q = 0; q < w; q += 8) {
             double *b = buf + q;
             v8_V acc[CB];
-            if (cb == CB) {
-                for (int32_t c = 0; c < CB; ++c)
-                    acc[c] = zero_V();
-                for (int32_t r = c0 + CB; r < nsrow; ++r) {
-                    const v8_V y = ld_V(b + (int64_t)r * w);
-                    for (int32_t c = 0; c < CB; ++c)
-                        acc[c] = fma_V(acc[c], L0[(int64_t)c * nsrow + r], y);
-                }
-            } else {
-                for (int32_t c = 0; c < cb; ++c)
-                    acc[c] = zero_V();
-                for (int32_t r = c0 + cb; r < nsrow; ++r) {
-                    const v8_V y = ld_V(b + (int64_t)r * w);
-                    for (int32_t c = 0; c < cb; ++c)
-                        acc[c] = fma_V(acc[c], L0[(int64_t)c * nsrow + r], y);
-                }
-            }
+            if (cb == CB)       /* as in forward_V */
+                sums_V(CB, c0 + CB, nsrow, L0, b, w, acc);
+            else
+                sums_V(cb, c0 + cb, nsrow, L0, b, w, acc);
             for (int32_t c = cb - 1; c >= 0; --c) {             /* the block's triangle */
                 const double *Lc = L + (int64_t)(c0 + c) * nsrow;
                 v8_V v = sub_V(ld_V(b + (int64_t)(c0 + c) * w), acc[c]);

@@ -211,21 +211,31 @@ def test_csr_view_is_petscs_csr_without_a_copy():
     assert np.allclose(y.array_r, A @ x.array_r, rtol=1e-15, atol=0)
 
 
-@pytest.mark.parametrize("k", [8, 3, 13])
-def test_block_product_equals_scipys(k):
-    """The compiled CSR × column-major block product (8 columns per sweep, a tail of k mod 8)
-    against SciPy's: each entry is the same sum in the same order, contracted into FMAs or not, so
-    they agree to round-off of the sum (1e-15 of the largest |y|: 7 terms of O(1) per row)."""
+@pytest.mark.parametrize("k", [8, 3, 13, 16, 29])
+@pytest.mark.parametrize("blocks", [False, True])
+def test_block_product_equals_scipys(k, blocks):
+    """The compiled CSR × column-major block product against SciPy's: up to 8 columns in place
+    (a tail of k mod 8), more in row-major panels of 16 (a tail of k mod 16), with the three rows
+    of a node that share a pattern taken together (``blocks``: a 3 × 3-block matrix, one row of
+    which gets an extra entry, so that its node falls back to single rows).  Each entry is the same
+    sum in the same order, contracted into FMAs or not: they agree to round-off of the sum (1e-15
+    of the largest |y|: at most 28 terms of O(1) per row).  Also a rectangular matrix."""
     from fem_squeal.fe.csr import block_product
 
     A = _laplacian(9)
+    if blocks:
+        A = sp.kron(A, np.ones((3, 3))).tocsr()
+        A = (A + sp.csr_matrix(([1.0], ([7], [40])), shape=A.shape)).tocsr()   # node (6, 7, 8): not uniform
     A.data += np.random.default_rng(6).random(A.nnz)         # unsymmetric values, the same pattern
-    csr = (A.indptr.astype(np.int32), A.indices.astype(np.int32), A.data)
-    product = block_product(csr)
-    if product is None:
-        pytest.skip("no compiled kernel here (needs a C compiler)")
-    X = np.asfortranarray(np.random.default_rng(7).standard_normal((A.shape[0], k)))
-    Y = product(X)
-    assert Y.flags.f_contiguous and Y.shape == X.shape
-    assert np.max(np.abs(Y - A @ X)) <= 1e-15 * np.max(np.abs(Y))
-    assert np.allclose(product(X[:, 0]), A @ X[:, 0], rtol=0, atol=1e-15 * np.max(np.abs(Y)))
+    for R in (A, A[: A.shape[0] // 2 + 1]):                   # square, and fewer rows than columns
+        csr = (R.indptr.astype(np.int32), R.indices.astype(np.int32), R.data)
+        product = block_product(csr, R.shape[1])
+        if product is None:
+            pytest.skip("no compiled kernel here (needs a C compiler)")
+        X = np.asfortranarray(np.random.default_rng(7).standard_normal((R.shape[1], k)))
+        Y = product(X)
+        assert Y.flags.f_contiguous and Y.shape == (R.shape[0], k)
+        assert np.max(np.abs(Y - R @ X)) <= 1e-15 * np.max(np.abs(Y))
+        assert np.allclose(product(X[:, 0]), R @ X[:, 0], rtol=0, atol=1e-15 * np.max(np.abs(Y)))
+        with pytest.raises(ValueError, match="rows"):
+            product(X[1:])

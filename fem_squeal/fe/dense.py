@@ -8,6 +8,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fem_squeal.fe.csr import block_product, csr_view
+
 
 def dense_matrix(comm, local: np.ndarray, n_global: int) -> PETSc.Mat:
     """A PETSc dense matrix of the rank-local rows ``local``; it shares their memory when they are
@@ -21,9 +23,16 @@ def dense_matrix(comm, local: np.ndarray, n_global: int) -> PETSc.Mat:
 
 def apply(A: PETSc.Mat, Phi: np.ndarray) -> np.ndarray:
     """A Φ, rank-local rows (n_local, m), column-major (as PETSc's dense matrices: no transposing
-    copies on the way in or out)."""
+    copies on the way in or out).  On one rank an AIJ matrix is applied by the compiled block product
+    (:func:`fem_squeal.fe.csr.block_product`, on PETSc's own arrays: 1.9× PETSc's MatMatMult for the
+    50k-DOF brake's stiffness times 233 columns), elsewhere by MatMatMult."""
     comm = A.getComm().tompi4py()
     Phi = np.asfortranarray(Phi)
+    if comm.size == 1 and A.getType() == "seqaij" and Phi.ndim == 2:
+        with csr_view(A) as csr:
+            product = block_product(csr, A.getSize()[1])
+            if product is not None:
+                return product(Phi)
     D = dense_matrix(comm, Phi, A.getSize()[1])
     P = A.matMult(D)
     out = np.array(P.getDenseArray(), order="F")

@@ -86,49 +86,71 @@ def m_orthonormalise(M: PETSc.Mat, V: np.ndarray, rtol: float = 1e-8, Phi: np.nd
 def m_extend(M: PETSc.Mat, V: np.ndarray, rtol: float = 1e-8, Phi: np.ndarray | None = None,
              MPhi: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, int]:
     """Extend the M-orthonormal ``Phi`` (``MPhi`` = M Φ if at hand) by span(V), with deflation;
-    returns (basis Φ', M Φ', number of dropped directions).
+    returns (basis Φ', M Φ', number of dropped directions).  See :func:`_new_block`."""
+    blocks = []
+    if Phi is not None and Phi.shape[1] > 0:
+        blocks = [(Phi, apply(M, Phi) if MPhi is None else MPhi)]
+    W, MW, dropped = _new_block(M, V, rtol, blocks)
+    blocks.append((W, MW))
+    return _stack([b[0] for b in blocks], V.shape[0]), _stack([b[1] for b in blocks], V.shape[0]), dropped
 
-    Each column of V is M-orthogonalised against Phi (two passes of block Gram–Schmidt, using
-    ΦᵀMW = (MΦ)ᵀW) and scaled by its original M-norm; then G = WᵀMW = Q diag(s) Qᵀ and directions
-    with s < rtol² (new content below ``rtol`` of the vector) are dropped, W Q s^(-1/2) is appended.
-    A final pass against Φ and the Cholesky factor of the new block's Gram matrix make
-    Φ'ᵀMΦ' = I to round-off; Φ itself is kept as it is (the whole basis was once re-multiplied by
-    the Cholesky factor of its whole Gram matrix: 2·2·n·m² flops per call, 1.3 s of the 50k-DOF
-    brake's 11 s basis, to move Φ by round-off).
-    M is applied to V, to W after the passes and to the kept directions, before and after their
+
+def _stack(blocks: list[np.ndarray], n_local: int) -> np.ndarray:
+    """The blocks side by side, column-major (as :func:`fem_squeal.fe.dense.apply` takes them)."""
+    out = np.empty((n_local, sum(b.shape[1] for b in blocks)), order="F")
+    j = 0
+    for b in blocks:
+        out[:, j:j + b.shape[1]] = b
+        j += b.shape[1]
+    return out
+
+
+def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.ndarray, np.ndarray]]
+               ) -> tuple[np.ndarray, np.ndarray, int]:
+    """The block (W, M W, number of dropped directions) that extends the M-orthonormal basis held as
+    ``blocks`` [(Φ_b, M Φ_b), …] by span(V): [Φ_1 … W] is M-orthonormal to round-off.
+
+    Each column of V is scaled by its M-norm and M-orthogonalised against the basis (block
+    Gram–Schmidt, ΦᵀMW = (MΦ)ᵀW); then G = WᵀMW = Q diag(s) Qᵀ and directions with s < rtol² (new
+    content below ``rtol`` of the vector) are dropped, W Q s^(-1/2) is kept.  A second pass against
+    the basis on the kept directions only (one pass leaves a part ~ε/√s along the basis, which the
+    scaling brings to ~ε/√s ≤ ε/rtol and the second pass back to ε: "twice is enough"; the dropped
+    directions do not need it, and the brake's enrichment drops 5 of every 6) and the Cholesky
+    factor of the new block's Gram matrix make it M-orthonormal.  The basis is kept as blocks and
+    never re-multiplied nor re-stacked (the whole basis was once re-multiplied by the Cholesky
+    factor of its whole Gram matrix: 2·2·n·m² flops per call, 1.3 s of the 50k-DOF brake's 11 s
+    basis, to move Φ by round-off; then stacked at each call, 0.6 s).
+    M is applied to V, to W after the first pass and to the kept directions, before and after their
     Cholesky factor (afresh each time: s^(-1/2) amplifies the round-off of a tracked product by up
     to 1/rtol, and a sparse product costs less than the dense updates that would carry it), never
-    to Φ when MΦ is given (issue 23: the basis of the 50k-DOF brake spent 5.5 s re-applying M to the
-    whole basis)."""
+    to the basis (issue 23: the basis of the 50k-DOF brake spent 5.5 s re-applying M to it)."""
     comm = M.getComm().tompi4py()
-    # collective calls depend on column counts only: a rank may own no rows of V
-    extend = Phi is not None and Phi.shape[1] > 0
-    if extend and MPhi is None:
-        MPhi = apply(M, Phi)
+
+    def against_basis(W: np.ndarray) -> np.ndarray:
+        # collective calls depend on column counts only: a rank may own no rows of V
+        for Phi, MPhi in blocks:
+            W = W - Phi @ gram(comm, MPhi, W)
+        return W
+
     MV = apply(M, V)
     norms = np.sqrt(np.maximum(comm.allreduce(np.einsum("ij,ij->j", V, MV), op=MPI.SUM), 0.0))
     ok = norms > 0
     W = V[:, ok] / norms[ok]
     dropped = int(np.sum(~ok))
-    for _ in range(2 if extend else 0):
-        W = W - Phi @ gram(comm, MPhi, W)
-    # M applied afresh rather than carried through the passes (a sparse product costs less than
-    # the two dense updates n × m × k it replaces)
-    G = gram(comm, W, apply(M, W)) if extend else gram(comm, W, MV[:, ok] / norms[ok])
+    if blocks:
+        W = against_basis(W)
+        G = gram(comm, W, apply(M, W))
+    else:
+        G = gram(comm, W, MV[:, ok] / norms[ok])
     s, Q = np.linalg.eigh(0.5 * (G + G.T))
     keep = s > rtol ** 2
     dropped += int(np.sum(~keep))
-    W = W @ (Q[:, keep] / np.sqrt(s[keep]))
-    if extend:
-        W = W - Phi @ gram(comm, MPhi, W)
+    W = against_basis(W @ (Q[:, keep] / np.sqrt(s[keep])))
     if W.shape[1]:
         # the new block's Cholesky QR: W L⁻ᵀ as one matrix product (L well conditioned, G ≈ I)
         G = gram(comm, W, apply(M, W))
         W = W @ solve_triangular(np.linalg.cholesky(0.5 * (G + G.T)), np.eye(G.shape[0]), lower=True).T
-    MW = apply(M, W)
-    if extend:
-        W, MW = np.hstack([Phi, W]), np.hstack([MPhi, MW])
-    return W, MW, dropped
+    return W, apply(M, W), dropped
 
 
 def _local_array(vecs: list[PETSc.Vec]) -> np.ndarray:
@@ -666,15 +688,23 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
         keep = np.sqrt(np.abs(modes[0])) / TWO_PI <= f_cut_hz
         w2, V = modes[0][keep], modes[1][:, keep]
     # M Φ carried along: M is applied to the new columns only, without its stored zeros (a third of
-    # the work: the vector mass is assembled on the stiffness's 3×3 block pattern)
+    # the work: the vector mass is assembled on the stiffness pattern's 3×3 blocks); the basis is
+    # kept as blocks [(Φ_b, MΦ_b)] and stacked once at the end
     Mz = drop_zeros(ops.M)
-    Phi, MPhi, dropped = m_extend(Mz, V, rtol)
-    n_sample = 0
+    blocks: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def extend(X: np.ndarray, tol: float) -> tuple[int, int]:
+        """(columns added, directions dropped)."""
+        W, MW, d = _new_block(Mz, X, tol, blocks)
+        if W.shape[1]:
+            blocks.append((W, MW))
+        return W.shape[1], d
+
+    dropped = extend(V, rtol)[1]
+    n_sample = n_static = n_extra = 0
     if directions is not None and directions.shape[1]:
-        size = Phi.shape[1]
-        Phi, MPhi, d = m_extend(Mz, directions, enrich_rtol, Phi, MPhi)
-        n_sample += Phi.shape[1] - size
-        dropped += d
+        added, d = extend(directions, enrich_rtol)
+        n_sample, dropped = n_sample + added, dropped + d
     for s in samples:
         K = par.frictionless(s)
         _, Vs = modes_below(K, ops.M, f_cut_hz, n_start=int(1.15 * V.shape[1]) + 4, options=options,
@@ -683,27 +713,20 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
         # only what the sampled modes add beyond ``enrich_rtol`` of their norm: eigenvalue errors
         # are quadratic in the subspace error for well-separated modes, but near a coalescence
         # (non-normal) they are not: 1e-2 gave 1.0e-3 on the brake at a map corner, 1e-3 is the default
-        size = Phi.shape[1]
-        Phi, MPhi, d = m_extend(Mz, Vs, enrich_rtol, Phi, MPhi)
-        n_sample += Phi.shape[1] - size
-        dropped += d
-    n_static = 0
-    loads = static_loads(ops, par, Phi) if static else []
+        added, d = extend(Vs, enrich_rtol)
+        n_sample, dropped = n_sample + added, dropped + d
+    loads = static_loads(ops, par, blocks) if static else []
     if loads:
         sigma = (TWO_PI * (sigma_hz if sigma_hz is not None else 0.1 * f_cut_hz)) ** 2
         F = np.column_stack(loads)
         S = solver.solve(F) if solver is not None else \
             static_correction(ops.K, ops.M, F, sigma, options, prefix + "static_")
-        size = Phi.shape[1]
-        Phi, MPhi, d = m_extend(Mz, S, rtol, Phi, MPhi)  # corrections: all of their new content
-        n_static = Phi.shape[1] - size
+        n_static, d = extend(S, rtol)  # corrections: all of their new content
         dropped += d
-    n_extra = 0
     if extra is not None and extra.shape[1]:
-        size = Phi.shape[1]
-        Phi, MPhi, d = m_extend(Mz, extra, rtol, Phi, MPhi)
-        n_extra = Phi.shape[1] - size
+        n_extra, d = extend(extra, rtol)
         dropped += d
+    Phi, MPhi = (_stack([b[i] for b in blocks], V.shape[0]) for i in (0, 1))
     basis = Basis(Phi, ops.K.getSize()[0], np.sqrt(np.abs(w2)) / TWO_PI,
                  {"modes": int(V.shape[1]), "sampled_modes": n_sample, "static": n_static, "extra": n_extra,
                   "dropped": dropped, "size": int(Phi.shape[1])}, MPhi)
@@ -712,7 +735,8 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
     return basis
 
 
-def static_loads(ops: Operators, par: ParametricOperators, Phi: np.ndarray) -> list[np.ndarray]:
+def static_loads(ops: Operators, par: ParametricOperators, Phi: np.ndarray | list[tuple[np.ndarray, ...]]
+                 ) -> list[np.ndarray]:
     """The loads A Φ whose static corrections (K + σM)⁻¹ A Φ join the basis: A = K_f (friction), C_d
     (friction damping) and the gyroscopic G of a turning disc, the terms that the modes at rest do not
     span.  The symmetric K_σ0, K_σc − S (prestress, spin softening: ~1e-4 of K) are left to the modes.
@@ -721,6 +745,8 @@ def static_loads(ops: Operators, par: ParametricOperators, Phi: np.ndarray) -> l
     496, 1.7e-4; + their sum at Ω₀: 325, 1.0e-4."""
     op = par.operating
     mats = [ops.Kf, getattr(ops, "Cd", None), op.G if op is not None else None]
+    if isinstance(Phi, list):   # a basis held as blocks [(Φ_b, …)]: A Φ_b side by side
+        return [np.hstack([apply(A, b[0]) for b in Phi]) for A in mats if A is not None]
     return [apply(A, Phi) for A in mats if A is not None]
 
 

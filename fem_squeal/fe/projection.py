@@ -366,23 +366,25 @@ class ParametricOperators:
     def matrices(self, params: Mapping[str, float]) -> tuple[PETSc.Mat, PETSc.Mat | None]:
         """New K(p) (with friction) and C(p) (None if undamped) for parameter values ``params``;
         with a loss factor K(p) is the real part of the stiffness (:meth:`loss_stiffness`)."""
+        K, C = self.terms(params)
+        return combination(K), (combination(C) if C else None)
+
+    def terms(self, params: Mapping[str, float]) -> tuple[list[tuple[PETSc.Mat, float]], list]:
+        """K(p) = Σ c_i A_i and C(p) = Σ d_j B_j as lists [(A_i, c_i)] (C: empty if undamped), in the
+        order :meth:`matrices` adds them (the affine form, defined here once)."""
         self._check(params)
-        K = self.ops.K.copy()
-        C = self.ops.C.copy() if self.ops.C is not None else None
+        K = [(self.ops.K, 1.0)]
+        C = [(self.ops.C, 1.0)] if self.ops.C is not None else []
         mu = params.get(MU, self.mu0)
         if self.ops.Kf is not None and self.mu0 != 0:
-            _add(K, self.ops.Kf, mu / self.mu0)
-        C = self._operating(K, C, mu, params.get(SPEED, self.speed0))
+            K.append((self.ops.Kf, mu / self.mu0))
+        self._operating(K, C, mu, params.get(SPEED, self.speed0))
         for p in self.parts:
             d = params.get(e_param(p), self.E0[p]) / self.E0[p] - 1.0
             if d != 0:
-                _add(K, self.K_parts[p], d)
+                K.append((self.K_parts[p], d))
                 if self.beta[p] > 0:
-                    if C is None:
-                        C = self.K_parts[p].copy()
-                        C.scale(self.beta[p] * d)
-                    else:
-                        _add(C, self.K_parts[p], self.beta[p] * d)
+                    C.append((self.K_parts[p], self.beta[p] * d))
         for name, it in self.interfaces.items():
             keys = (f"mu.{name}", f"kn.{name}", f"kt.{name}")
             if not any(k in params for k in keys):
@@ -390,32 +392,27 @@ class ParametricOperators:
             Kc, Kf, Kt = self.interface_matrices(name)
             s = params.get(keys[1], it.kn) / it.kn
             if keys[1] in params:
-                _add(K, Kc, s - 1.0)
+                K.append((Kc, s - 1.0))
             if Kf is not None and (keys[0] in params or keys[1] in params):
                 mu_default = params.get(MU, self.mu0) * self._mu_share(it)
-                _add(K, Kf, params[keys[0]] * s - mu_default if keys[0] in params else mu_default * (s - 1.0))
+                K.append((Kf, params[keys[0]] * s - mu_default if keys[0] in params else mu_default * (s - 1.0)))
             if keys[2] in params:
-                _add(K, Kt, params[keys[2]] - it.kt)
+                K.append((Kt, params[keys[2]] - it.kt))
         return K, C
 
-    def _operating(self, K: PETSc.Mat, C: PETSc.Mat | None, mu: float, speed: float) -> PETSc.Mat | None:
-        """Add K_σ0 + Ω²(K_σc − S) to K and Ω G + ((|μ|/|μ⁰|)(Ω₀/Ω) − 1) C_d to C (which holds C_d at the
-        nominal point); returns C (a new matrix where it was None)."""
+    def _operating(self, K: list, C: list, mu: float, speed: float) -> None:
+        """The terms K_σ0 + Ω²(K_σc − S) of K and Ω G + ((|μ|/|μ⁰|)(Ω₀/Ω) − 1) C_d of C (which holds C_d
+        at the nominal point), appended to the term lists."""
         op, Cd = self.operating, self.ops.Cd
         if op is not None and op.Ks0 is not None:
-            _add(K, op.Ks0)
+            K.append((op.Ks0, 1.0))
         if op is not None and op.G is not None:
-            _add(K, self.K2, speed ** 2)
-            if C is None:
-                C = op.G.copy()
-                C.scale(speed)
-            else:
-                _add(C, op.G, speed)
+            K.append((self.K2, speed ** 2))
+            C.append((op.G, speed))
         if Cd is not None and self.mu0 != 0:
             if self.speed0 and not speed > 0:
                 raise ModelError(f"speed: must be > 0 with friction damping (got {speed})")
-            _add(C, Cd, friction_damping_scale(mu, self.mu0, speed, self.speed0) - 1.0)
-        return C
+            C.append((Cd, friction_damping_scale(mu, self.mu0, speed, self.speed0) - 1.0))
 
     def real_equivalent(self, params: Mapping[str, float]
                         ) -> tuple[PETSc.Mat, PETSc.Mat | None, PETSc.Mat]:
@@ -841,15 +838,19 @@ def lifted_residuals(par: ParametricOperators, Phi: np.ndarray, params: Mapping[
     nK, nM = K.norm(PETSc.NormType.INFINITY), M.norm(PETSc.NormType.INFINITY)
     nC = C.norm(PETSc.NormType.INFINITY) if C is not None else 0.0
     X = Phi @ Y  # complex local rows
-    KX = apply(K, X.real) + 1j * apply(K, X.imag)
-    MX = apply(M, X.real) + 1j * apply(M, X.imag)
-    R = KX + MX * lam[None, :] ** 2
+    XX = np.hstack([X.real, X.imag])           # one product per matrix for both parts
+
+    def times(A: PETSc.Mat) -> np.ndarray:
+        AX = apply(A, XX)
+        return AX[:, :X.shape[1]] + 1j * AX[:, X.shape[1]:]
+
+    R = times(K) + times(M) * lam[None, :] ** 2
     if C is not None:
-        R += (apply(C, X.real) + 1j * apply(C, X.imag)) * lam[None, :]
+        R += times(C) * lam[None, :]
         C.destroy()
     Ki = par.loss_stiffness(params)   # a loss factor: K = K_r + iK_i
     if Ki is not None:
-        R += 1j * (apply(Ki, X.real) + 1j * apply(Ki, X.imag))
+        R += 1j * times(Ki)
         Ki.destroy()
     K.destroy()
     r = np.sqrt(comm.allreduce(np.sum(np.abs(R) ** 2, axis=0), op=MPI.SUM))

@@ -28,7 +28,7 @@ from scipy.sparse import csr_matrix
 
 from fem_squeal.fe import interface as itf
 from fem_squeal.fe.assembly import OperatingTerms, Operators, _add, _owned_global_rows, combination
-from fem_squeal.fe.dense import apply, block_solve, gram
+from fem_squeal.fe.dense import apply, block_solve, gram, matmul_f
 from fem_squeal.fe.eigen import (
     DIRECT_SOLVER_OPTIONS,
     TWO_PI,
@@ -129,13 +129,13 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
     def against_basis(W: np.ndarray) -> np.ndarray:
         # collective calls depend on column counts only: a rank may own no rows of V
         for Phi, MPhi in blocks:
-            W = W - Phi @ gram(comm, MPhi, W)
+            W = W - matmul_f(Phi, gram(comm, MPhi, W))
         return W
 
     MV = apply(M, V)
     norms = np.sqrt(np.maximum(comm.allreduce(np.einsum("ij,ij->j", V, MV), op=MPI.SUM), 0.0))
     ok = norms > 0
-    W = V[:, ok] / norms[ok]
+    W = np.asfortranarray(V[:, ok] / norms[ok])
     dropped = int(np.sum(~ok))
     if blocks:
         W = against_basis(W)
@@ -145,16 +145,17 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
     s, Q = np.linalg.eigh(0.5 * (G + G.T))
     keep = s > rtol ** 2
     dropped += int(np.sum(~keep))
-    W = against_basis(W @ (Q[:, keep] / np.sqrt(s[keep])))
+    W = against_basis(matmul_f(W, Q[:, keep] / np.sqrt(s[keep])))
     if W.shape[1]:
         # the new block's Cholesky QR: W L⁻ᵀ as one matrix product (L well conditioned, G ≈ I)
         G = gram(comm, W, apply(M, W))
-        W = W @ solve_triangular(np.linalg.cholesky(0.5 * (G + G.T)), np.eye(G.shape[0]), lower=True).T
+        W = matmul_f(W, solve_triangular(np.linalg.cholesky(0.5 * (G + G.T)), np.eye(G.shape[0]), lower=True).T)
     return W, apply(M, W), dropped
 
 
 def _local_array(vecs: list[PETSc.Vec]) -> np.ndarray:
-    return np.column_stack([v.array_r for v in vecs]) if vecs else np.zeros((0, 0))
+    """The vectors' rank-local rows as the columns of a column-major array."""
+    return np.array([v.array_r for v in vecs]).T if vecs else np.zeros((0, 0), order="F")
 
 
 def modes_below(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, *, n_start: int = 20, options=None,

@@ -7,6 +7,7 @@ from collections.abc import Callable
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
+from scipy.linalg import blas
 
 from fem_squeal.fe.csr import block_product, csr_view
 
@@ -51,6 +52,15 @@ def matmul_f(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 def gram(comm, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     """Xᵀ Y summed over the ranks."""
     return comm.allreduce(X.T @ Y, op=MPI.SUM)
+
+
+def project_out(comm, V: np.ndarray, MV: np.ndarray, W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """C = (MV)ᵀW summed over the ranks and W − V C, in place on column-major W (BLAS dgemm: no
+    temporary V C)."""
+    C = gram(comm, MV, W)
+    if W.size == 0:       # no columns, or no rows on this rank (the sum above is collective)
+        return C, W
+    return C, blas.dgemm(-1.0, V, C, beta=1.0, c=W, overwrite_c=1)
 
 
 def block_solve(factor: PETSc.Mat) -> Callable[[np.ndarray], np.ndarray]:

@@ -27,7 +27,7 @@ from slepc4py import SLEPc
 
 from fem_squeal.fe import cholmod
 from fem_squeal.fe.csr import block_product, csr_view
-from fem_squeal.fe.dense import apply, block_solve, gram
+from fem_squeal.fe.dense import apply, block_solve, project_out
 from fem_squeal.fe.ordering import ORDERINGS, fill_reducing_order, permuted
 from fem_squeal.util.blas import serial_openmp
 from fem_squeal.util.errors import EigenSolveError, ModelError
@@ -229,12 +229,6 @@ def _krylov_dim(nev: int, b: int, n: int) -> int:
     return min(max(6 * nev, nev + 16 * b, 256), n - b) // b * b
 
 
-def _project_out(comm, V: np.ndarray, MV: np.ndarray, W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """C = (MV)ᵀW summed over the ranks and W − V C, in place on column-major W (BLAS dgemm)."""
-    C = gram(comm, MV, W)
-    return C, blas.dgemm(-1.0, V, C, beta=1.0, c=W, overwrite_c=1)
-
-
 def _start_block(rows: np.ndarray, b: int) -> np.ndarray:
     """A start block that depends on the global row numbers only (the same on any rank count)."""
     x = np.sin(np.outer(rows.astype(float) + 1.0, 12.9898 + 78.233 * np.arange(1, b + 1))) * 43758.5453
@@ -298,8 +292,8 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
         W = np.asfortranarray(solve(MV[:, k - b:k]))
         lo = max(0, k - 2 * b)
         C = np.zeros((k, b))
-        C[lo:], W = _project_out(comm, V[:, lo:k], MV[:, lo:k], W)   # the recurrence: the last two blocks
-        C2, W = _project_out(comm, V[:, :k], MV[:, :k], W)            # full reorthogonalisation
+        C[lo:], W = project_out(comm, V[:, lo:k], MV[:, lo:k], W)   # the recurrence: the last two blocks
+        C2, W = project_out(comm, V[:, :k], MV[:, :k], W)            # full reorthogonalisation
         C += C2
         T[:k, k - b:k] = C
         T[k - b:k, :k] = C.T
@@ -375,8 +369,8 @@ def _block_arnoldi(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     k = b
     while True:
         W = np.asfortranarray(solve(np.asfortranarray(mass(V[:, k - b:k]))))
-        C, W = _project_out(comm, V[:, :k], V[:, :k], W)
-        C2, W = _project_out(comm, V[:, :k], V[:, :k], W)     # the second pass: orthogonal to round-off
+        C, W = project_out(comm, V[:, :k], V[:, :k], W)
+        C2, W = project_out(comm, V[:, :k], V[:, :k], W)     # the second pass: orthogonal to round-off
         H[:k, k - b:k] = C + C2
         nxt = _m_orthonormal(comm, unit, W)
         if k >= nev + 1:

@@ -28,7 +28,7 @@ from scipy.sparse import csr_matrix
 
 from fem_squeal.fe import interface as itf
 from fem_squeal.fe.assembly import OperatingTerms, Operators, _add, _owned_global_rows, combination
-from fem_squeal.fe.dense import apply, block_solve, gram, matmul_f
+from fem_squeal.fe.dense import apply, block_solve, gram, matmul_f, project_out
 from fem_squeal.fe.eigen import (
     DIRECT_SOLVER_OPTIONS,
     TWO_PI,
@@ -129,7 +129,7 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
     def against_basis(W: np.ndarray) -> np.ndarray:
         # collective calls depend on column counts only: a rank may own no rows of V
         for Phi, MPhi in blocks:
-            W = W - matmul_f(Phi, gram(comm, MPhi, W))
+            W = project_out(comm, Phi, MPhi, W)[1]
         return W
 
     MV = apply(M, V)
@@ -838,12 +838,13 @@ def lifted_residuals(par: ParametricOperators, Phi: np.ndarray, params: Mapping[
     M = par.ops.M
     nK, nM = K.norm(PETSc.NormType.INFINITY), M.norm(PETSc.NormType.INFINITY)
     nC = C.norm(PETSc.NormType.INFINITY) if C is not None else 0.0
-    X = Phi @ Y  # complex local rows
-    XX = np.hstack([X.real, X.imag])           # one product per matrix for both parts
+    k = Y.shape[1]
+    XX = matmul_f(Phi, np.hstack([Y.real, Y.imag]))  # x = Φy, real and imaginary parts side by side
+    X = XX[:, :k] + 1j * XX[:, k:]                  # (Φ @ Y would copy Φ to complex first)
 
-    def times(A: PETSc.Mat) -> np.ndarray:
+    def times(A: PETSc.Mat) -> np.ndarray:      # one product per matrix for both parts
         AX = apply(A, XX)
-        return AX[:, :X.shape[1]] + 1j * AX[:, X.shape[1]:]
+        return AX[:, :k] + 1j * AX[:, k:]
 
     R = times(K) + times(M) * lam[None, :] ** 2
     if C is not None:

@@ -207,6 +207,7 @@ def _shift_invert_eps(A: PETSc.Mat, B: PETSc.Mat, problem_type, nev: int, target
 # 43 → 11 ms with 16 columns), which more than pays for the larger Krylov space a block method
 # needs.  ``<prefix>block_size`` 0 turns it off (SLEPc's Krylov–Schur on the same factorisation).
 BLOCK_MEMORY = 4.0e9   # bytes per rank for the Lanczos vectors (V and MV); beyond it, Krylov–Schur
+BEYOND = 2             # converged pairs beyond a threshold λ_max that show none below it is missing
 
 
 def block_size(nev: int) -> int:
@@ -260,8 +261,8 @@ def _m_orthonormal(comm, mass: Callable[[np.ndarray], np.ndarray], W: np.ndarray
 
 
 def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np.ndarray], np.ndarray],
-                   comm, rows: tuple[int, int], n: int, nev: int, sigma: float, tol: float, b: int
-                   ) -> tuple[np.ndarray, np.ndarray] | None:
+                   comm, rows: tuple[int, int], n: int, nev: int, sigma: float, tol: float, b: int,
+                   lam_max: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """The ``nev`` eigenpairs of K x = λ M x nearest σ by block Lanczos on (K − σM)⁻¹M in the M-inner
     product, with full reorthogonalisation.  ``solve``: B ↦ (K − σM)⁻¹B and ``mass``: W ↦ MW, both
     on the rank-local rows ``rows`` (r0, r1) of column-major blocks; ``n``: the global size.
@@ -275,11 +276,23 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     triangular factor).  A pair counts as converged where that is ≤ tol·|θ|, SLEPc's criterion.
     Orthogonalisation: W against the last two blocks (the three-term recurrence, where W's large
     components lie), then once against all of V (what round-off leaves along the older blocks), then
-    the Cholesky QR of :func:`_m_orthonormal`."""
+    the Cholesky QR of :func:`_m_orthonormal`.
+
+    ``lam_max``: every pair with λ ≤ ``lam_max`` and the next :data:`BEYOND` in |θ| order instead of
+    ``nev`` (σ below the middle of [0, ``lam_max``]: those are the leading |θ|); ``nev`` is then a
+    guess that sizes nothing but the block, and the budget is the vectors :data:`BLOCK_MEMORY`
+    holds (zero pages until used).  This is how :func:`fem_squeal.fe.projection.modes_below` asks
+    for the modes below a cut without counting them first (an inertia count cost one more
+    factorisation)."""
     r0, r1 = rows
-    dim = _krylov_dim(nev, b, n)
-    if dim < nev or comm.allreduce(2 * 8 * (r1 - r0) * dim, op=MPI.MAX) > BLOCK_MEMORY:
-        return None
+    if lam_max is None:
+        dim = _krylov_dim(nev, b, n)
+        if dim < nev or comm.allreduce(2 * 8 * (r1 - r0) * dim, op=MPI.MAX) > BLOCK_MEMORY:
+            return None
+    else:
+        dim = min(n - b, int(BLOCK_MEMORY // (2 * 8 * max(comm.allreduce(r1 - r0, op=MPI.MAX), 1)))) // b * b
+        if dim < 2 * b:
+            return None
     V = np.zeros((r1 - r0, dim), order="F")
     MV = np.zeros(V.shape, order="F")    # calloc: pages are touched only as columns are filled
     start = _m_orthonormal(comm, mass, _start_block(np.arange(r0, r1), b))
@@ -299,11 +312,13 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
         T[k - b:k, :k] = C.T
         Tk = 0.5 * (T[:k, :k] + T[:k, :k].T)
         theta, Y = np.linalg.eigh(Tk)
-        want = np.argsort(-np.abs(theta), kind="stable")[:nev]
+        want = np.argsort(-np.abs(theta), kind="stable")
+        count = nev if lam_max is None else int(np.sum(sigma + 1.0 / theta <= lam_max)) + BEYOND
+        want = want[:count]
         nxt = _m_orthonormal(comm, mass, W)
         # an invariant subspace (nothing new in W): the Ritz pairs are exact
         res = np.zeros(want.size) if nxt is None else np.linalg.norm(nxt[2] @ Y[k - b:k, want], axis=0)
-        if k >= nev and np.all(res <= tol * np.abs(theta[want])):
+        if k >= count and np.all(res <= tol * np.abs(theta[want])):
             return sigma + 1.0 / theta[want], blas.dgemm(1.0, V[:, :k], Y[:, want])
         if nxt is None or k + b > dim:
             return None                       # fewer than nev pairs exist, or the budget is spent
@@ -402,7 +417,7 @@ def _block_arnoldi(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
 
 def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, tol: float = REAL_MODE_TOL,
                      max_residual: float = 1e-8, options: dict | None = None,
-                     prefix: str = "real_", progress: bool = False) -> RealModes:
+                     prefix: str = "real_", progress: bool = False, f_max_hz: float | None = None) -> RealModes:
     """Real modes nearest ``target_hz``: K φ = ω² M φ, shift-and-invert at ω_t², by block Lanczos
     on the factor's block solves (:func:`_block_lanczos`; ``<prefix>block_size``, 0: off), else, or
     where it does not converge within its vector budget or misses ``max_residual``, by SLEPc's
@@ -412,7 +427,9 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     (:mod:`fem_squeal.fe.ordering`; ``<prefix>ordering solver`` leaves the ordering to CHOLMOD);
     PETSc's CHOLMOD works on K and M permuted to that order; the vectors come back in the caller's
     order.  ``progress``: draw converged/requested pairs on rank 0's stderr (Krylov–Schur
-    only)."""
+    only).  ``f_max_hz``: every mode up to it and :data:`BEYOND` more instead of ``nev`` (then a
+    guess: the block size follows it) where block Lanczos answers; Krylov–Schur, where it takes
+    over, returns ``nev``."""
     if nev < 1:
         raise ModelError(f"n_modes: must be >= 1 (got {nev})")
     for A in (K, M):
@@ -421,7 +438,8 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     sigma, key = (TWO_PI * target_hz) ** 2, (K.handle, M.handle)
     Ms = drop_zeros(M)
     b = _block_columns(nev, prefix)
-    direct = _cholmod_block_lanczos(K, Ms, nev, sigma, tol, b, prefix, key) if b > 0 else None
+    lam_max = None if f_max_hz is None else (TWO_PI * f_max_hz) ** 2
+    direct = _cholmod_block_lanczos(K, Ms, nev, sigma, tol, b, prefix, key, lam_max) if b > 0 else None
     if direct is not None:
         t0 = time.perf_counter()
         vals, vecs, res = _pairs_from_rows(K, Ms, *direct[:2]) if direct[0] is not None else ([], [], [])
@@ -446,7 +464,7 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
         comm = K.getComm().tompi4py()
         got = _block_lanczos(block_solve(eps.getST().getKSP().getPC().getFactorMatrix()),
                              lambda W: apply(Mw, W), comm, Kw.getOwnershipRange(), Kw.getSize()[0], nev,
-                             sigma, tol, b) if b > 0 else None
+                             sigma, tol, b, lam_max) if b > 0 else None
         if got is not None:
             vals, vecs, res = _pairs_from_rows(K, Ms, got[0], _caller_rows(got[1], perm))
             if np.all(res <= max_residual):
@@ -482,7 +500,8 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
 
 
 def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, tol: float, b: int, prefix: str,
-                           key: tuple[int, int]) -> tuple[np.ndarray | None, np.ndarray | None, dict] | None:
+                           key: tuple[int, int], lam_max: float | None = None
+                           ) -> tuple[np.ndarray | None, np.ndarray | None, dict] | None:
     """Block Lanczos (:func:`_block_lanczos`) on CHOLMOD's supernodal factorisation of K − σM,
     called directly (:mod:`fem_squeal.fe.cholmod`) with the fill-reducing order of K's node
     graph handed in (:func:`_fill_reducing_order`): no permuted copies of K and M, no PETSc dense
@@ -515,7 +534,8 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
         t1 = time.perf_counter()
         try:
             mass = block_product(m_csr) or Msp.__matmul__
-            got = _block_lanczos(factor.solve, mass, K.getComm().tompi4py(), (0, n), n, nev, sigma, tol, b)
+            got = _block_lanczos(factor.solve, mass, K.getComm().tompi4py(), (0, n), n, nev, sigma, tol, b,
+                                 lam_max)
         finally:
             factor.close()
     seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1}

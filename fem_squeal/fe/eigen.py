@@ -499,6 +499,40 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
                      {"factor": t_factor, "solve": t_solve}, "Krylov-Schur")
 
 
+def modes_on_factor(solve: Callable[[np.ndarray], np.ndarray], K: PETSc.Mat, M: PETSc.Mat, sigma: float,
+                    f_max_hz: float, nev_guess: int, *, tol: float = REAL_MODE_TOL,
+                    max_residual: float = 1e-8) -> RealModes | None:
+    """Every real mode up to ``f_max_hz`` and :data:`BEYOND` more, by block Lanczos on a
+    factorisation at hand: ``solve``: B ↦ (K − σM)⁻¹B on rank-local column-major rows, K − σM
+    indefinite or not, σ ≤ (2π f_max)²/2 (the modes below the cut then lead in |1/(λ − σ)|).  One
+    factorisation then serves the modes and the static solves that share its shift (issue 23:
+    the reduced basis of the 163k-DOF brake on 2 ranks factorised K twice with MUMPS, at the band
+    centre and near 0).  None where the Lanczos does not converge within its budget or a pair
+    misses ``max_residual`` (the caller factorises then)."""
+    lam_max = (TWO_PI * f_max_hz) ** 2
+    if not sigma <= 0.5 * lam_max:
+        return None
+    Ms = drop_zeros(M)
+    try:
+        t0 = time.perf_counter()
+        b = block_size(nev_guess)
+        got = _block_lanczos(solve, lambda W: apply(Ms, W), K.getComm().tompi4py(), K.getOwnershipRange(),
+                             K.getSize()[0], nev_guess, sigma, tol, b, lam_max)
+        if got is None:
+            return None
+        vals, vecs, res = _pairs_from_rows(K, Ms, *got)
+        if not np.all(res <= max_residual):
+            for v in vecs:
+                v.destroy()
+            return None
+        order = np.argsort(vals)
+        return RealModes(vals[order], [vecs[i] for i in order], res[order], "shared",
+                         {"factor": 0.0, "solve": time.perf_counter() - t0}, f"block Lanczos, {b} columns")
+    finally:
+        if Ms is not M:
+            Ms.destroy()
+
+
 def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, tol: float, b: int, prefix: str,
                            key: tuple[int, int], lam_max: float | None = None
                            ) -> tuple[np.ndarray | None, np.ndarray | None, dict] | None:

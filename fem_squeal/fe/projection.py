@@ -33,6 +33,7 @@ from fem_squeal.fe.eigen import (
     DIRECT_SOLVER_OPTIONS,
     TWO_PI,
     drop_zeros,
+    modes_on_factor,
     set_options,
     solve_complex_modes,
     solve_left_vectors,
@@ -159,22 +160,34 @@ def _local_array(vecs: list[PETSc.Vec]) -> np.ndarray:
 
 
 def modes_below(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, *, n_start: int = 20, options=None,
-                prefix: str = "basis_", max_modes: int = 2000):
+                prefix: str = "basis_", max_modes: int = 2000, solver: ShiftedSolver | None = None):
     """Every real mode with f ≤ ``f_cut_hz`` (shift-invert near 0): block Lanczos converges the modes
     below the cut and two above it (``f_max_hz`` of :func:`solve_real_modes`; ``n_start``, a guess
     of their number, sets its block size); where Krylov–Schur takes over, the count grows until the
-    highest converged mode lies above the cut.  Returns (ω² array, local (n_local, n) array)."""
+    highest converged mode lies above the cut.  ``solver``: a factorisation of K + σM at hand, used
+    instead of a new one where MUMPS would factorise anyway (more than one rank;
+    :func:`fem_squeal.fe.eigen.modes_on_factor`; on one rank CHOLMOD's factorisation near 0 and its
+    solves cost less than MUMPS's solves).  Returns (ω² array, local (n_local, n) array)."""
+    def local(rm) -> tuple[np.ndarray, np.ndarray]:
+        keep = rm.freqs_hz <= f_cut_hz
+        Phi = _local_array([v for v, k in zip(rm.vectors, keep) if k])
+        for v in rm.vectors:
+            v.destroy()
+        return rm.omega2[keep], Phi
+
+    if solver is not None and solver.factor is not None and K.getComm().getSize() > 1:
+        rm = modes_on_factor(solver.solve, K, M, -solver.sigma, f_cut_hz, n_start)
+        if rm is not None and rm.freqs_hz[-1] > f_cut_hz:
+            return local(rm)
+        for v in rm.vectors if rm is not None else ():
+            v.destroy()
     nev = n_start
     target = 1e-3 * f_cut_hz  # a small positive shift: K may be singular (free bodies)
     while True:
         rm = solve_real_modes(K, M, nev, target, options=options, prefix=prefix, progress=True, f_max_hz=f_cut_hz)
         f = rm.freqs_hz
         if f[-1] > f_cut_hz or nev >= max_modes:
-            keep = f <= f_cut_hz
-            Phi = _local_array([v for v, k in zip(rm.vectors, keep) if k])
-            for v in rm.vectors:
-                v.destroy()
-            return rm.omega2[keep], Phi
+            return local(rm)
         for v in rm.vectors:
             v.destroy()
         # extrapolate the count to the cut (N ∝ f^1.5, between plates ∝ f² and beams ∝ f), with a
@@ -982,7 +995,7 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
                 # cost one more factorisation, 0.5 s of the 50k-DOF brake's basis); the guess of
                 # their number sets its block size, 16 columns from 121 modes
                 w2, V = modes_below(ops.K, ops.M, want, n_start=max(n_start, 128), options=options,
-                                    prefix="basis_")
+                                    prefix="basis_", solver=solver)
                 n_start = V.shape[1] + 2
                 modes, solved_cut, dirs = (w2, V), want, None
                 row["modes_seconds"] = wall(t0)

@@ -198,7 +198,8 @@ def modes_below(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, *, n_start: int = 2
 
 def count_below(K: PETSc.Mat, M: PETSc.Mat, f_hz: float, options=None, prefix: str = "basis_count_") -> int:
     """The number of modes with f < ``f_hz``: the negative inertia of K − (2πf)²M (Sylvester's law;
-    one MUMPS LDLᵀ factorisation, ICNTL(13) = 1 and ICNTL(24) = 1 as its inertia needs)."""
+    one MUMPS LDLᵀ factorisation, ICNTL(13) = 1 and ICNTL(24) = 1 as its inertia needs).  A check of
+    the modes a solve returns (tests); :func:`adaptive_reduce` no longer counts before solving."""
     set_options(prefix, options, {"pc_type": "cholesky", "mat_mumps_icntl_13": 1, "mat_mumps_icntl_24": 1})
     A = K.copy()
     A.axpy(-(TWO_PI * f_hz) ** 2, M, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
@@ -957,7 +958,9 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
       the truncated modes' flexibility Σ φ_kφ_kᵀ/(ω_k² − ω²) for ω in the band better than a
       positive shift: on the 50k-DOF brake (band 0–10 kHz, modes ≤ 16 kHz) the worst error of the
       unstable eigenvalues at the design corners is 2.4e-4 with 234 vectors, against 1.1e-3 with
-      K + (2π·1.6 kHz)²M and 1.2e-3 (one unstable mode missed) with the re-solved samples (255).
+      K + (2π·1.6 kHz)²M and 1.2e-3 (one unstable mode missed) with the re-solved samples (255);
+      on more than one rank the modes too come from this factorisation (:func:`modes_below`);
+    * the modes are asked for by their cut, not their number (no inertia count first).
     Each round's row gives the seconds of its parts (``factor_seconds``, ``modes_seconds``,
     ``directions_seconds``, ``basis_seconds``: corrections and orthonormalisation,
     ``project_seconds``, ``checks_seconds``)."""

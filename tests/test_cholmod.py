@@ -239,3 +239,33 @@ def test_block_product_equals_scipys(k, blocks):
         assert np.allclose(product(X[:, 0]), R @ X[:, 0], rtol=0, atol=1e-15 * np.max(np.abs(Y)))
         with pytest.raises(ValueError, match="rows"):
             product(X[1:])
+
+
+def test_sum_norm_inf_equals_petscs_norm_of_the_sum():
+    """‖Σ c_i A_i‖∞ merged row by row without forming the sum against PETSc's MatNorm of the
+    formed sum: terms of different patterns, a negative coefficient, a zero one, and two terms that
+    cancel on one row (its absolute sum must use the summed entries, not the terms').  The same
+    additions in another order: equal to 1e-15 relative."""
+    from petsc4py import PETSc
+
+    from fem_squeal.fe.assembly import combination
+    from fem_squeal.fe.csr import sum_norm_inf
+
+    A = _laplacian(7)
+    B = sp.random(A.shape[0], A.shape[1], density=0.05, random_state=3, format="csr") + sp.eye(A.shape[0])
+    C = A.copy()
+    C.data[:] = 0.0
+    C = (C + sp.csr_matrix(([5.0], ([3], [3])), shape=A.shape)).tocsr()
+
+    def petsc(S):
+        S = S.tocsr()
+        return PETSc.Mat().createAIJ(S.shape, csr=(S.indptr.astype(PETSc.IntType), S.indices.astype(PETSc.IntType),
+                                                   S.data), comm=PETSc.COMM_SELF)
+    mats = [petsc(A), petsc(B), petsc(C), petsc(A)]
+    for coefs in ([1.0, -0.3, 2.0, 0.0], [1.0, 0.0, 0.0, -1.0], [2.5, 1.0, -0.2, 0.7]):
+        terms = list(zip(mats, coefs))
+        S = combination(terms)
+        want = S.norm(PETSc.NormType.INFINITY)
+        S.destroy()
+        assert abs(sum_norm_inf(terms) - want) <= 1e-15 * max(want, 1.0)
+    assert sum_norm_inf([(mats[0], 1.0), (mats[3], -1.0)]) == 0.0      # A − A: every row cancels

@@ -12,10 +12,12 @@ from __future__ import annotations
 
 import ctypes
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from functools import lru_cache
 
 import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from fem_squeal.util.native import address, compiled_library, first_library
@@ -239,6 +241,33 @@ int csr_block(int32_t n, int32_t ncol, const int32_t *ai, const int32_t *aj, con
     free(T);
     return 0;
 }
+
+/* max over rows of sum_j |sum_t c_t A_t(i, j)|: the infinity norm of a sum of CSR matrices of one
+   shape without forming it; acc (ncol doubles) and stamp (ncol ints) zero on entry, left so */
+double csr_sum_norm_inf(int32_t nterms, int32_t n, const int32_t *const *ai, const int32_t *const *aj,
+                        const double *const *av, const double *c, double *acc, int32_t *stamp, int32_t *touched)
+{
+    double best = 0.0;
+    for (int32_t i = 0; i < n; ++i) {
+        int32_t nt = 0;
+        for (int32_t t = 0; t < nterms; ++t)
+            for (int32_t p = ai[t][i]; p < ai[t][i + 1]; ++p) {
+                const int32_t j = aj[t][p];
+                if (stamp[j] != i + 1) {
+                    stamp[j] = i + 1;
+                    acc[j] = 0.0;
+                    touched[nt++] = j;
+                }
+                acc[j] += c[t] * av[t][p];
+            }
+        double row = 0.0;
+        for (int32_t q = 0; q < nt; ++q)
+            row += acc[touched[q]] < 0 ? -acc[touched[q]] : acc[touched[q]];
+        if (row > best)
+            best = row;
+    }
+    return best;
+}
 """
 
 
@@ -250,6 +279,8 @@ def _product_lib() -> ctypes.CDLL | None:
     i32, i64, p = ctypes.c_int32, ctypes.c_int64, ctypes.c_void_p
     lib.csr_block.argtypes = [i32, i32, p, p, p, i32, p, i64, p, i64]
     lib.csr_block.restype = ctypes.c_int
+    lib.csr_sum_norm_inf.argtypes = [i32, i32, p, p, p, p, p, p, p]
+    lib.csr_sum_norm_inf.restype = ctypes.c_double
     return lib
 
 
@@ -279,3 +310,31 @@ def block_product(csr: tuple[np.ndarray, np.ndarray, np.ndarray], ncol: int | No
             raise MemoryError(f"block_product: no buffer for {ncol} × 16 doubles")
         return Y.reshape((n, *X.shape[1:]), order="F")
     return product
+
+
+def sum_norm_inf(terms: list[tuple[PETSc.Mat, float]]) -> float:
+    """‖Σ c_i A_i‖∞ (the largest absolute row sum, over the ranks) of AIJ matrices of one shape,
+    without forming the sum in PETSc: the terms' rows merged row by row (compiled; SciPy's sum where
+    the kernel cannot be had), on PETSc's arrays on one rank and ``getValuesCSR``'s copies of the
+    local rows on more.  Forming K(p) for its norm took four sparse additions of a new pattern per
+    design point (60 ms at 50k DOFs)."""
+    A0 = terms[0][0]
+    comm, ncol = A0.getComm().tompi4py(), A0.getSize()[1]
+    lib = _product_lib()
+    with ExitStack() as stack:
+        csrs = [tuple(np.ascontiguousarray(a, dtype=t) for a, t in zip(stack.enter_context(csr_view(A)),
+                                                                        (np.int32, np.int32, np.float64)))
+                for A, _ in terms]
+        n = len(csrs[0][0]) - 1
+        c = np.array([float(ci) for _, ci in terms])
+        if n == 0:
+            local = 0.0
+        elif lib is not None:
+            ptrs = [(ctypes.c_void_p * len(terms))(*[x[k].ctypes.data for x in csrs]) for k in range(3)]
+            acc, stamp, touched = np.zeros(ncol), np.zeros(ncol, np.int32), np.empty(ncol, np.int32)
+            local = lib.csr_sum_norm_inf(len(terms), n, *ptrs, address(c), address(acc), address(stamp),
+                                         address(touched))
+        else:
+            S = sum(ci * sp.csr_matrix((x[2], x[1], x[0]), shape=(n, ncol)) for ci, x in zip(c, csrs))
+            local = float(np.max(np.asarray(abs(S).sum(axis=1))))
+    return comm.allreduce(local, op=MPI.MAX)

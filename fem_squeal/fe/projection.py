@@ -28,6 +28,7 @@ from scipy.sparse import csr_matrix
 
 from fem_squeal.fe import interface as itf
 from fem_squeal.fe.assembly import OperatingTerms, Operators, _add, _owned_global_rows, combination
+from fem_squeal.fe.csr import sum_norm_inf
 from fem_squeal.fe.dense import apply, block_solve, gram, matmul_f, project_out
 from fem_squeal.fe.eigen import (
     DIRECT_SOLVER_OPTIONS,
@@ -848,29 +849,32 @@ def lifted_residuals(par: ParametricOperators, Phi: np.ndarray, params: Mapping[
                      lam: np.ndarray, Y: np.ndarray) -> np.ndarray:
     """Backward error of each lifted pair (λ, x = Φy) in the full problem:
     η = ‖(λ²M + λC + K)x‖ / ((|λ|²‖M‖ + |λ|‖C‖ + ‖K‖)‖x‖), ∞-norms of the matrices, 2-norms of
-    the vectors (Tisseur's normwise backward error of a polynomial eigenpair)."""
-    K, C = par.matrices(params)
-    comm = K.getComm().tompi4py()
+    the vectors (Tisseur's normwise backward error of a polynomial eigenpair).  K(p) and C(p) are
+    applied and normed term by term (:meth:`ParametricOperators.terms`,
+    :func:`fem_squeal.fe.csr.sum_norm_inf`), never formed."""
+    comm = par.ops.K.getComm().tompi4py()
+    Kt, Ct = par.terms(params)
+    Ki = par.loss_stiffness(params)   # a loss factor: K = K_r + iK_i
     M = par.ops.M
-    nK, nM = K.norm(PETSc.NormType.INFINITY), M.norm(PETSc.NormType.INFINITY)
-    nC = C.norm(PETSc.NormType.INFINITY) if C is not None else 0.0
+    nK, nM = sum_norm_inf(Kt), M.norm(PETSc.NormType.INFINITY)
+    nC = sum_norm_inf(Ct) if Ct else 0.0
     k = Y.shape[1]
     XX = matmul_f(Phi, np.hstack([Y.real, Y.imag]))  # x = Φy, real and imaginary parts side by side
     X = XX[:, :k] + 1j * XX[:, k:]                  # (Φ @ Y would copy Φ to complex first)
 
-    def times(A: PETSc.Mat) -> np.ndarray:      # one product per matrix for both parts
-        AX = apply(A, XX)
+    def times(terms) -> np.ndarray:             # one product per matrix for both parts
+        AX = np.zeros(XX.shape, order="F")
+        for A, c in terms:
+            if c != 0.0:
+                AX += c * apply(A, XX)
         return AX[:, :k] + 1j * AX[:, k:]
 
-    R = times(K) + times(M) * lam[None, :] ** 2
-    if C is not None:
-        R += times(C) * lam[None, :]
-        C.destroy()
-    Ki = par.loss_stiffness(params)   # a loss factor: K = K_r + iK_i
+    R = times(Kt) + times([(M, 1.0)]) * lam[None, :] ** 2
+    if Ct:
+        R += times(Ct) * lam[None, :]
     if Ki is not None:
-        R += 1j * times(Ki)
+        R += 1j * times([(Ki, 1.0)])
         Ki.destroy()
-    K.destroy()
     r = np.sqrt(comm.allreduce(np.sum(np.abs(R) ** 2, axis=0), op=MPI.SUM))
     x = np.sqrt(comm.allreduce(np.sum(np.abs(X) ** 2, axis=0), op=MPI.SUM))
     a = np.abs(lam)

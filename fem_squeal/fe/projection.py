@@ -28,7 +28,7 @@ from scipy.sparse import csr_matrix
 
 from fem_squeal.fe import interface as itf
 from fem_squeal.fe.assembly import OperatingTerms, Operators, _add, _owned_global_rows, combination
-from fem_squeal.fe.csr import sum_norm_inf
+from fem_squeal.fe.csr import csr_view, sum_norm_inf
 from fem_squeal.fe.dense import apply, block_solve, gram, matmul_f, project_out
 from fem_squeal.fe.eigen import (
     DIRECT_SOLVER_OPTIONS,
@@ -74,8 +74,19 @@ class Basis:
 
 
 def project(A: PETSc.Mat, Phi: np.ndarray) -> np.ndarray:
-    """Φᵀ A Φ (m × m, the same on every rank)."""
-    return gram(A.getComm().tompi4py(), Phi, apply(A, Phi))
+    """Φᵀ A Φ (m × m, the same on every rank), summed over the rows where A has entries only when
+    they are fewer than half (a contact operator's, a small part's stiffness: the m × m sum over
+    all rows cost 80 ms at 50k DOFs × 232 vectors, whatever the rows held)."""
+    comm = A.getComm().tompi4py()
+    AP = apply(A, Phi)
+    if comm.size == 1 and A.getType() == "seqaij":
+        with csr_view(A) as (indptr, _, _):
+            rows = np.flatnonzero(np.diff(indptr))
+    else:     # the local rows of A Φ that are not zero (a scan costs a quarter of the sum)
+        rows = np.flatnonzero(np.any(AP != 0.0, axis=1))
+    if len(rows) >= 0.5 * Phi.shape[0]:
+        return gram(comm, Phi, AP)
+    return gram(comm, Phi[rows], AP[rows])
 
 
 def m_orthonormalise(M: PETSc.Mat, V: np.ndarray, rtol: float = 1e-8, Phi: np.ndarray | None = None
@@ -236,7 +247,9 @@ class ShiftedSolver:
         self.A = K.copy()
         self.A.axpy(sigma, M, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
         self.A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        set_options(prefix, options, {"pc_type": "cholesky"})
+        # MUMPS's solve takes its right-hand sides 64 at a time (ICNTL(27); its default of 32 for
+        # MatMatSolve): the 50k-DOF brake's 172 columns 0.43 → 0.38 s, the factorisation the same
+        set_options(prefix, options, {"pc_type": "cholesky", "mat_mumps_icntl_27": 64})
         self.ksp = _solver(self.A, options, prefix)
         self.ksp.setUp()
         pc = self.ksp.getPC()

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
-from scipy.linalg import solve_triangular
+from scipy.linalg import blas
 from scipy.sparse import csr_matrix
 
 from fem_squeal.fe import interface as itf
@@ -134,10 +134,11 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
     never re-multiplied nor re-stacked (the whole basis was once re-multiplied by the Cholesky
     factor of its whole Gram matrix: 2·2·n·m² flops per call, 1.3 s of the 50k-DOF brake's 11 s
     basis, to move Φ by round-off; then stacked at each call, 0.6 s).
-    M is applied to V, to W after the first pass and to the kept directions, before and after their
-    Cholesky factor (afresh each time: s^(-1/2) amplifies the round-off of a tracked product by up
-    to 1/rtol, and a sparse product costs less than the dense updates that would carry it), never
-    to the basis (issue 23: the basis of the 50k-DOF brake spent 5.5 s re-applying M to it)."""
+    M is applied to V, to W after the first pass and to the kept directions before their Cholesky
+    factor (afresh each time: s^(-1/2) amplifies the round-off of a tracked product by up to 1/rtol,
+    and a sparse product costs less than the dense updates that would carry it; through the
+    Cholesky factor, close to I, M W is carried), never to the basis (issue 23: the basis of the
+    50k-DOF brake spent 5.5 s re-applying M to it)."""
     comm = M.getComm().tompi4py()
 
     def against_basis(W: np.ndarray) -> np.ndarray:
@@ -149,22 +150,28 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
     MV = apply(M, V)
     norms = np.sqrt(np.maximum(comm.allreduce(np.einsum("ij,ij->j", V, MV), op=MPI.SUM), 0.0))
     ok = norms > 0
-    W = np.asfortranarray(V[:, ok] / norms[ok])
+    W = np.array(V if ok.all() else V[:, ok], order="F")      # one new array, scaled in place
+    W /= norms[ok]
     dropped = int(np.sum(~ok))
     if blocks:
         W = against_basis(W)
         G = gram(comm, W, apply(M, W))
     else:
-        G = gram(comm, W, MV[:, ok] / norms[ok])
+        G = gram(comm, V, MV)[np.ix_(ok, ok)] / np.outer(norms[ok], norms[ok])
     s, Q = np.linalg.eigh(0.5 * (G + G.T))
     keep = s > rtol ** 2
     dropped += int(np.sum(~keep))
     W = against_basis(matmul_f(W, Q[:, keep] / np.sqrt(s[keep])))
+    MW = apply(M, W)
     if W.shape[1]:
-        # the new block's Cholesky QR: W L⁻ᵀ as one matrix product (L well conditioned, G ≈ I)
-        G = gram(comm, W, apply(M, W))
-        W = matmul_f(W, solve_triangular(np.linalg.cholesky(0.5 * (G + G.T)), np.eye(G.shape[0]), lower=True).T)
-    return W, apply(M, W), dropped
+        # the new block's Cholesky QR, in place (BLAS dtrsm; L well conditioned, G ≈ I), M W
+        # following W through it (M W L⁻ᵀ = M(W L⁻ᵀ) to round-off times κ(L) ≈ 1)
+        G = gram(comm, W, MW)
+        L = np.linalg.cholesky(0.5 * (G + G.T))
+        if W.shape[0]:     # a rank may own no rows
+            W = blas.dtrsm(1.0, L, W, side=1, lower=1, trans_a=1, overwrite_b=1)
+            MW = blas.dtrsm(1.0, L, MW, side=1, lower=1, trans_a=1, overwrite_b=1)
+    return W, MW, dropped
 
 
 def _local_array(vecs: list[PETSc.Vec]) -> np.ndarray:

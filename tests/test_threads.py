@@ -43,29 +43,3 @@ def test_single_threaded_sets_one_blas_thread_and_restores():
         assert lib.openblas_get_num_threads() == 1
         raise RuntimeError("inside")
     assert lib.openblas_get_num_threads() == before
-
-
-def test_small_pages_switches_numpys_huge_pages_off_and_back():
-    """Inside the block NumPy does not ask for huge pages; after it (an exception included) it
-    asks as before; as a decorator the same, per call."""
-    from numpy.core.multiarray import _get_madvise_hugepage, _set_madvise_hugepage
-
-    from fem_squeal.util.pages import small_pages
-
-    before = _get_madvise_hugepage()
-    try:
-        for setting in (True, False):
-            _set_madvise_hugepage(setting)
-            with small_pages():
-                assert not _get_madvise_hugepage()
-            assert _get_madvise_hugepage() == setting
-            with pytest.raises(RuntimeError), small_pages():
-                raise RuntimeError
-            assert _get_madvise_hugepage() == setting
-
-            @small_pages()
-            def inside() -> bool:
-                return _get_madvise_hugepage()
-            assert not inside() and not inside() and _get_madvise_hugepage() == setting
-    finally:
-        _set_madvise_hugepage(before)

@@ -55,7 +55,6 @@ from fem_squeal.reduced.model import (
 )
 from fem_squeal.reduced.sweep import solve_points
 from fem_squeal.util.errors import EigenSolveError, ModelError, ReductionError, UnknownNameError
-from fem_squeal.util.pages import small_pages
 
 
 @dataclass
@@ -956,7 +955,6 @@ def _modal_derivatives(par: ParametricOperators, solver: ShiftedSolver, V: np.nd
     return out
 
 
-@small_pages()   # its many short-lived arrays of tens of MB (fem_squeal.util.pages)
 def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[float, float],
                     check_points: list[dict[str, float]], *, tol: float = 1e-3,
                     cut_factors: tuple[float, ...] = (1.25, 1.6, 2.0, 2.5), samples=(), static: bool = True,

@@ -217,30 +217,6 @@ def test_lifted_residuals_term_by_term_equal_the_formed_operators():
     assert np.max(np.abs(got - want) / want) < 1e-12
 
 
-def test_growing_basis_equals_the_stacked_extension(strong):
-    """The basis that build_basis grows in buffers (_GrowingBasis: products and new blocks written
-    into them, the buffers grown ×1.5 where a block does not fit, here from 2 columns) against
-    m_extend's stacked arrays, block after block with deflation (a block that repeats part of the
-    basis): the same operations on the same numbers, equal to 1e-13, and M-orthonormal to 1e-12."""
-    from fem_squeal.fe.projection import _GrowingBasis, _new_block, apply, m_extend
-
-    ops, _ = strong
-    n = ops.K.getLocalSize()[0]
-    rng = np.random.default_rng(8)
-    A = rng.normal(size=(n, 7))
-    parts = [A, np.hstack([A[:, :3] @ rng.normal(size=(3, 4)), rng.normal(size=(n, 5))]), rng.normal(size=(n, 9))]
-    grow = _GrowingBasis(n, 2)
-    Phi = MPhi = None
-    for V in parts:
-        _, _, d1 = _new_block(ops.M, np.asfortranarray(V), 1e-8, grow.blocks(), False, grow)
-        Phi, MPhi, d2 = m_extend(ops.M, np.asfortranarray(V), 1e-8, Phi, MPhi)
-        assert d1 == d2
-    assert grow.size == Phi.shape[1] == 7 + 5 + 9
-    assert np.max(np.abs(grow.Phi - Phi)) <= 1e-13 * np.max(np.abs(Phi))
-    G = Phi.T @ apply(ops.M, Phi)
-    assert np.max(np.abs(G - np.eye(G.shape[0]))) < 1e-12
-
-
 def test_events_refined_to_the_model_error():
     """Critical values refined only as far as a relative eigenvalue error warrants: within the
     warranted parameter step of the exact value, with far fewer solves than to 1e-10."""

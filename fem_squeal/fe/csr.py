@@ -285,12 +285,12 @@ def _product_lib() -> ctypes.CDLL | None:
 
 
 def block_product(csr: tuple[np.ndarray, np.ndarray, np.ndarray], ncol: int | None = None
-                  ) -> Callable[..., np.ndarray] | None:
+                  ) -> Callable[[np.ndarray], np.ndarray] | None:
     """X ↦ A X for the CSR matrix ``csr`` = (indptr, indices, data) with 32-bit indices, ``ncol``
     columns (default: square) and column-major blocks X (ncol, k); the result is a new column-major
-    array (n, k), or ``out`` (column-major, (n, k), not overlapping X) filled.  The arrays must
-    outlive the function (views of PETSc's memory: inside the ``csr_view`` block).  None where the
-    compiled kernel cannot be had (the caller keeps another product)."""
+    array (n, k).  The arrays must outlive the function (views of PETSc's memory: inside the
+    ``csr_view`` block).  None where the compiled kernel cannot be had (the caller keeps another
+    product)."""
     lib = _product_lib()
     ai, aj, av = csr
     if lib is None or ai.dtype != np.int32 or aj.dtype != np.int32 or av.dtype != np.float64:
@@ -299,17 +299,12 @@ def block_product(csr: tuple[np.ndarray, np.ndarray, np.ndarray], ncol: int | No
     n = len(ai) - 1
     ncol = n if ncol is None else int(ncol)
 
-    def product(X: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    def product(X: np.ndarray) -> np.ndarray:
         X = np.asfortranarray(X, dtype=np.float64)
         if X.shape[0] != ncol:
             raise ValueError(f"block_product: X has {X.shape[0]} rows, the matrix {ncol} columns")
         X2 = X.reshape(ncol, -1, order="F")
-        if out is None:
-            Y = np.empty((n, X2.shape[1]), order="F")
-        elif out.shape != (n, X2.shape[1]) or not out.flags.f_contiguous or out.dtype != np.float64:
-            raise ValueError(f"block_product: out must be column-major float64 of shape {(n, X2.shape[1])}")
-        else:
-            Y = out
+        Y = np.empty((n, X2.shape[1]), order="F")
         if lib.csr_block(n, ncol, address(ai), address(aj), address(av), X2.shape[1], address(X2), ncol,
                          address(Y), n):
             raise MemoryError(f"block_product: no buffer for {ncol} × 16 doubles")

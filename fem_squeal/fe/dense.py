@@ -22,10 +22,9 @@ def dense_matrix(comm, local: np.ndarray, n_global: int) -> PETSc.Mat:
     return D
 
 
-def apply(A: PETSc.Mat, Phi: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+def apply(A: PETSc.Mat, Phi: np.ndarray) -> np.ndarray:
     """A Φ, rank-local rows (n_local, m), column-major (as PETSc's dense matrices: no transposing
-    copies on the way in or out); into ``out`` (column-major, not overlapping Φ) where given.  On
-    one rank an AIJ matrix is applied by the compiled block product
+    copies on the way in or out).  On one rank an AIJ matrix is applied by the compiled block product
     (:func:`fem_squeal.fe.csr.block_product`, on PETSc's own arrays: 1.9× PETSc's MatMatMult for the
     50k-DOF brake's stiffness times 233 columns), elsewhere by MatMatMult."""
     comm = A.getComm().tompi4py()
@@ -34,13 +33,10 @@ def apply(A: PETSc.Mat, Phi: np.ndarray, out: np.ndarray | None = None) -> np.nd
         with csr_view(A) as csr:
             product = block_product(csr, A.getSize()[1])
             if product is not None:
-                return product(Phi, out)
+                return product(Phi)
     D = dense_matrix(comm, Phi, A.getSize()[1])
     P = A.matMult(D)
-    if out is None:
-        out = np.array(P.getDenseArray(), order="F")
-    else:
-        out[...] = P.getDenseArray()
+    out = np.array(P.getDenseArray(), order="F")
     D.destroy()
     P.destroy()
     return out

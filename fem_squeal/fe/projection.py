@@ -130,7 +130,7 @@ def _stack(blocks: list[np.ndarray], n_local: int) -> np.ndarray:
 
 
 def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.ndarray, np.ndarray]],
-               owned: bool = False, into: _GrowingBasis | None = None) -> tuple[np.ndarray, np.ndarray, int]:
+               owned: bool = False) -> tuple[np.ndarray, np.ndarray, int]:
     """The block (W, M W, number of dropped directions) that extends the M-orthonormal basis held as
     ``blocks`` [(Φ_b, M Φ_b), …] by span(V): [Φ_1 … W] is M-orthonormal to round-off.
 
@@ -148,10 +148,7 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
     factor (afresh each time: s^(-1/2) amplifies the round-off of a tracked product by up to 1/rtol,
     and a sparse product costs less than the dense updates that would carry it; through the
     Cholesky factor, close to I, M W is carried), never to the basis (issue 23: the basis of the
-    50k-DOF brake spent 5.5 s re-applying M to it).  ``into``: the basis being built
-    (:class:`_GrowingBasis`), whose buffers take the products and the new block (no new arrays:
-    their first touch cost ~1 ms per MB late in a long run on this project's VM); then the block
-    is appended to it.  ``owned``: V was made for this call and may be overwritten."""
+    50k-DOF brake spent 5.5 s re-applying M to it)."""
     comm = M.getComm().tompi4py()
 
     def against_basis(W: np.ndarray) -> np.ndarray:
@@ -160,8 +157,7 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
             W = project_out(comm, Phi, MPhi, W)[1]
         return W
 
-    k = V.shape[1]
-    MV = apply(M, V, None if into is None else into.work(k, 0))
+    MV = apply(M, V)
     norms = np.sqrt(np.maximum(comm.allreduce(np.einsum("ij,ij->j", V, MV), op=MPI.SUM), 0.0))
     ok = norms > 0
     # scaled in place: in V itself where the caller made it for this (``owned``), else in one copy
@@ -171,85 +167,23 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
     dropped = int(np.sum(~ok))
     if blocks:
         W = against_basis(W)
-        G = gram(comm, W, apply(M, W, None if into is None else into.work(W.shape[1], 1)))
-    else:                 # W scaled, MV not: its columns divided here
-        G = gram(comm, W, MV if ok.all() else MV[:, ok]) / norms[ok]
+        G = gram(comm, W, apply(M, W))
+    else:
+        G = gram(comm, V, MV)[np.ix_(ok, ok)] / np.outer(norms[ok], norms[ok])
     s, Q = np.linalg.eigh(0.5 * (G + G.T))
     keep = s > rtol ** 2
     dropped += int(np.sum(~keep))
-    Qk = Q[:, keep] / np.sqrt(s[keep])
-    if into is None:
-        Wk, MWk = matmul_f(W, Qk), None
-    else:
-        Wk, MWk = into.reserve(Qk.shape[1])
-        np.matmul(Qk.T, W.T, out=Wk.T)                # W Qk, column-major, into the basis buffer
-    Wk = _kept(Wk, against_basis(Wk))
-    MWk = apply(M, Wk, MWk)
-    if Wk.shape[1]:
+    W = against_basis(matmul_f(W, Q[:, keep] / np.sqrt(s[keep])))
+    MW = apply(M, W)
+    if W.shape[1]:
         # the new block's Cholesky QR, in place (BLAS dtrsm; L well conditioned, G ≈ I), M W
         # following W through it (M W L⁻ᵀ = M(W L⁻ᵀ) to round-off times κ(L) ≈ 1)
-        G = gram(comm, Wk, MWk)
+        G = gram(comm, W, MW)
         L = np.linalg.cholesky(0.5 * (G + G.T))
-        if Wk.shape[0]:     # a rank may own no rows
-            Wk = _kept(Wk, blas.dtrsm(1.0, L, Wk, side=1, lower=1, trans_a=1, overwrite_b=1))
-            MWk = _kept(MWk, blas.dtrsm(1.0, L, MWk, side=1, lower=1, trans_a=1, overwrite_b=1))
-    if into is not None:
-        into.commit(Wk.shape[1])
-    return Wk, MWk, dropped
-
-
-def _kept(dest: np.ndarray, result: np.ndarray) -> np.ndarray:
-    """``dest`` holding ``result`` (an in-place BLAS call returns its argument; where it copied, the
-    values go back into ``dest``, which may be a view of a basis buffer)."""
-    if result is not dest and not np.shares_memory(result, dest):
-        dest[...] = result
-    return dest
-
-
-class _GrowingBasis:
-    """The basis that :func:`build_basis` builds: Φ and M Φ in column-major buffers that grow (×1.5,
-    copied) as blocks are appended, and two workspaces for the products of the next block, so that
-    the tens of MB of each step are not new arrays (:func:`_new_block`).  ``Phi``: a view of the
-    buffer (the capacity never touched costs no memory)."""
-
-    def __init__(self, n_local: int, capacity: int):
-        self._Phi = np.empty((n_local, max(capacity, 1)), order="F")
-        self._MPhi = np.empty((n_local, max(capacity, 1)), order="F")
-        self._work = [np.empty((n_local, 0), order="F"), np.empty((n_local, 0), order="F")]
-        self.bounds = [0]
-
-    @property
-    def size(self) -> int:
-        return self.bounds[-1]
-
-    @property
-    def Phi(self) -> np.ndarray:
-        return self._Phi[:, :self.size]
-
-    def blocks(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        """[(Φ_b, M Φ_b)] of the blocks appended so far (views)."""
-        return [(self._Phi[:, a:b], self._MPhi[:, a:b]) for a, b in zip(self.bounds, self.bounds[1:])]
-
-    def work(self, k: int, i: int) -> np.ndarray:
-        """Workspace ``i`` (0 or 1): n_local × k, column-major."""
-        if self._work[i].shape[1] < k:
-            self._work[i] = np.empty((self._Phi.shape[0], k), order="F")
-        return self._work[i][:, :k]
-
-    def reserve(self, k: int) -> tuple[np.ndarray, np.ndarray]:
-        """The next k columns of Φ and M Φ (views), the buffers grown if need be."""
-        m = self.size
-        if m + k > self._Phi.shape[1]:
-            cap = max(m + k, 3 * self._Phi.shape[1] // 2)
-            for name in ("_Phi", "_MPhi"):
-                old, new = getattr(self, name), np.empty((self._Phi.shape[0], cap), order="F")
-                new[:, :m] = old[:, :m]
-                setattr(self, name, new)
-        return self._Phi[:, m:m + k], self._MPhi[:, m:m + k]
-
-    def commit(self, k: int) -> None:
-        """The k reserved columns are the next block."""
-        self.bounds.append(self.size + k)
+        if W.shape[0]:     # a rank may own no rows
+            W = blas.dtrsm(1.0, L, W, side=1, lower=1, trans_a=1, overwrite_b=1)
+            MW = blas.dtrsm(1.0, L, MW, side=1, lower=1, trans_a=1, overwrite_b=1)
+    return W, MW, dropped
 
 
 def _local_array(vecs: list[PETSc.Vec]) -> np.ndarray:
@@ -814,17 +748,16 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
         keep = np.sqrt(np.abs(modes[0])) / TWO_PI <= f_cut_hz
         w2, V = modes[0][keep], modes[1][:, keep]
     # M Φ carried along: M is applied to the new columns only, without its stored zeros (a third of
-    # the work: the vector mass is assembled on the stiffness pattern's 3×3 blocks); Φ and M Φ grow
-    # in buffers (_GrowingBasis) sized for the modes, their directions and the loads' corrections
+    # the work: the vector mass is assembled on the stiffness pattern's 3×3 blocks); the basis is
+    # kept as blocks [(Φ_b, MΦ_b)] and stacked once at the end
     Mz = drop_zeros(ops.M)
-    n_dirs = 0 if directions is None else directions.shape[1]
-    n_loads = len(_load_matrices(ops, par)) if static else 0
-    basis = _GrowingBasis(V.shape[0], (1 + n_loads) * (V.shape[1] + n_dirs) +
-                          (0 if extra is None else extra.shape[1]))
+    blocks: list[tuple[np.ndarray, np.ndarray]] = []
 
     def extend(X: np.ndarray, tol: float, owned: bool = False) -> tuple[int, int]:
         """(columns added, directions dropped); ``owned``: X made here, to be overwritten."""
-        W, _, d = _new_block(Mz, X, tol, basis.blocks(), owned, basis)
+        W, MW, d = _new_block(Mz, X, tol, blocks, owned)
+        if W.shape[1]:
+            blocks.append((W, MW))
         return W.shape[1], d
 
     dropped = extend(V, rtol, owned=True)[1]        # V: modes_below's or a column subset (copies)
@@ -842,7 +775,7 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
         # (non-normal) they are not: 1e-2 gave 1.0e-3 on the brake at a map corner, 1e-3 is the default
         added, d = extend(Vs, enrich_rtol, owned=True)
         n_sample, dropped = n_sample + added, dropped + d
-    loads = static_loads(ops, par, basis.Phi) if static else []
+    loads = static_loads(ops, par, blocks) if static else []
     if loads:
         sigma = (TWO_PI * (sigma_hz if sigma_hz is not None else 0.1 * f_cut_hz)) ** 2
         F = np.column_stack(loads)
@@ -853,30 +786,28 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
     if extra is not None and extra.shape[1]:
         n_extra, d = extend(extra, rtol)
         dropped += d
-    Phi = basis.Phi
-    out = Basis(Phi, ops.K.getSize()[0], np.sqrt(np.abs(w2)) / TWO_PI,
-                {"modes": int(V.shape[1]), "sampled_modes": n_sample, "static": n_static, "extra": n_extra,
-                 "dropped": dropped, "size": int(Phi.shape[1])}, _orthonormality(Mz.getComm().tompi4py(),
-                                                                            basis.blocks()))
+    Phi = _stack([b[0] for b in blocks], V.shape[0])
+    basis = Basis(Phi, ops.K.getSize()[0], np.sqrt(np.abs(w2)) / TWO_PI,
+                 {"modes": int(V.shape[1]), "sampled_modes": n_sample, "static": n_static, "extra": n_extra,
+                  "dropped": dropped, "size": int(Phi.shape[1])}, _orthonormality(Mz.getComm().tompi4py(), blocks))
     if Mz is not ops.M:
         Mz.destroy()
-    return out
+    return basis
 
 
-def static_loads(ops: Operators, par: ParametricOperators, Phi: np.ndarray) -> list[np.ndarray]:
+def static_loads(ops: Operators, par: ParametricOperators, Phi: np.ndarray | list[tuple[np.ndarray, ...]]
+                 ) -> list[np.ndarray]:
     """The loads A Φ whose static corrections (K + σM)⁻¹ A Φ join the basis: A = K_f (friction), C_d
     (friction damping) and the gyroscopic G of a turning disc, the terms that the modes at rest do not
     span.  The symmetric K_σ0, K_σc − S (prestress, spin softening: ~1e-4 of K) are left to the modes.
     Measured on the coarse brake (50k DOFs, corners μ = ±0.6 × Ω = 2, 100 rad/s, worst relative error
     of the unstable eigenvalues): K_f, C_d: 239 vectors, 2.6e-4; + G: 324, 7.3e-5; + G, K_σc − S, K_σ0:
     496, 1.7e-4; + their sum at Ω₀: 325, 1.0e-4."""
-    return [apply(A, Phi) for A in _load_matrices(ops, par)]
-
-
-def _load_matrices(ops: Operators, par: ParametricOperators) -> list[PETSc.Mat]:
-    """K_f, C_d and G where the model has them (:func:`static_loads`)."""
     op = par.operating
-    return [A for A in (ops.Kf, getattr(ops, "Cd", None), op.G if op is not None else None) if A is not None]
+    mats = [ops.Kf, getattr(ops, "Cd", None), op.G if op is not None else None]
+    if isinstance(Phi, list):   # a basis held as blocks [(Φ_b, …)]: A Φ_b side by side
+        return [np.hstack([apply(A, b[0]) for b in Phi]) for A in mats if A is not None]
+    return [apply(A, Phi) for A in mats if A is not None]
 
 
 def contact_attachments(ops: Operators, patches: tuple[int, int], sigma_hz: float, options=None,

@@ -168,8 +168,8 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
     if blocks:
         W = against_basis(W)
         G = gram(comm, W, apply(M, W))
-    else:
-        G = gram(comm, V, MV)[np.ix_(ok, ok)] / np.outer(norms[ok], norms[ok])
+    else:                 # W scaled (V itself where owned), MV not: its columns divided here
+        G = gram(comm, W, MV if ok.all() else MV[:, ok]) / norms[ok]
     s, Q = np.linalg.eigh(0.5 * (G + G.T))
     keep = s > rtol ** 2
     dropped += int(np.sum(~keep))

@@ -242,31 +242,41 @@ int csr_block(int32_t n, int32_t ncol, const int32_t *ai, const int32_t *aj, con
     return 0;
 }
 
-/* max over rows of sum_j |sum_t c_t A_t(i, j)|: the infinity norm of a sum of CSR matrices of one
-   shape without forming it; acc (ncol doubles) and stamp (ncol ints) zero on entry, left so */
-double csr_sum_norm_inf(int32_t nterms, int32_t n, const int32_t *const *ai, const int32_t *const *aj,
-                        const double *const *av, const double *c, double *acc, int32_t *stamp, int32_t *touched)
+/* for each of npts coefficient sets c[t * npts + q]: max over rows of sum_j |sum_t c_tq A_t(i, j)|,
+   the infinity norms of sums of CSR matrices of one shape without forming them, into best[q];
+   acc (ncol * npts doubles), stamp (ncol ints) zero on entry, touched (ncol ints) */
+void csr_sum_norm_inf(int32_t nterms, int32_t npts, int32_t n, const int32_t *const *ai,
+                      const int32_t *const *aj, const double *const *av, const double *c, double *acc,
+                      int32_t *stamp, int32_t *touched, double *best)
 {
-    double best = 0.0;
+    for (int32_t q = 0; q < npts; ++q)
+        best[q] = 0.0;
     for (int32_t i = 0; i < n; ++i) {
         int32_t nt = 0;
         for (int32_t t = 0; t < nterms; ++t)
             for (int32_t p = ai[t][i]; p < ai[t][i + 1]; ++p) {
                 const int32_t j = aj[t][p];
+                double *a = acc + (int64_t)j * npts;
                 if (stamp[j] != i + 1) {
                     stamp[j] = i + 1;
-                    acc[j] = 0.0;
+                    for (int32_t q = 0; q < npts; ++q)
+                        a[q] = 0.0;
                     touched[nt++] = j;
                 }
-                acc[j] += c[t] * av[t][p];
+                const double v = av[t][p];
+                for (int32_t q = 0; q < npts; ++q)
+                    a[q] += c[t * npts + q] * v;
             }
-        double row = 0.0;
-        for (int32_t q = 0; q < nt; ++q)
-            row += acc[touched[q]] < 0 ? -acc[touched[q]] : acc[touched[q]];
-        if (row > best)
-            best = row;
+        for (int32_t q = 0; q < npts; ++q) {
+            double row = 0.0;
+            for (int32_t u = 0; u < nt; ++u) {
+                const double x = acc[(int64_t)touched[u] * npts + q];
+                row += x < 0 ? -x : x;
+            }
+            if (row > best[q])
+                best[q] = row;
+        }
     }
-    return best;
 }
 """
 
@@ -279,8 +289,8 @@ def _product_lib() -> ctypes.CDLL | None:
     i32, i64, p = ctypes.c_int32, ctypes.c_int64, ctypes.c_void_p
     lib.csr_block.argtypes = [i32, i32, p, p, p, i32, p, i64, p, i64]
     lib.csr_block.restype = ctypes.c_int
-    lib.csr_sum_norm_inf.argtypes = [i32, i32, p, p, p, p, p, p, p]
-    lib.csr_sum_norm_inf.restype = ctypes.c_double
+    lib.csr_sum_norm_inf.argtypes = [i32, i32, i32, p, p, p, p, p, p, p, p]
+    lib.csr_sum_norm_inf.restype = None
     return lib
 
 
@@ -314,27 +324,39 @@ def block_product(csr: tuple[np.ndarray, np.ndarray, np.ndarray], ncol: int | No
 
 def sum_norm_inf(terms: list[tuple[PETSc.Mat, float]]) -> float:
     """‖Σ c_i A_i‖∞ (the largest absolute row sum, over the ranks) of AIJ matrices of one shape,
-    without forming the sum in PETSc: the terms' rows merged row by row (compiled; SciPy's sum where
-    the kernel cannot be had), on PETSc's arrays on one rank and ``getValuesCSR``'s copies of the
-    local rows on more.  Forming K(p) for its norm took four sparse additions of a new pattern per
-    design point (60 ms at 50k DOFs)."""
-    A0 = terms[0][0]
+    without forming the sum in PETSc (:func:`sum_norms_inf` with one coefficient set)."""
+    return float(sum_norms_inf([A for A, _ in terms], np.array([[c] for _, c in terms], float))[0])
+
+
+def sum_norms_inf(mats: list[PETSc.Mat], coefs: np.ndarray) -> np.ndarray:
+    """‖Σ_i C[i, q] A_i‖∞ for each column q of ``coefs`` (len(mats) × n_sets), AIJ matrices of one
+    shape, over the ranks: the terms' rows merged once, row by row, for every set (compiled; SciPy's
+    sums where the kernel cannot be had), on PETSc's arrays on one rank and ``getValuesCSR``'s
+    copies of the local rows on more.  Forming K(p) for its norm took four sparse additions of a new
+    pattern per design point (60 ms at 50k DOFs); the 7 check points of the brake's basis take
+    one pass."""
+    A0 = mats[0]
     comm, ncol = A0.getComm().tompi4py(), A0.getSize()[1]
+    coefs = np.ascontiguousarray(coefs, dtype=float).reshape(len(mats), -1)
+    npts = coefs.shape[1]
     lib = _product_lib()
     with ExitStack() as stack:
         csrs = [tuple(np.ascontiguousarray(a, dtype=t) for a, t in zip(stack.enter_context(csr_view(A)),
                                                                         (np.int32, np.int32, np.float64)))
-                for A, _ in terms]
+                for A in mats]
         n = len(csrs[0][0]) - 1
-        c = np.array([float(ci) for _, ci in terms])
+        local = np.zeros(npts)
         if n == 0:
-            local = 0.0
+            pass
         elif lib is not None:
-            ptrs = [(ctypes.c_void_p * len(terms))(*[x[k].ctypes.data for x in csrs]) for k in range(3)]
-            acc, stamp, touched = np.zeros(ncol), np.zeros(ncol, np.int32), np.empty(ncol, np.int32)
-            local = lib.csr_sum_norm_inf(len(terms), n, *ptrs, address(c), address(acc), address(stamp),
-                                         address(touched))
+            ptrs = [(ctypes.c_void_p * len(mats))(*[x[k].ctypes.data for x in csrs]) for k in range(3)]
+            acc, stamp, touched = np.zeros(ncol * npts), np.zeros(ncol, np.int32), np.empty(ncol, np.int32)
+            lib.csr_sum_norm_inf(len(mats), npts, n, *ptrs, address(coefs), address(acc), address(stamp),
+                                 address(touched), address(local))
         else:
-            S = sum(ci * sp.csr_matrix((x[2], x[1], x[0]), shape=(n, ncol)) for ci, x in zip(c, csrs))
-            local = float(np.max(np.asarray(abs(S).sum(axis=1))))
-    return comm.allreduce(local, op=MPI.MAX)
+            for q in range(npts):
+                S = sum(c * sp.csr_matrix((x[2], x[1], x[0]), shape=(n, ncol)) for c, x in zip(coefs[:, q], csrs))
+                local[q] = float(np.max(np.asarray(abs(S).sum(axis=1))))
+    out = np.empty_like(local)
+    comm.Allreduce(local, out, op=MPI.MAX)
+    return out

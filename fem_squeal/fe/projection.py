@@ -144,11 +144,10 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
     never re-multiplied nor re-stacked (the whole basis was once re-multiplied by the Cholesky
     factor of its whole Gram matrix: 2·2·n·m² flops per call, 1.3 s of the 50k-DOF brake's 11 s
     basis, to move Φ by round-off; then stacked at each call, 0.6 s).
-    M is applied to V, to W after the first pass and to the kept directions before their Cholesky
-    factor (afresh each time: s^(-1/2) amplifies the round-off of a tracked product by up to 1/rtol,
-    and a sparse product costs less than the dense updates that would carry it; through the
-    Cholesky factor, close to I, M W is carried), never to the basis (issue 23: the basis of the
-    50k-DOF brake spent 5.5 s re-applying M to it)."""
+    M is applied to V and to the kept directions before their Cholesky factor (afresh: s^(-1/2)
+    amplifies the round-off of a tracked product by up to 1/rtol); M W after the first pass and
+    through the Cholesky factor (close to I) is carried, never applied to the basis (issue 23: the
+    basis of the 50k-DOF brake spent 5.5 s re-applying M to it)."""
     comm = M.getComm().tompi4py()
 
     def against_basis(W: np.ndarray) -> np.ndarray:
@@ -166,8 +165,16 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
     W /= norms[ok]
     dropped = int(np.sum(~ok))
     if blocks:
-        W = against_basis(W)
-        G = gram(comm, W, apply(M, W))
+        # W = V/‖V‖ − Σ Φ_b C_b and M W = M V/‖V‖ − Σ (MΦ_b) C_b, the latter carried in place of a
+        # sparse product (the same cost in flops, and no new array): an absolute round-off ε either
+        # way, as the subtraction that makes W itself
+        MW = MV if ok.all() else np.asfortranarray(MV[:, ok])
+        MW /= norms[ok]
+        for Phi, MPhi in blocks:
+            C, W = project_out(comm, Phi, MPhi, W)
+            if MW.size:
+                MW = blas.dgemm(-1.0, MPhi, C, beta=1.0, c=MW, overwrite_c=1)
+        G = gram(comm, W, MW)
     else:                 # W scaled (V itself where owned), MV not: its columns divided here
         G = gram(comm, W, MV if ok.all() else MV[:, ok]) / norms[ok]
     s, Q = np.linalg.eigh(0.5 * (G + G.T))

@@ -241,15 +241,16 @@ def test_block_product_equals_scipys(k, blocks):
             product(X[1:])
 
 
-def test_sum_norm_inf_equals_petscs_norm_of_the_sum():
-    """‖Σ c_i A_i‖∞ merged row by row without forming the sum against PETSc's MatNorm of the
+def test_sum_norms_inf_equal_petscs_norms_of_the_sums():
+    """‖Σ_i c_iq A_i‖∞ merged row by row without forming the sums against PETSc's MatNorm of each
     formed sum: terms of different patterns, a negative coefficient, a zero one, and two terms that
-    cancel on one row (its absolute sum must use the summed entries, not the terms').  The same
-    additions in another order: equal to 1e-15 relative."""
+    cancel on one row (its absolute sum must use the summed entries, not the terms'); the three
+    coefficient sets in one pass and each alone.  The same additions in another order: equal to
+    1e-15 relative."""
     from petsc4py import PETSc
 
     from fem_squeal.fe.assembly import combination
-    from fem_squeal.fe.csr import sum_norm_inf
+    from fem_squeal.fe.csr import sum_norms_inf
 
     A = _laplacian(7)
     B = sp.random(A.shape[0], A.shape[1], density=0.05, random_state=3, format="csr") + sp.eye(A.shape[0])
@@ -262,10 +263,12 @@ def test_sum_norm_inf_equals_petscs_norm_of_the_sum():
         return PETSc.Mat().createAIJ(S.shape, csr=(S.indptr.astype(PETSc.IntType), S.indices.astype(PETSc.IntType),
                                                    S.data), comm=PETSc.COMM_SELF)
     mats = [petsc(A), petsc(B), petsc(C), petsc(A)]
-    for coefs in ([1.0, -0.3, 2.0, 0.0], [1.0, 0.0, 0.0, -1.0], [2.5, 1.0, -0.2, 0.7]):
-        terms = list(zip(mats, coefs))
-        S = combination(terms)
+    coefs = np.array([[1.0, -0.3, 2.0, 0.0], [1.0, 0.0, 0.0, -1.0], [2.5, 1.0, -0.2, 0.7]]).T
+    together = sum_norms_inf(mats, coefs)
+    for q in range(coefs.shape[1]):
+        S = combination(list(zip(mats, coefs[:, q])))
         want = S.norm(PETSc.NormType.INFINITY)
         S.destroy()
-        assert abs(sum_norm_inf(terms) - want) <= 1e-15 * max(want, 1.0)
-    assert sum_norm_inf([(mats[0], 1.0), (mats[3], -1.0)]) == 0.0      # A − A: every row cancels
+        assert abs(together[q] - want) <= 1e-15 * max(want, 1.0)
+        assert abs(sum_norms_inf(mats, coefs[:, q:q + 1])[0] - want) <= 1e-15 * max(want, 1.0)
+    assert sum_norms_inf([mats[0], mats[3]], np.array([[1.0], [-1.0]]))[0] == 0.0  # A − A: every row cancels

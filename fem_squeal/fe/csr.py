@@ -322,12 +322,6 @@ def block_product(csr: tuple[np.ndarray, np.ndarray, np.ndarray], ncol: int | No
     return product
 
 
-def sum_norm_inf(terms: list[tuple[PETSc.Mat, float]]) -> float:
-    """‖Σ c_i A_i‖∞ (the largest absolute row sum, over the ranks) of AIJ matrices of one shape,
-    without forming the sum in PETSc (:func:`sum_norms_inf` with one coefficient set)."""
-    return float(sum_norms_inf([A for A, _ in terms], np.array([[c] for _, c in terms], float))[0])
-
-
 def sum_norms_inf(mats: list[PETSc.Mat], coefs: np.ndarray) -> np.ndarray:
     """‖Σ_i C[i, q] A_i‖∞ for each column q of ``coefs`` (len(mats) × n_sets), AIJ matrices of one
     shape, over the ranks: the terms' rows merged once, row by row, for every set (compiled; SciPy's

@@ -287,8 +287,8 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
 
     ``lam_max``: every pair with λ ≤ ``lam_max`` and the next :data:`BEYOND` in |θ| order instead of
     ``nev`` (σ below the middle of [0, ``lam_max``]: those are the leading |θ|); ``nev`` is then a
-    guess that sizes nothing but the block, and the budget is the vectors :data:`BLOCK_MEMORY`
-    holds (zero pages until used).  This is how :func:`fem_squeal.fe.projection.modes_below` asks
+    guess that sizes the block and the first budget, which grows (×1.5, the vectors copied) up to
+    what :data:`BLOCK_MEMORY` holds.  This is how :func:`fem_squeal.fe.projection.modes_below` asks
     for the modes below a cut without counting them first (an inertia count cost one more
     factorisation)."""
     r0, r1 = rows
@@ -297,7 +297,7 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     # allocating that at once cost 1.4 s of zeroed pages for the 50k-DOF brake's 89 modes
     limit = dim if lam_max is None else \
         min(n - b, int(BLOCK_MEMORY // (2 * 8 * max(comm.allreduce(r1 - r0, op=MPI.MAX), 1)))) // b * b
-    if dim < nev and lam_max is None or comm.allreduce(2 * 8 * (r1 - r0) * dim, op=MPI.MAX) > BLOCK_MEMORY:
+    if (dim < nev and lam_max is None) or comm.allreduce(2 * 8 * (r1 - r0) * dim, op=MPI.MAX) > BLOCK_MEMORY:
         return None
     V = np.zeros((r1 - r0, dim), order="F")
     MV = np.zeros(V.shape, order="F")    # calloc: pages are touched only as columns are filled
@@ -451,17 +451,12 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     lam_max = None if f_max_hz is None else (TWO_PI * f_max_hz) ** 2
     direct = _cholmod_block_lanczos(K, Ms, nev, sigma, tol, b, prefix, key, lam_max) if b > 0 else None
     if direct is not None:
-        t0 = time.perf_counter()
-        vals, vecs, res = _pairs_from_rows(K, Ms, *direct[:2]) if direct[0] is not None else ([], [], [])
-        seconds = {"factor": direct[2]["factor"], "solve": direct[2]["solve"] + time.perf_counter() - t0}
-        if len(vecs) and np.all(res <= max_residual):
-            order = np.argsort(vals)
+        rm = _checked_modes(K, Ms, *direct[:2], max_residual, "cholmod", direct[2]["factor"], time.perf_counter(),
+                            direct[2]["solve"], b) if direct[0] is not None else None
+        if rm is not None:
             if Ms is not M:
                 Ms.destroy()
-            return RealModes(vals[order], [vecs[i] for i in order], res[order], "cholmod", seconds,
-                             f"block Lanczos, {b} columns")
-        for v in vecs:
-            v.destroy()
+            return rm
         b = 0          # not converged, or a residual missed: Krylov–Schur (PETSc's factorisation) below
     t_order = time.perf_counter()       # the ordering and the permuted copies count as factorisation
     perm = _fill_reducing_order(K, sigma, prefix, key)
@@ -475,15 +470,10 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
         got = _block_lanczos(block_solve(eps.getST().getKSP().getPC().getFactorMatrix()),
                              lambda W: apply(Mw, W), comm, Kw.getOwnershipRange(), Kw.getSize()[0], nev,
                              sigma, tol, b, lam_max) if b > 0 else None
-        if got is not None:
-            vals, vecs, res = _pairs_from_rows(K, Ms, got[0], _caller_rows(got[1], perm))
-            if np.all(res <= max_residual):
-                order = np.argsort(vals)
-                return RealModes(vals[order], [vecs[i] for i in order], res[order], solver,
-                                 {"factor": t_factor, "solve": time.perf_counter() - t0},
-                                 f"block Lanczos, {b} columns")
-            for v in vecs:
-                v.destroy()
+        rm = _checked_modes(K, Ms, got[0], _caller_rows(got[1], perm), max_residual, solver, t_factor, t0,
+                            0.0, b) if got is not None else None
+        if rm is not None:
+            return rm
         with _progress(eps, nev, "real modes", progress):
             eps.solve()
         nconv, vals, vecs, res = _real_pairs(eps, K, Ms, nev, perm)
@@ -509,6 +499,22 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
                      {"factor": t_factor, "solve": t_solve}, "Krylov-Schur")
 
 
+def _checked_modes(K: PETSc.Mat, Ms: PETSc.Mat, lam: np.ndarray, X: np.ndarray, max_residual: float,
+                   solver: str, factor_s: float, t0: float, solve_s: float, b: int) -> RealModes | None:
+    """Block Lanczos's pairs (λ, rank-local rows X) as :class:`RealModes` in ascending λ, where every
+    relative residual (:func:`_pairs_from_rows`) is ≤ ``max_residual``; else None, the vectors
+    destroyed.  The solve's seconds: ``solve_s`` and the time since ``t0``, these pairs included."""
+    vals, vecs, res = _pairs_from_rows(K, Ms, lam, X)
+    if len(vecs) and np.all(res <= max_residual):
+        order = np.argsort(vals)
+        return RealModes(vals[order], [vecs[i] for i in order], res[order], solver,
+                         {"factor": factor_s, "solve": solve_s + time.perf_counter() - t0},
+                         f"block Lanczos, {b} columns")
+    for v in vecs:
+        v.destroy()
+    return None
+
+
 def modes_on_factor(solve: Callable[[np.ndarray], np.ndarray], K: PETSc.Mat, M: PETSc.Mat, sigma: float,
                     f_max_hz: float, nev_guess: int, *, tol: float = REAL_MODE_TOL,
                     max_residual: float = 1e-8) -> RealModes | None:
@@ -530,14 +536,7 @@ def modes_on_factor(solve: Callable[[np.ndarray], np.ndarray], K: PETSc.Mat, M: 
                              K.getSize()[0], nev_guess, sigma, tol, b, lam_max)
         if got is None:
             return None
-        vals, vecs, res = _pairs_from_rows(K, Ms, *got)
-        if not np.all(res <= max_residual):
-            for v in vecs:
-                v.destroy()
-            return None
-        order = np.argsort(vals)
-        return RealModes(vals[order], [vecs[i] for i in order], res[order], "shared",
-                         {"factor": 0.0, "solve": time.perf_counter() - t0}, f"block Lanczos, {b} columns")
+        return _checked_modes(K, Ms, *got, max_residual, "shared", 0.0, t0, 0.0, b)
     finally:
         if Ms is not M:
             Ms.destroy()

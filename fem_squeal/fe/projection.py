@@ -150,11 +150,14 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
     basis of the 50k-DOF brake spent 5.5 s re-applying M to it)."""
     comm = M.getComm().tompi4py()
 
-    def against_basis(W: np.ndarray) -> np.ndarray:
+    def against_basis(W: np.ndarray, MW: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """W − Σ Φ_b C_b, C_b = (MΦ_b)ᵀW, in place; and M W − Σ (MΦ_b) C_b where ``MW`` is given."""
         # collective calls depend on column counts only: a rank may own no rows of V
         for Phi, MPhi in blocks:
-            W = project_out(comm, Phi, MPhi, W)[1]
-        return W
+            C, W = project_out(comm, Phi, MPhi, W)
+            if MW is not None and MW.size:
+                MW = blas.dgemm(-1.0, MPhi, C, beta=1.0, c=MW, overwrite_c=1)
+        return W, MW
 
     MV = apply(M, V)
     norms = np.sqrt(np.maximum(comm.allreduce(np.einsum("ij,ij->j", V, MV), op=MPI.SUM), 0.0))
@@ -170,17 +173,14 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
         # way, as the subtraction that makes W itself
         MW = MV if ok.all() else np.asfortranarray(MV[:, ok])
         MW /= norms[ok]
-        for Phi, MPhi in blocks:
-            C, W = project_out(comm, Phi, MPhi, W)
-            if MW.size:
-                MW = blas.dgemm(-1.0, MPhi, C, beta=1.0, c=MW, overwrite_c=1)
+        W, MW = against_basis(W, MW)
         G = gram(comm, W, MW)
     else:                 # W scaled (V itself where owned), MV not: its columns divided here
         G = gram(comm, W, MV if ok.all() else MV[:, ok]) / norms[ok]
     s, Q = np.linalg.eigh(0.5 * (G + G.T))
     keep = s > rtol ** 2
     dropped += int(np.sum(~keep))
-    W = against_basis(matmul_f(W, Q[:, keep] / np.sqrt(s[keep])))
+    W = against_basis(matmul_f(W, Q[:, keep] / np.sqrt(s[keep])))[0]
     MW = apply(M, W)
     if W.shape[1]:
         # the new block's Cholesky QR, in place (BLAS dtrsm; L well conditioned, G ≈ I), M W

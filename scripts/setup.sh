@@ -3,6 +3,9 @@
 #   - Debian packages: the FEniCSx 0.5.2 stack, MPI, OpenBLAS (2.3-3x faster shift-invert solves).
 #   - A venv at $FEM_SQUEAL_VENV (default: <repo>/.venv) that sees the Debian packages,
 #     with fem_squeal installed editable. numpy/mpi4py/petsc4py/slepc4py are never pip-installed.
+#   - The package's compiled kernels (fem_squeal/fe/kernels/*.c) are built by that install (setup.py,
+#     against Debian's gcc and libsuitesparse-dev), and rebuilt when their sources change; nothing is
+#     compiled at run time.
 # Usage: scripts/setup.sh [--test] [--docs] [--bench] [--packages-only]
 #   (prints the venv python path on its last line, except with --packages-only)
 #   --test:  also what only the test suite needs: chromium (485 MB; the headless render of
@@ -36,10 +39,10 @@ SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
 
 pkgs=(python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh python3-meshio
       python3-venv python3-setuptools python3-pip python3-pytest python3-matplotlib python3-scipy
-      python3-hypothesis openmpi-bin libopenblas0-pthread)
+      python3-hypothesis python3-cffi python3-threadpoolctl openmpi-bin libopenblas0-pthread gcc libc6-dev libsuitesparse-dev)
 [ "$tests" -eq 1 ] && pkgs+=(chromium) && docs=1
 [ "$docs" -eq 1 ] && pkgs+=(python3-sphinx python3-myst-parser)
-[ "$bench" -eq 1 ] && pkgs+=(calculix-ccx python3-getfem libsuitesparse-dev cython3 python3-dev gcc)
+[ "$bench" -eq 1 ] && pkgs+=(calculix-ccx python3-getfem cython3 python3-dev)
 
 missing=()
 for p in "${pkgs[@]}"; do
@@ -73,11 +76,16 @@ if [ ! -x "$venv/bin/python" ]; then
   echo "[setup] creating venv $venv" >&2
   /usr/bin/python3 -m venv --system-site-packages "$venv"
 fi
-# Editable install, no dependency resolution: every runtime dependency comes from Debian.
+# Editable install, no dependency resolution: every runtime dependency comes from Debian.  It builds
+# the compiled kernels in place (setup.py); a change to their sources or the build files rebuilds them.
 stamp="$venv/.fem_squeal_installed"
-if [ ! -f "$stamp" ] || [ "$repo/pyproject.toml" -nt "$stamp" ] || \
+stale=0
+for f in "$repo/pyproject.toml" "$repo/setup.py" "$repo"/fem_squeal/fe/kernels/*.[ch]; do
+  [ "$f" -nt "$stamp" ] && stale=1
+done
+if [ ! -f "$stamp" ] || [ "$stale" -eq 1 ] || \
    ! "$venv/bin/python" -c "import fem_squeal" >/dev/null 2>&1; then
-  echo "[setup] installing fem_squeal (editable) into $venv" >&2
+  echo "[setup] installing fem_squeal (editable, with its compiled kernels) into $venv" >&2
   "$venv/bin/python" -m pip install -q --no-deps --no-build-isolation -e "$repo" >&2
   touch "$stamp"
 fi

@@ -4,7 +4,6 @@ keeps a given order, refuses what is not positive definite; the modes it gives a
 CHOLMOD interface; the compiled CSR block product is SciPy's."""
 from __future__ import annotations
 
-import ctypes
 from contextlib import nullcontext
 
 import numpy as np
@@ -123,8 +122,7 @@ def test_close_is_idempotent():
 
 def _factor_values(A: sp.csr_matrix) -> np.ndarray:
     with cholmod.Cholesky(A.indptr, A.indices, A.data) as F:
-        L = ctypes.cast(F._L, ctypes.POINTER(cholmod._Factor)).contents
-        return np.ctypeslib.as_array(ctypes.cast(L.x, ctypes.POINTER(ctypes.c_double)), shape=(L.xsize,)).copy()
+        return F.factor_values()
 
 
 def test_the_factor_is_the_same_without_cholmods_openmp_threads(monkeypatch):

@@ -146,10 +146,12 @@ def _entries(A, nonzero: bool = False) -> set[tuple[int, int]]:
 
 
 def test_block_masses_equal_the_vector_forms():
-    """M and M_axial from one scalar assembly equal the vector forms' to round-off (the same
-    quadrature sums in another order: 1e-14), with the Dirichlet rows and columns (a clamp, and a
-    face fixed in two components) left out and no stored zeros.  (One rank: on more, the vector
-    forms themselves are assembled.)"""
+    """M and M_axial from one scalar assembly equal the vector forms' to round-off, with the Dirichlet
+    rows and columns (a clamp, and a face fixed in two components) left out and no stored zeros.
+    (One rank: on more, the vector forms themselves are assembled.)  Round-off: the same positive
+    quadrature terms summed in another order differ by at most (n - 1) ε of their sum, n the terms
+    of an entry (up to ~30 cells of a P2 node's patch x 14 points = 420): 1e-13.  (1e-14 was too
+    tight: 1.36e-14 was measured on an AVX-512 machine.)"""
     s = _mass_differences()
-    assert s["M"] < 1e-14 and s["Mz"] < 1e-14
+    assert s["M"] < 1e-13 and s["Mz"] < 1e-13
     assert s["M_same_pattern"] and s["Mz_same_pattern"]

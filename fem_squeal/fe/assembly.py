@@ -25,7 +25,7 @@ from petsc4py import PETSc
 from ufl.algorithms.map_integrands import map_integrand_dags
 from ufl.corealg.multifunction import MultiFunction
 
-from fem_squeal.fe import cell_assembly, forms
+from fem_squeal.fe import cell_assembly, forms, kernels
 from fem_squeal.fe import interface as itf
 from fem_squeal.fe.eigen import set_options
 from fem_squeal.fe.model import Interface, ModelSpec, RigidPlate, sliding_speed, speed_friction
@@ -111,7 +111,9 @@ def _assemble(form, pattern: fem.FormMetaClass, bcs, diagonal: float, bc_dofs: n
     if pattern is form and (not bcs or bc_dofs is not None):
         A = cell_assembly.assemble_matrix(form, bc_dofs if bcs else np.zeros(0, dtype=np.int32), diagonal)
         if A is not None:
+            kernels.note("assembly", "compiled")
             return A
+    kernels.note("assembly", "dolfinx")
     A = fem_petsc.create_matrix(pattern)
     fem_petsc.assemble_matrix(A, form, bcs=bcs, diagonal=diagonal)
     A.assemble()

@@ -9,6 +9,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 from scipy.linalg import blas
 
+from fem_squeal.fe import kernels
 from fem_squeal.fe.csr import block_product, csr_view
 
 
@@ -33,7 +34,9 @@ def apply(A: PETSc.Mat, Phi: np.ndarray) -> np.ndarray:
         with csr_view(A) as csr:
             product = block_product(csr, A.getSize()[1])
             if product is not None:
+                kernels.note("block_product", "compiled")
                 return product(Phi)
+    kernels.note("block_product", "petsc")
     D = dense_matrix(comm, Phi, A.getSize()[1])
     P = A.matMult(D)
     out = np.array(P.getDenseArray(), order="F")

@@ -25,7 +25,7 @@ from petsc4py import PETSc
 from scipy.linalg import blas
 from slepc4py import SLEPc
 
-from fem_squeal.fe import cholmod
+from fem_squeal.fe import cholmod, kernels
 from fem_squeal.fe.csr import block_product, csr_view
 from fem_squeal.fe.dense import apply, block_solve, project_out
 from fem_squeal.fe.ordering import ORDERINGS, fill_reducing_order, permuted
@@ -495,6 +495,7 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
             A.destroy()
     _check(nconv, nev, res, max_residual, "real-mode EPS", np.sqrt(np.abs(vals)) / TWO_PI)
     order = np.argsort(vals)
+    kernels.note("real_modes", f"{solver}, Krylov-Schur")
     return RealModes(np.array(vals)[order], [vecs[i] for i in order], res[order], solver,
                      {"factor": t_factor, "solve": t_solve}, "Krylov-Schur")
 
@@ -507,6 +508,7 @@ def _checked_modes(K: PETSc.Mat, Ms: PETSc.Mat, lam: np.ndarray, X: np.ndarray, 
     vals, vecs, res = _pairs_from_rows(K, Ms, lam, X)
     if len(vecs) and np.all(res <= max_residual):
         order = np.argsort(vals)
+        kernels.note("real_modes", f"{solver}, block Lanczos")
         return RealModes(vals[order], [vecs[i] for i in order], res[order], solver,
                          {"factor": factor_s, "solve": solve_s + time.perf_counter() - t0},
                          f"block Lanczos, {b} columns")
@@ -569,6 +571,7 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
         perm = _fill_reducing_order(K, sigma, prefix, key, (A.indptr, A.indices))
         try:
             factor = cholmod.Cholesky(A.indptr, A.indices, A.data, perm)
+            kernels.note("factorisation", "cholmod")
         except cholmod.NotPositiveDefinite:
             # σ above the lowest mode, or a free body: neither is K − σ'M definite for σ' ≥ σ
             _NOT_DEFINITE[key] = min(sigma, _NOT_DEFINITE.get(key, np.inf))
@@ -850,6 +853,7 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
     xrs, xis = [xrs[i] for i in order], [xis[i] for i in order]
     what = f"complex-mode {'EPS' if method == 'linear' else 'PEP'} (prefix {prefix!r})"
     _check(n_found, nev, res, max_residual, what, lams.imag / TWO_PI)
+    kernels.note("complex_modes", f"{method}, {algorithm.split(',')[0]}")
     return ComplexModes(lams, xrs, xis, res, method, seconds, algorithm)
 
 

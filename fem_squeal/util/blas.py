@@ -3,16 +3,21 @@
 - OpenBLAS: Debian's (libopenblas0-pthread) starts one thread per core in every process; under
   ``mpirun -n N`` with N ranks on N cores that oversubscribes the machine and OpenBLAS's spinning
   threads slow dense work by 10-100× (measured: a batch of 100×100 eigenvalue problems went from
-  ~3 ms to 212 ms each with 2 ranks on 2 cores).
+  ~3 ms to 212 ms each with 2 ranks on 2 cores).  Its thread count is set through threadpoolctl
+  (Debian's python3-threadpoolctl), which finds the OpenBLAS behind Debian's libblas.so.3.
 - OpenMP: CHOLMOD 3 (SuiteSparse 5, Debian's) runs the loops of its supernodal factorisation
   (zeroing a supernode, scattering A and the descendants' updates into it) with
   ``num_threads(CHOLMOD_OMP_NUM_THREADS)``, compiled in as 4, which OMP_NUM_THREADS does not
-  override: :func:`serial_openmp`."""
+  override: :func:`serial_openmp`.  That is OpenMP's max-active-levels, which threadpoolctl does not
+  set (its OpenMP limit is the thread count, which the compiled-in clause overrides): libgomp is
+  called directly."""
 from __future__ import annotations
 
 import ctypes
 import os
 from contextlib import contextmanager
+
+from threadpoolctl import threadpool_info, threadpool_limits
 
 from fem_squeal.util.native import first_library
 
@@ -28,8 +33,10 @@ def _loaded(fragment: str, symbol: str) -> ctypes.CDLL | None:
     return first_library(sorted(paths), symbol)
 
 
-def _openblas() -> ctypes.CDLL | None:
-    return _loaded("openblas", "openblas_set_num_threads")
+def blas_threads() -> int | None:
+    """The thread count of the BLAS this process has loaded (threadpoolctl); None if it has none."""
+    counts = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+    return counts[0] if counts else None
 
 
 _GOMP: list[ctypes.CDLL] = []      # libgomp once found (it is never unloaded)
@@ -64,11 +71,10 @@ def limit_threads(ranks_per_node: int) -> int | None:
     user set OPENBLAS_NUM_THREADS or OMP_NUM_THREADS; returns the count set (None: no OpenBLAS)."""
     if "OPENBLAS_NUM_THREADS" in os.environ or "OMP_NUM_THREADS" in os.environ:
         return None
-    lib = _openblas()
-    if lib is None:
+    if blas_threads() is None:
         return None
     n = max(1, (os.cpu_count() or 1) // max(ranks_per_node, 1))
-    lib.openblas_set_num_threads(n)
+    threadpool_limits(n, user_api="blas")
     return n
 
 
@@ -90,7 +96,7 @@ def single_threaded():
     Time integration of friction-induced vibration is chaotic in stick-slip: a last-bit change
     (a BLAS reduction split over another number of threads) grows into a different trajectory.
     One thread makes a transient the same whatever the rank count or core count of the run."""
-    with _temporarily(_openblas(), "openblas_get_num_threads", "openblas_set_num_threads", 1):
+    with threadpool_limits(1, user_api="blas"):
         yield
 
 

@@ -3,12 +3,16 @@
     fem-squeal plan SCENE.toml [--set key=value ...]      stages that would run, and the cached ones
     fem-squeal run SCENE.toml [--set ...] [-o OUTDIR] [--force STAGE] [--petsc-option k=v] [--no-fields]
     fem-squeal clean                                       remove the cache
+    fem-squeal cache [--verify]                            list the cache's entries; --verify: check every
+                                                           file and remove the bad entries only
     fem-squeal convert IN OUT [--scale S]                  convert a mesh (.msh .inp .bdf .vtu), keeping its sets
     fem-squeal mesh SCENE.toml OUT [--set ...] [--scale S] write a scene's mesh (e.g. the gmsh brake as .inp)
 
 The cache is ``--cache-dir`` (default ``$FEM_SQUEAL_CACHE``, else ``$XDG_CACHE_HOME/fem_squeal``, i.e.
 ``~/.cache/fem_squeal``); ``--cache-dir`` and ``--log-level`` go before or after the subcommand.  Exit
-codes: 0 done, 2 invalid input (scene, command line, mesh file), 3 a stage failed (the message names it).
+codes: 0 done, 2 invalid input (scene, command line, mesh file), 3 a stage failed (the message names it),
+4 a file could not be written (no space, no permission: the message names the path; nothing half-written
+is left and the output folder holds what it held before).
 
 The application is imported inside the commands: importing it starts MPI (mpi4py, through the mesh
 builders), and ``fem-squeal bench`` must not, because the ``mpirun`` that its suite launches would
@@ -61,7 +65,8 @@ def _scene_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--petsc-option", action="append", default=[], metavar="KEY=VALUE",
                    help="PETSc option with its prefix, e.g. cea_st_pc_factor_mat_solver_type=superlu_dist")
     p.add_argument("--no-fields", action="store_true",
-                   help="skip the XDMF field files (results.json and PNG only)")
+                   help="do not publish the field files (XDMF, VTU) into the output folder; the cache "
+                        "keeps them, so a later run with fields computes nothing")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -91,6 +96,11 @@ def _parser() -> argparse.ArgumentParser:
     _scene_args(pl)
     pl.add_argument("--force", action="append", default=[], metavar="STAGE")
     sub.add_parser("clean", help="remove the cache", parents=[common])
+    k = sub.add_parser("cache", help="list the cache's entries (--verify: check them, remove the bad ones)",
+                       parents=[common])
+    k.add_argument("--verify", action="store_true",
+                   help="check every entry's files against its manifest (size, SHA-256); remove the entries "
+                        "that fail and leftovers of killed runs older than an hour")
     c = sub.add_parser("convert", help="convert a mesh file, keeping its element sets, surfaces and node sets",
                        parents=[common])
     c.add_argument("input", type=Path)
@@ -131,6 +141,24 @@ def _convert(args, comm, say) -> None:
         f"sets {sorted(mf.cell_sets)}; surfaces {sorted(mf.surfaces)}; node sets {sorted(mf.node_sets)}")
 
 
+def _cache_listing(cache, verify: bool) -> None:
+    """``fem-squeal cache``: one line per entry (stage, key, size; with ``verify`` its verdict), the bad
+    entries removed when verifying."""
+    sizes = {p: sum(f.stat().st_size for f in p.rglob("*") if f.is_file()) for p in cache.entries()}
+    found = cache.check_all(remove=True) if verify else [(p, None) for p in sizes]
+    total = 0
+    for p, v in found:
+        size = sizes.get(p, 0)
+        total += size
+        state = "" if v is None else ("ok" if v.state == "ok" else f"BAD, removed: {v.reason}")
+        print(f"  {p.name:<40} {size / 1e6:10.3f} MB  {state}")
+    n_bad = sum(v is not None and v.state != "ok" for _, v in found)
+    print(f"{len(found)} entries, {total / 1e6:.3f} MB in {cache.root}"
+          + (f"; {n_bad} bad entries removed" if verify else ""))
+    for t in cache.temporaries():
+        print(f"  (temporary folder of a run in progress or killed: {t.name})")
+
+
 def _load(args):
     from fem_squeal.app.scene import load_scene  # heavy: MPI (see the module docstring)
 
@@ -168,6 +196,10 @@ def main(argv: list[str] | None = None) -> int:
         n = cache.clean() if rank0 else 0
         say(f"[fem_squeal] removed {n} cache entries from {args.cache_dir}")
         return 0
+    if args.command == "cache":
+        if rank0:
+            _cache_listing(cache, args.verify)
+        return 0
     try:
         if args.command == "convert":
             _convert(args, comm, say)
@@ -181,8 +213,8 @@ def main(argv: list[str] | None = None) -> int:
             say(f"[fem_squeal] wrote {args.output}")
             return 0
         if args.command == "plan":
-            plan = make_plan(scene, cache, force=args.force, write_fields=not args.no_fields)
             if rank0:
+                plan = make_plan(scene, cache, force=args.force)
                 print(f"plan for {args.scene} (cache {args.cache_dir}):\n{format_plan(plan)}")
             return 0
     except FemSquealError as e:

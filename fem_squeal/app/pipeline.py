@@ -14,21 +14,24 @@ scene with a CEA builds no reduced model, the segmented pad builds no mesh).
 Cache
 -----
 Every stage's output (its ``results.json`` section, its timings and its files) is stored in
-``<cache>/<stage>-<key>/``.  The key hashes what the stage reads: its part of the scene (the
-``inputs`` function of its :class:`Stage`), the keys of the stages it needs, and the code version
-(a hash of the package sources), so
+``<cache>/<stage>-<key>/`` (:mod:`fem_squeal.app.cache`: written atomically, every file recorded by
+size and SHA-256 and verified before use).  The key hashes what the stage reads: its part of the
+scene (the ``inputs`` function of its :class:`Stage`), the keys of the stages it needs, and the code
+version (a hash of the package sources), so
 
 - a re-run of an unchanged scene computes nothing;
 - a change recomputes the stages whose inputs changed and those downstream of them only (a new
   ``analyses.sweep.n`` re-runs the sweep on the cached reduced model; a new μ re-runs the
   preload and everything after it, because the static state depends on μ);
-- an entry is written into a temporary folder and renamed into place when complete, so an
-  interrupted run leaves no entry, and the next run recomputes it.
+- output choices (``--no-fields``, ``--no-report``) are not inputs: a stage always keeps its field
+  files in its entry, and the run publishes them or not (:mod:`fem_squeal.app.outputs`);
+- an entry that fails verification is a miss for that stage alone: the plan says why, and the stage
+  is recomputed.
 
 The in-memory products of ``mesh``, ``operators`` and ``preload`` (a dolfinx mesh, PETSc
 matrices) are not stored: when a stage that needs them must run, they are rebuilt in memory
-(the plan says ``memory``) even if their own summary is cached.  Rank 0 owns every cache write;
-the other ranks wait at a barrier and read.
+(the plan says ``memory``) even if their own summary is cached.  Rank 0 owns every cache write and
+makes the plan; the other ranks receive it.
 """
 from __future__ import annotations
 
@@ -42,10 +45,10 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from mpi4py import MPI
-
 from fem_squeal.app.analyses import STAGES
+from fem_squeal.app.cache import Cache, Verdict  # noqa: F401  (public here since the cache moved)
 from fem_squeal.app.fields import plain
+from fem_squeal.app.outputs import publish  # noqa: F401  (public here since publishing moved)
 from fem_squeal.app.scene import model_spec
 from fem_squeal.util.errors import PipelineError
 
@@ -77,11 +80,12 @@ def downstream(names: Iterable[str], among: list[str]) -> set[str]:
 
 
 def code_version() -> str:
-    """Hash of the package sources (fem_squeal and geometry): any code change invalidates the cache."""
+    """Hash of the package sources (fem_squeal and geometry, Python and the compiled kernels' C): any
+    code change invalidates the cache."""
     root = Path(__file__).resolve().parents[2]
     h = hashlib.sha256()
     for pkg in ("fem_squeal", "geometry"):
-        for p in sorted((root / pkg).rglob("*.py")):
+        for p in sorted(q for pattern in ("*.py", "*.c", "*.h") for q in (root / pkg).rglob(pattern)):
             h.update(str(p.relative_to(root)).encode())
             h.update(p.read_bytes())
     return h.hexdigest()[:16]
@@ -92,18 +96,22 @@ def _canonical(obj: Any) -> str:
     return json.dumps(plain(obj), sort_keys=True, separators=(",", ":"), default=repr)
 
 
+_NO_SPEC = object()
+
+
 def stage_keys(scene: dict, stages: list[str], *, write_fields: bool = True,
-               version: str | None = None) -> dict[str, str]:
-    """Content key of each stage: hash of (stage, its inputs, upstream keys, code version)."""
+               version: str | None = None, spec=_NO_SPEC) -> dict[str, str]:
+    """Content key of each stage: hash of (stage, its inputs, upstream keys, code version).
+    ``spec``: the scene's :func:`model_spec` where the caller has it (computed here otherwise).
+    ``write_fields`` is accepted for old callers and ignored: output choices are not inputs."""
     version = version or code_version()
-    spec = model_spec(scene) if "geometry" in scene else None
+    if spec is _NO_SPEC:
+        spec = model_spec(scene) if "geometry" in scene else None
     keys: dict[str, str] = {}
     for name in stages:
         st = STAGES[name]
         payload = {"stage": name, "inputs": st.key_inputs(scene, spec), "upstream": [keys[n] for n in st.needs],
                    "code": version}
-        if st.fields:
-            payload["fields"] = write_fields
         keys[name] = hashlib.sha256(_canonical(payload).encode()).hexdigest()[:20]
     return keys
 
@@ -112,67 +120,7 @@ class PlanItem(NamedTuple):
     stage: str
     key: str
     status: str       # "cached" | "run" | "memory" (rebuilt in memory only) | "forced"
-
-
-class Cache:
-    """Stage entries ``<root>/<stage>-<key>/`` holding ``entry.json`` and the stage's files."""
-
-    def __init__(self, root: str | os.PathLike):
-        self.root = Path(root)
-
-    def entry(self, stage: str, key: str) -> Path:
-        return self.root / f"{stage}-{key}"
-
-    def has(self, stage: str, key: str) -> bool:
-        return (self.entry(stage, key) / "entry.json").is_file()
-
-    def load(self, stage: str, key: str) -> dict:
-        path = self.entry(stage, key) / "entry.json"
-        try:
-            return json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError) as e:
-            raise PipelineError(f"cache entry {path}: unreadable ({e}); run 'fem-squeal clean'") from None
-
-    @contextmanager
-    def writing(self, comm, stage: str, key: str):
-        """Yield a temporary folder (the same on every rank) for the stage's files; on success
-        rank 0 renames it to the entry (atomic), on failure it is removed."""
-        tmp = None
-        if comm.rank == 0:
-            self.root.mkdir(parents=True, exist_ok=True)
-            tmp = tempfile.mkdtemp(prefix=f".{stage}-{key}.", dir=self.root)
-        tmp = Path(comm.bcast(tmp, root=0))
-        ok = False
-        try:
-            yield tmp
-            ok = True
-        finally:
-            ok = comm.allreduce(ok, op=_land(comm))
-            comm.barrier()
-            if comm.rank == 0:
-                final = self.entry(stage, key)
-                if ok and (tmp / "entry.json").is_file():
-                    if final.exists():
-                        shutil.rmtree(final)
-                    os.replace(tmp, final)
-                else:
-                    shutil.rmtree(tmp, ignore_errors=True)
-            comm.barrier()
-
-    def entries(self) -> list[Path]:
-        return sorted(p for p in self.root.glob("*-*") if p.is_dir() and not p.name.startswith("."))
-
-    def clean(self) -> int:
-        """Remove every entry (and leftovers of interrupted runs); returns the number removed."""
-        if not self.root.exists():
-            return 0
-        n = 0
-        for p in self.root.iterdir():
-            if p.is_dir():
-                shutil.rmtree(p, ignore_errors=True)
-                n += 1
-        shutil.rmtree(self.root, ignore_errors=True)
-        return n
+    note: str = ""    # why a stage runs although an entry exists (it failed verification)
 
 
 @contextmanager
@@ -188,14 +136,12 @@ def scratch(comm):
             shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _land(comm):
-    return MPI.LAND
-
-
 def make_plan(scene: dict, cache: Cache, *, force: Iterable[str] = (), write_fields: bool = True,
-              version: str | None = None) -> list[PlanItem]:
-    """What a run would do: each required stage is cached, run, forced (``force`` and every
-    stage after it), or rebuilt in ``memory`` for a stage after it that runs."""
+              version: str | None = None, spec=_NO_SPEC) -> list[PlanItem]:
+    """What a run would do: each required stage is cached (its entry verifies), run (absent, or
+    failing verification: ``note`` says why), forced (``force`` and every stage after it), or rebuilt
+    in ``memory`` for a stage after it that runs.  ``write_fields`` is ignored (output choices are
+    not inputs)."""
     stages = required(scene)
     force = list(force)
     if "all" in force:
@@ -203,24 +149,33 @@ def make_plan(scene: dict, cache: Cache, *, force: Iterable[str] = (), write_fie
     unknown = sorted(set(force) - set(stages))
     if unknown:
         raise PipelineError(f"--force {unknown[0]}: not a stage of this scene; its stages: {stages}")
-    keys = stage_keys(scene, stages, write_fields=write_fields, version=version)
+    keys = stage_keys(scene, stages, version=version, spec=spec)
     forced = downstream(force, stages)
-    status = {n: ("forced" if n in forced else "cached" if cache.has(n, keys[n]) else "run") for n in stages}
+    status, notes = {}, {}
+    for n in stages:
+        if n in forced:
+            status[n] = "forced"
+            continue
+        v = cache.verify(n, keys[n])
+        status[n] = "cached" if v.state == "ok" else "run"
+        if v.state == "bad":
+            notes[n] = f"cache entry {n}-{keys[n]}: {v.reason}; recomputed"
     for n in reversed(stages):   # a stage that runs needs the in-memory products of its upstream
         if status[n] in ("run", "forced", "memory"):
             for d in STAGES[n].needs:
                 if STAGES[d].memory and status[d] == "cached":
                     status[d] = "memory"
-    return [PlanItem(n, keys[n], status[n]) for n in stages]
+    return [PlanItem(n, keys[n], status[n], notes.get(n, "")) for n in stages]
 
 
 def format_plan(plan: list[PlanItem]) -> str:
     words = {"cached": "cached  ", "run": "run     ", "forced": "forced  ", "memory": "memory  "}
     lines = [f"  {words[p.status]} {p.stage:<14} {p.key}  {STAGES[p.stage].doc}" for p in plan]
     n_run = sum(p.status != "cached" for p in plan)
-    return "\n".join(lines + [f"  {n_run} of {len(plan)} stages to compute"
-                              + (" (memory: rebuilt in memory, its cached outputs kept)"
-                                 if any(p.status == "memory" for p in plan) else "")])
+    return "\n".join([f"  warning: {p.note}" for p in plan if p.note] + lines
+                     + [f"  {n_run} of {len(plan)} stages to compute"
+                        + (" (memory: rebuilt in memory, its cached outputs kept)"
+                           if any(p.status == "memory" for p in plan) else "")])
 
 
 def default_cache_dir() -> Path:
@@ -230,26 +185,3 @@ def default_cache_dir() -> Path:
         return Path(os.environ[CACHE_ENV])
     xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     return Path(xdg) / "fem_squeal"
-
-
-def publish(entry: Path, outdir: Path) -> list[str]:
-    """Hard-link (or copy) an entry's files into the output folder, replacing older ones atomically."""
-    names = []
-    for src in sorted(entry.rglob("*")):
-        if not src.is_file() or src.name == "entry.json":
-            continue
-        rel = src.relative_to(entry)
-        dst = outdir / rel
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        names.append(str(rel))
-        if dst.exists() and os.path.samefile(src, dst):
-            continue          # already this entry's file (rename onto a hard link of itself is a no-op)
-        fd, tmp = tempfile.mkstemp(prefix=f".{dst.name}.", dir=dst.parent)
-        os.close(fd)
-        os.unlink(tmp)
-        try:
-            os.link(src, tmp)
-        except OSError:
-            shutil.copy2(src, tmp)
-        os.replace(tmp, dst)
-    return names

@@ -59,10 +59,17 @@ def _run(res: dict) -> str:
     return "<h2>Run</h2>" + _table(["", ""], rows)
 
 
-def write_report(outdir: Path, res: dict) -> Path:
-    """Write ``outdir/report.html`` atomically (rank 0) with every PNG under ``outdir``."""
+def write_report(outdir: Path, res: dict, into: Path | None = None) -> Path:
+    """Write ``report.html`` atomically (rank 0) with every PNG under ``outdir``.  With ``into`` (the
+    staging folder of a run, :func:`fem_squeal.app.outputs.staged_outputs`), the report is written
+    there and its figures are the PNGs that ``res["files"]`` lists, taken from ``into`` where this run
+    copied them and from ``outdir`` where they were already there."""
     outdir = Path(outdir)
-    figures = [(str(p.relative_to(outdir)), p.read_bytes()) for p in sorted(outdir.rglob("*.png"))]
-    path = outdir / "report.html"
+    if into is None:
+        figures = [(str(p.relative_to(outdir)), p.read_bytes()) for p in sorted(outdir.rglob("*.png"))]
+    else:
+        pngs = sorted(f for f in res.get("files", []) if f.endswith(".png"))
+        figures = [(f, ((into / f) if (into / f).is_file() else (outdir / f)).read_bytes()) for f in pngs]
+    path = (into or outdir) / "report.html"
     write_atomic(path, lambda f: f.write(render(res, figures).encode()), "wb")
     return path

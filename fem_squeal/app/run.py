@@ -14,6 +14,11 @@ files            output files of the stages (relative to outdir)
 mesh             cells, volumes (part names)
 model            dofs, cells, ranks, degree
 timings_s        wall time per stage
+solver           kernels {name: built} (fem_squeal.fe.kernels: the compiled kernels this installation
+                 has) and paths {stage: {operation: {path: count}}}: which path each assembly, block
+                 product, factorisation, block solve and eigensolve of a computed stage took (rank 0;
+                 "compiled", "compiled-avx512", "cholmod", "petsc", "dolfinx", "mumps, block Lanczos", ...),
+                 recorded when the stage was computed and kept with its cache entry
 estimate         (when the mesh is built) cells, dofs, memory_gib of the largest solve, available_gib,
                  machines: the size check made before any stage ran (fem_squeal.app.resources)
 preload          (models with contact interfaces) mode, iterations, history [[closed points,
@@ -65,7 +70,8 @@ limit_cycle      limit_cycle {saturated, frequency_hz, amplitude, t_saturation, 
 segmented_pad    runs [{kind, speed, v_s, v_d, regimes, regime, fractions (time shares of s < v_s,
                  v_s ≤ s < v_d, s ≥ v_d per element), s_min (per element) [m/s], steps}], seconds
 
-Files: real_modes.xdmf, complex_modes.xdmf (mode_re, mode_im), preload.xdmf, and the same fields
+Files (the field files, .xdmf/.h5/.vtu, only without ``--no-fields``; the cache keeps them either
+way): real_modes.xdmf, complex_modes.xdmf (mode_re, mode_im), preload.xdmf, and the same fields
 as VTU (meshio; real_modes.vtu mode_<j>, complex_modes.vtu mode_<j>_re/_im, preload.vtu; frequencies
 in the field data) for tools other than ParaView
 (preload_displacement, contact_pressure), contact_pressure.png; reduced_model.npz,
@@ -74,8 +80,9 @@ sweep.json, root_locus.png, complex_plane.png, stability_map.npz/png; each stage
 """
 from __future__ import annotations
 
-import json
+import errno
 import shutil
+import sys
 import tempfile
 import time
 import warnings
@@ -87,16 +94,37 @@ from mpi4py import MPI
 
 from fem_squeal import __version__
 from fem_squeal.app.analyses import STAGES
-from fem_squeal.app.pipeline import Cache, code_version, make_plan, publish, scratch
+from fem_squeal.app.outputs import listed_outputs, publish, staged_outputs
+from fem_squeal.app.outputs import remove_stale_outputs as _remove_stale
+from fem_squeal.app.pipeline import Cache, code_version, make_plan, scratch
 from fem_squeal.app.report import write_report
 from fem_squeal.app.resources import check_outdir, check_resources
 from fem_squeal.app.scene import model_spec
 from fem_squeal.app.stage import Context
 from fem_squeal.util.atomic import jsonable, write_json_atomic
 from fem_squeal.util.blas import limit_threads_for
+from fem_squeal.util.errors import FemSquealError
 from fem_squeal.util.parallel import on_root
+from fem_squeal.util.storage import STORAGE_ERRNOS, free_bytes, storage_error
 
 SCHEMA_VERSION = 3
+#: a stage failure with less than this free [bytes] on the cache's file system is reported as a full disk
+#: (a library writing HDF5 reports its own error, not ENOSPC)
+FULL_DISK_BYTES = 4 << 20
+
+
+def _tally(reset: bool = False) -> dict:
+    """The finite-element layer's tally of the paths that ran (:func:`fem_squeal.fe.kernels.tally`),
+    {} for a run that never loaded it (a lumped model)."""
+    kernels = sys.modules.get("fem_squeal.fe.kernels")
+    return kernels.tally(reset) if kernels is not None else {}
+
+
+def _kernels_built() -> dict[str, bool]:
+    """Which compiled kernels the package was built with (:func:`fem_squeal.fe.kernels.status`)."""
+    from fem_squeal.fe import kernels  # heavy: the FE layer's package (dolfinx is not imported by it)
+
+    return kernels.status()
 
 
 def _stage_functions() -> dict:
@@ -107,14 +135,43 @@ def _stage_functions() -> dict:
 def remove_stale_outputs(outdir: Path, files: list[str]) -> None:
     """Delete the files that an earlier run listed in ``outdir/results.json`` and this run did not
     write (a MASA plot of a μ no longer asked for), so the folder shows one run."""
+    _remove_stale(outdir, listed_outputs(outdir), files)
+
+
+def _as_storage_error(e: BaseException, stage: str, folder: Path) -> BaseException:
+    """A stage's failure to write its cache entry as a named :class:`StorageError`: an ``OSError`` for
+    space or permission, or any library error (PETSc's HDF5 writer) on a file system left with less
+    than :data:`FULL_DISK_BYTES`; ``e`` itself otherwise."""
+    if isinstance(e, FemSquealError):
+        return e
+    what = f"writing the cache entry of stage {stage}"
+    if isinstance(e, OSError) and e.errno in STORAGE_ERRNOS:
+        return storage_error(e, what, folder)
     try:
-        old = json.loads((outdir / "results.json").read_text()).get("files", [])
-    except (OSError, ValueError):
-        return
-    for name in set(old) - set(files):
-        p = (outdir / name).resolve()
-        if outdir.resolve() in p.parents and p.is_file():
-            p.unlink()
+        full = free_bytes(folder) < FULL_DISK_BYTES
+    except OSError:
+        full = False
+    if full:
+        cause = str(e).splitlines()[0] if str(e) else ""
+        return storage_error(OSError(errno.ENOSPC, f"no space left on device (the writer said: {type(e).__name__}"
+                                     f"{': ' + cause if cause else ''})", str(folder)), what, folder)
+    return e
+
+
+def _run_stage(fn, ctx: Context, work: Path, stage_t: dict, stage: str, comm, where: Path) -> dict:
+    """``fn(ctx, work, stage_t)``, a failure on any rank raised on every rank, storage failures named
+    (:func:`_as_storage_error`) by the folder ``where`` (the cache)."""
+    error = None
+    try:
+        sections = fn(ctx, work, stage_t)
+    except BaseException as e:
+        error = _as_storage_error(e, stage, where)
+    failed = comm.allreduce(error is not None, op=MPI.LOR)
+    if error is not None:
+        raise error
+    if failed:
+        raise FemSquealError(f"stage {stage}: failed on another rank (its message is above)")
+    return sections
 
 
 def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, write_fields: bool = True,
@@ -122,8 +179,10 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
               provenance: dict | None = None) -> dict[str, Any]:
     """Run the stages that ``scene``'s analyses need (:mod:`fem_squeal.app.pipeline`), reusing the
     entries of ``cache`` (a folder; None = a temporary cache, removed afterwards), and write the
-    outputs to ``outdir``.  ``provenance``: what produced the scene (``scene_file``, ``overrides``), recorded
-    with the code version under ``run``.  Returns the results dictionary (the content of results.json)."""
+    outputs to ``outdir`` (all at once: :mod:`fem_squeal.app.outputs`).  ``write_fields``: publish the
+    field files (XDMF, VTU); it changes no cache key.  ``provenance``: what produced the scene
+    (``scene_file``, ``overrides``), recorded with the code version under ``run``.  Returns the
+    results dictionary (the content of results.json)."""
     outdir = Path(outdir)
     rank0 = comm.rank == 0
     limit_threads_for(comm)
@@ -134,7 +193,11 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
         cache = comm.bcast(tempfile.mkdtemp(prefix="fem_squeal_cache.") if rank0 else None, root=0)
     store = Cache(cache)
     try:
-        plan = make_plan(scene, store, force=force, write_fields=write_fields)
+        spec = model_spec(scene) if "geometry" in scene else None           # once per run
+        plan = on_root(comm, lambda: make_plan(scene, store, force=force, spec=spec))   # rank 0 reads the cache
+        for item in plan:
+            if item.note:
+                say(f"[fem_squeal] warning: {item.note}")
         results: dict[str, Any] = {"schema_version": SCHEMA_VERSION, "scene": scene, "stages": [],
                                    "run": {**(provenance or {}), "version": __version__,
                                            "code_version": code_version(), "ranks": comm.size,
@@ -148,50 +211,60 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
             for w in notes:
                 warnings.warn(w, ResourceWarning, stacklevel=2)
                 say(f"[fem_squeal] warning: {w}")
-        spec = model_spec(scene) if "geometry" in scene else None
         ctx = Context(scene, spec, comm, say, write_fields, store, {p.stage: p.key for p in plan})
         functions = _stage_functions()
         timings: dict[str, float] = {}
+        paths: dict[str, dict] = {}
         for i, item in enumerate(plan):
             t0 = time.perf_counter()
             if item.status == "cached":
-                entry = store.load(item.stage, item.key)
+                entry = on_root(comm, lambda item=item: store.load(item.stage, item.key))
             else:
                 say(f"[fem_squeal] stage {i + 1}/{len(plan)}: {item.stage}"
                     + (" (in memory; outputs cached)" if item.status == "memory" else ""))
                 stage_t: dict[str, float] = {}
-                writer = scratch(comm) if item.status == "memory" else store.writing(comm, item.stage, item.key)
-                with writer as work:
-                    sections = jsonable(functions[item.stage](ctx, work, stage_t))
-                    entry = {"stage": item.stage, "key": item.key, "results": sections, "timings": stage_t,
-                             "seconds": time.perf_counter() - t0}
-                    if rank0 and item.status != "memory":
-                        write_json_atomic(work / "entry.json", entry)
                 if item.status == "memory":
-                    entry = store.load(item.stage, item.key)
+                    ctx.keep_files = False
+                    with scratch(comm) as work:
+                        _run_stage(functions[item.stage], ctx, work, stage_t, item.stage, comm, work)
+                    ctx.keep_files = True
+                    entry = on_root(comm, lambda item=item: store.load(item.stage, item.key))
                 else:
+                    _tally(reset=True)
+                    with store.writing(comm, item.stage, item.key, replace=item.status == "forced") as (work, idx):
+                        sections = jsonable(_run_stage(functions[item.stage], ctx, work, stage_t, item.stage,
+                                                       comm, store.root))
+                        idx.update({"stage": item.stage, "key": item.key, "results": sections,
+                                    "timings": stage_t, "seconds": time.perf_counter() - t0,
+                                    "paths": _tally(reset=True)})
+                    entry = idx
                     timings.update(stage_t)
             results.update(entry["results"])
             results["stages"].append({"stage": item.stage, "key": item.key, "status": item.status,
                                       "seconds": entry["seconds"]})
-        def publish_all() -> list[str]:
-            outdir.mkdir(parents=True, exist_ok=True)
-            files = []
-            for item in plan:
-                files += publish(store.entry(item.stage, item.key), outdir)
-            remove_stale_outputs(outdir, files)
-            return files
-
-        results["files"] = on_root(comm, publish_all)
+            if entry.get("paths"):
+                paths[item.stage] = entry["paths"]
         results["timings_s"] = timings
+        results["solver"] = {"kernels": _kernels_built(), "paths": paths}
         if "model" in results:
             results["model"]["ranks"] = comm.size
-        def write_outputs() -> None:
-            write_json_atomic(outdir / "results.json", results)
-            if report:
-                write_report(outdir, results)
 
-        on_root(comm, write_outputs)      # a failure there (a report section) is raised on every rank
+        def write_outputs() -> list[str]:
+            """Every output into a staging folder, then all renamed into ``outdir`` at once."""
+            old = listed_outputs(outdir)
+            with staged_outputs(outdir) as stage:
+                files = []
+                for item in plan:
+                    files += publish(store.entry(item.stage, item.key), outdir, stage, fields=write_fields)
+                results["files"] = files
+                write_json_atomic(stage / "results.json", results)
+                if report:
+                    write_report(outdir, results, into=stage)
+            _remove_stale(outdir, old, files)
+            return files
+
+        # a failure there (a full disk, a report section) is raised on every rank; outdir is unchanged
+        results["files"] = on_root(comm, write_outputs)
         return results
     finally:
         if temporary:

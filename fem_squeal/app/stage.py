@@ -21,11 +21,14 @@ from fem_squeal.reduced.model import ReducedModel
 class Context:
     """What the stages of one run share: the scene and its model description (``spec``; None for a
     lumped scene), the communicator, the in-memory products of the stages run so far
-    (``products``) and the cache entries of the stages before."""
+    (``products``) and the cache entries of the stages before.  ``write_fields``: whether this run
+    publishes field files (stages write them into their entry either way)."""
     def __init__(self, scene: dict, spec, comm, say, write_fields: bool, cache, keys: dict[str, str]):
         self.scene, self.spec, self.comm, self.say, self.write_fields = scene, spec, comm, say, write_fields
         self.cache, self.keys = cache, keys
         self.products: dict[str, Any] = {}
+        #: False while a cached stage is rebuilt in memory only (its files would be thrown away)
+        self.keep_files = True
 
     def entry(self, stage: str) -> Path:
         """The committed cache folder of an upstream stage (its files)."""
@@ -60,7 +63,7 @@ class Stage:
     #: its part of report.html from the results: ``report(results)`` -> HTML ('' when it has none)
     report: Callable[[dict], str] | None = None
     memory: bool = False          # provides an in-memory product to the stages after it
-    fields: bool = False          # writes XDMF fields (so --no-fields is part of its key)
+    fields: bool = False          # writes field files (XDMF/VTU): cached always, published unless --no-fields
     lumped: bool = False          # needs no finite-element model (no geometry, no materials)
     pulled: bool = False          # an analysis that needs it pulls it in with its defaults
 

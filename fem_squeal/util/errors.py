@@ -1,7 +1,8 @@
 """Every error fem_squeal raises, defined once, under one base class.
 
 ``FemSquealError`` is what the command line catches: an :class:`InputError` (a scene, a command
-line, a mesh file or a model that is refused before or while it is read) exits with 2, any other
+line, a mesh file or a model that is refused before or while it is read) exits with 2, a
+:class:`StorageError` (a full disk, a folder that cannot be written) with 4, any other
 ``FemSquealError`` (a computation that failed: a solver that did not converge, a run killed) with 3.
 The message always starts with what is wrong (a scene key path, a file, a stage).  The classes keep
 the builtin base they had (``ValueError``, ``KeyError``, ``RuntimeError``) so ``except ValueError``
@@ -49,6 +50,14 @@ class PipelineError(FemSquealError, RuntimeError):
     """The stage cache or the pipeline refused a run (a stage that cannot be computed, a locked entry)."""
 
     exit_code = 2
+
+
+class StorageError(FemSquealError, OSError):
+    """A file the run must write could not be: no space left, a quota, a read-only folder, no
+    permission (exit 4).  The message names the path and the reason and, when known, the bytes needed
+    and free; nothing half-written is left behind and no earlier output is changed."""
+
+    exit_code = 4
 
 
 class SolveError(FemSquealError, RuntimeError):

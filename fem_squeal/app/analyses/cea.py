@@ -69,13 +69,12 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     ctx.say(f"[fem_squeal] CEA ({cm.method}, {cm.algorithm}): {len(rows)} modes in {lo:g}-{hi:g} Hz, "
             f"{n_unstable} unstable, {timings['cea']:.2f} s (factorisation {cm.seconds['factor']:.2f} s, "
             f"iterations {cm.seconds['solve']:.2f} s)")
-    if ctx.write_fields:
-        t = time.perf_counter()
-        write_modes_xdmf(ctx.comm, work / "complex_modes.xdmf", ops.V, fields)
-        write_vtu(ctx.comm, work / "complex_modes.vtu", ops.V,
-                  {f"mode_{j}_{part}": x for j, pair in enumerate(fields) for part, x in zip(("re", "im"), pair)},
-                  {"freq_hz": [r["freq_hz"] for r in rows], "real_part": [r["real_part"] for r in rows]})
-        timings["cea_fields"] = time.perf_counter() - t
+    t = time.perf_counter()
+    write_modes_xdmf(ctx.comm, work / "complex_modes.xdmf", ops.V, fields)
+    write_vtu(ctx.comm, work / "complex_modes.vtu", ops.V,
+              {f"mode_{j}_{part}": x for j, pair in enumerate(fields) for part, x in zip(("re", "im"), pair)},
+              {"freq_hz": [r["freq_hz"] for r in rows], "real_part": [r["real_part"] for r in rows]})
+    timings["cea_fields"] = time.perf_counter() - t
     out = {"complex_modes": rows, "n_unstable": n_unstable, "cea_method": cm.method}
     if rotation:
         out["cea_rotation"] = {"speed": scene.operating.speed, **rotation}

@@ -13,8 +13,9 @@ from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 
 
-def _preload_outputs(comm, outdir: Path, ops, pre, write_fields: bool, title: str) -> dict[str, Any]:
-    """Summary of the preload for results.json; pressure PNG and XDMF (pressure, displacement)."""
+def _preload_outputs(comm, outdir: Path, ops, pre, title: str, keep_files: bool = True) -> dict[str, Any]:
+    """Summary of the preload for results.json; pressure PNG and the fields (pressure, displacement) as
+    XDMF and VTU, kept in the cache and published unless --no-fields."""
     from dolfinx import fem  # heavy: FE stack
 
     from fem_squeal.fe.interface import project_to_nodes  # heavy: FE stack
@@ -36,22 +37,23 @@ def _preload_outputs(comm, outdir: Path, ops, pre, write_fields: bool, title: st
             plot_data[it.name] = (np.concatenate(xs), np.concatenate(ps))
     if comm.rank == 0:
         plots.contact_pressure(outdir / "contact_pressure.png", plot_data, title)
-    if write_fields:
-        V = ops.V
-        S = fem.FunctionSpace(V.mesh, ("Lagrange", V.ufl_element().degree()))
-        if S.dofmap.index_map.size_local != V.dofmap.index_map.size_local:
-            raise RuntimeError("contact pressure output: scalar and vector spaces number their nodes differently")
-        p_h = fem.Function(S, name="contact_pressure")
-        for it, op in ops.contacts:
-            dofs, vals = project_to_nodes(op, pre.pressure[it.name], comm)
-            p_h.vector.setValues(dofs.astype(np.int32), vals)
-        p_h.vector.assemble()
-        p_h.x.scatter_forward()
-        u = fem.Function(V, name="preload_displacement")
-        u.x.array[: pre.u.getLocalSize()] = pre.u.array_r
-        u.x.scatter_forward()
-        write_fields_xdmf(comm, outdir / "preload.xdmf", {"preload_displacement": u, "contact_pressure": p_h})
-        write_vtu(comm, outdir / "preload.vtu", V, {"preload_displacement": u}, scalars={"contact_pressure": p_h})
+    if not keep_files:
+        return summary
+    V = ops.V
+    S = fem.FunctionSpace(V.mesh, ("Lagrange", V.ufl_element().degree()))
+    if S.dofmap.index_map.size_local != V.dofmap.index_map.size_local:
+        raise RuntimeError("contact pressure output: scalar and vector spaces number their nodes differently")
+    p_h = fem.Function(S, name="contact_pressure")
+    for it, op in ops.contacts:
+        dofs, vals = project_to_nodes(op, pre.pressure[it.name], comm)
+        p_h.vector.setValues(dofs.astype(np.int32), vals)
+    p_h.vector.assemble()
+    p_h.x.scatter_forward()
+    u = fem.Function(V, name="preload_displacement")
+    u.x.array[: pre.u.getLocalSize()] = pre.u.array_r
+    u.x.scatter_forward()
+    write_fields_xdmf(comm, outdir / "preload.xdmf", {"preload_displacement": u, "contact_pressure": p_h})
+    write_vtu(comm, outdir / "preload.vtu", V, {"preload_displacement": u}, scalars={"contact_pressure": p_h})
     return summary
 
 
@@ -116,8 +118,8 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
             lin = linearise(ops, pre.active)
             timings["preload"] = time.perf_counter() - t
             out["preload"] = {"mode": "nonlinear", "iterations": pre.iterations, "history": pre.history,
-                              "interfaces": _preload_outputs(ctx.comm, work, ops, pre, ctx.write_fields,
-                                                             ctx.scene.title)}
+                              "interfaces": _preload_outputs(ctx.comm, work, ops, pre,
+                                                             ctx.scene.title, ctx.keep_files)}
             ctx.say(f"[fem_squeal] preload: {pre.iterations} Newton iterations, "
                     + ", ".join(f"{k} N = {v['normal_force']:.4g} N, closed {100 * v['closed_share']:.1f} %"
                                 for k, v in out["preload"]["interfaces"].items())

@@ -33,12 +33,11 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
                      "nodal_diameter": d.nodal_diameter, "nodal_share": d.nodal_share})
     timings["real_modes_descriptors"] = time.perf_counter() - t
     ctx.say(f"[fem_squeal] real modes: {len(rows)} in {timings['real_modes']:.2f} s")
-    if ctx.write_fields:
-        t = time.perf_counter()
-        write_modes_xdmf(ctx.comm, work / "real_modes.xdmf", ops.V, [(x, None) for x in rm.vectors])
-        write_vtu(ctx.comm, work / "real_modes.vtu", ops.V, {f"mode_{j}": x for j, x in enumerate(rm.vectors)},
-                  {"freq_hz": rm.freqs_hz})
-        timings["real_modes_fields"] = time.perf_counter() - t
+    t = time.perf_counter()
+    write_modes_xdmf(ctx.comm, work / "real_modes.xdmf", ops.V, [(x, None) for x in rm.vectors])
+    write_vtu(ctx.comm, work / "real_modes.vtu", ops.V, {f"mode_{j}": x for j, x in enumerate(rm.vectors)},
+              {"freq_hz": rm.freqs_hz})
+    timings["real_modes_fields"] = time.perf_counter() - t
     return {"real_modes": rows}
 
 

@@ -186,7 +186,7 @@ def _stage_transient(ctx, work: Path, timings: dict) -> dict[str, Any]:
         plots.transient(work / "transient.png", res.t, x, xv, extra,
                         title=f"{ctx.scene.title}: closure of the most active contact element",
                         label="closure [µm]")
-        if a.snapshots and ctx.write_fields:
+        if a.snapshots:   # kept in the cache; published unless --no-fields
             write_transient_snapshots(ctx, work, a, res, qs)
         timings["transient"] = time.perf_counter() - t0
         out = {"basis": dm.size, "contact_elements": sum(c.size for c in dm.contacts), "steps": st["n_steps"],

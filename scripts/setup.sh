@@ -9,8 +9,9 @@
 # Usage: scripts/setup.sh [--test] [--docs] [--bench] [--packages-only]
 #   (prints the venv python path on its last line, except with --packages-only)
 #   --test:  also what only the test suite needs: chromium (485 MB; the headless render of
-#            report.html in tests/test_pipeline.py) and Sphinx with the MyST parser (the user guide,
-#            built by tests/test_docs.py through scripts/docs.sh).  scripts/test.sh passes it.
+#            report.html in tests/test_pipeline.py), pytest-xdist (the suite on every core) and
+#            Sphinx with the MyST parser (the user guide, built by tests/test_docs.py through
+#            scripts/docs.sh).  scripts/test.sh passes it.
 #   --docs:  also Sphinx with the MyST parser (scripts/docs.sh passes it).
 #   --bench: also the peers of the benchmark suite: CalculiX (Debian calculix-ccx), GetFEM (Debian
 #            python3-getfem), scikit-fem (pure Python, pip-installed into the venv without dependencies:
@@ -40,7 +41,7 @@ SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
 pkgs=(python3-dolfinx python3-petsc4py python3-slepc4py python3-gmsh python3-meshio
       python3-venv python3-setuptools python3-pip python3-pytest python3-matplotlib python3-scipy
       python3-hypothesis python3-cffi python3-threadpoolctl openmpi-bin libopenblas0-pthread gcc libc6-dev libsuitesparse-dev)
-[ "$tests" -eq 1 ] && pkgs+=(chromium) && docs=1
+[ "$tests" -eq 1 ] && pkgs+=(chromium python3-pytest-xdist) && docs=1
 [ "$docs" -eq 1 ] && pkgs+=(python3-sphinx python3-myst-parser)
 [ "$bench" -eq 1 ] && pkgs+=(calculix-ccx python3-getfem cython3 python3-dev)
 

@@ -39,7 +39,11 @@ def clean_env() -> dict[str, str]:
     """Environment for child processes.  ``os.environ`` is Python's snapshot from start-up; the
     C environ (used when ``env=None``) also holds the PMIX_/OMPI_ variables that this process's
     singleton MPI_Init added, and those make a child ``mpirun`` misbehave."""
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMIX_", "OMPI_COMM", "OMPI_MCA_orte"))}
+    # every OMPI_*/PMIX_* variable but the run-as-root ones: a pytest-xdist worker inherits in its
+    # os.environ what the controlling process's singleton MPI_Init set (OMPI_MCA_ess, OMPI_MCA_pmix,
+    # OMPI_APP_CTX_NUM_PROCS), and a child mpirun given them exits 1 without a word
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith(("PMIX_", "OMPI_")) or k.startswith("OMPI_ALLOW_RUN_AS_ROOT")}
     env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     return env
 
@@ -70,10 +74,16 @@ def assert_same_spectrum(sig_a: dict, sig_b: dict, prefix: str, rel: float) -> N
         assert all(np.min(np.abs(w - lam)) <= rel * abs(lam) for lam in u)
 
 
+@pytest.fixture
+def child_env() -> dict[str, str]:
+    """The environment for a child process (:func:`clean_env`)."""
+    return clean_env()
+
+
 @pytest.fixture(scope="session")
 def mpirun():
     """Command prefix for 2 MPI ranks, or skip when mpirun is missing."""
     exe = shutil.which("mpirun")
     if exe is None:
         pytest.skip("mpirun not installed")
-    return [exe, "-n", "2", "--oversubscribe"]
+    return [exe, "-n", "2", "--oversubscribe", "--stdin", "none"]

@@ -17,6 +17,7 @@ import json
 import os
 import shutil
 import tempfile
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -28,6 +29,8 @@ from fem_squeal.util.storage import clone_file, digest, free_bytes, mib, storage
 #: field files (XDMF, its HDF5, VTU): in the cache always, published only when fields are asked for
 FIELD_SUFFIXES = (".xdmf", ".h5", ".vtu")
 STAGING_PREFIX = ".fem_squeal-staging."
+#: a staging folder older than this [s] was left by a killed run and is removed by the next one
+STALE_STAGING_S = 3600.0
 
 
 def is_field(rel: str) -> bool:
@@ -42,6 +45,9 @@ def staged_outputs(outdir: Path) -> Iterator[Path]:
     outdir = Path(outdir)
     with storage_errors("creating the output folder", outdir):
         outdir.mkdir(parents=True, exist_ok=True)
+        for old in outdir.glob(STAGING_PREFIX + "*"):          # left by a run killed while publishing
+            if old.is_dir() and time.time() - old.stat().st_mtime > STALE_STAGING_S:
+                shutil.rmtree(old, ignore_errors=True)
         stage = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=outdir))
     try:
         yield stage

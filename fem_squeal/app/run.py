@@ -105,7 +105,7 @@ from fem_squeal.util.atomic import jsonable, write_json_atomic
 from fem_squeal.util.blas import limit_threads_for
 from fem_squeal.util.errors import FemSquealError
 from fem_squeal.util.parallel import on_root
-from fem_squeal.util.storage import STORAGE_ERRNOS, free_bytes, storage_error
+from fem_squeal.util.storage import STORAGE_ERRNOS, free_bytes, storage_error, storage_errors
 
 SCHEMA_VERSION = 3
 #: a stage failure with less than this free [bytes] on the cache's file system is reported as a full disk
@@ -252,7 +252,7 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
         def write_outputs() -> list[str]:
             """Every output into a staging folder, then all renamed into ``outdir`` at once."""
             old = listed_outputs(outdir)
-            with staged_outputs(outdir) as stage:
+            with storage_errors("writing the outputs", outdir), staged_outputs(outdir) as stage:
                 files = []
                 for item in plan:
                     files += publish(store.entry(item.stage, item.key), outdir, stage, fields=write_fields)

@@ -163,6 +163,23 @@ def test_no_space_for_the_outputs_changes_nothing(reference, tmp_path, monkeypat
     assert snapshot(out) == before
 
 
+def test_no_space_for_results_json_changes_nothing(reference, tmp_path, monkeypatch):
+    """ENOSPC while results.json is written (after the stage files were staged): StorageError (exit 4),
+    the folder as it was."""
+    out = tmp_path / "out"
+    shutil.copytree(reference[1], out)
+    before = snapshot(out)
+
+    def full(path, data):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(run_module, "write_json_atomic", full)
+    with pytest.raises(StorageError, match=r"results.json: No space left on device while writing the outputs"):
+        run_scene(ring("analyses.sweep.n=6"), out, MPI.COMM_SELF, cache=copy_cache(reference, tmp_path), **QUIET)
+    assert snapshot(out) == before
+    assert StorageError("x").exit_code == 4
+
+
 def test_a_report_failure_changes_nothing(reference, tmp_path, monkeypatch):
     out = tmp_path / "out"
     shutil.copytree(reference[1], out)
@@ -198,14 +215,13 @@ def test_a_full_output_file_system(reference, tmp_path, small_fs):
     assert [p.name for p in out.iterdir()] == []
 
 
-def test_a_full_cache_file_system(tmp_path, small_fs):
+def test_a_full_cache_file_system(tmp_path, small_fs, child_env):
     """The cache on a 1 MB file system: the CEA's 2 MB HDF5 file (written by PETSc) cannot be, the run
     exits 4 naming the stage, no temporary folder is left, the entries that fitted verify."""
     cache = small_fs / "cache"
     cmd = [sys.executable, "-m", "fem_squeal.cli", "--cache-dir", str(cache), "run", str(RING),
            "-o", str(tmp_path / "out")] + [a for s in SETS for a in ("--set", s)]
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMIX_", "OMPI_COMM", "OMPI_MCA_orte"))}
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env)
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=child_env)
     assert p.returncode == 4, p.stdout + p.stderr
     last = p.stderr.strip().splitlines()[-1]
     assert last.startswith("fem-squeal: error: ") and "cache entry of stage cea" in last, p.stderr
@@ -234,7 +250,7 @@ def test_no_fields_is_not_an_input(reference, tmp_path, monkeypatch):
     assert not (tmp_path / "b" / "complex_modes.vtu").exists()
 
 
-def test_cache_verify_removes_only_bad_entries(reference, tmp_path):
+def test_cache_verify_removes_only_bad_entries(reference, tmp_path, child_env):
     cache = copy_cache(reference, tmp_path)
     bad = entry_of(cache, "reduced")
     damage(bad / "reduced_model.npz", "bitflip")
@@ -242,9 +258,9 @@ def test_cache_verify_removes_only_bad_entries(reference, tmp_path):
     stale.mkdir()
     os.utime(stale, (time.time() - 7200,) * 2)
     cli = [sys.executable, "-m", "fem_squeal.cli", "--cache-dir", str(cache), "cache"]
-    listing = subprocess.run(cli, capture_output=True, text=True, timeout=120)
+    listing = subprocess.run(cli, capture_output=True, text=True, timeout=120, env=child_env)
     assert listing.returncode == 0 and "6 entries" in listing.stdout and bad.exists()
-    p = subprocess.run(cli + ["--verify"], capture_output=True, text=True, timeout=120)
+    p = subprocess.run(cli + ["--verify"], capture_output=True, text=True, timeout=120, env=child_env)
     assert p.returncode == 0, p.stderr
     line = next(x for x in p.stdout.splitlines() if bad.name in x)
     assert "BAD, removed: reduced_model.npz does not match its recorded SHA-256" in line
@@ -259,12 +275,12 @@ def _pad_toml(path: Path) -> Path:
 
 @pytest.mark.mpi
 @pytest.mark.parametrize("ranks", [1, 2])
-def test_two_runs_at_once_on_one_cache(tmp_path, ranks, mpirun):
+def test_two_runs_at_once_on_one_cache(tmp_path, ranks, mpirun, child_env):
     """Two runs of one scene started together on one cache (each on ``ranks`` ranks): both finish,
     with identical results, and the cache holds one verified entry."""
     scene = _pad_toml(tmp_path / "pad.toml")
     cache = tmp_path / "cache"
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("PMIX_", "OMPI_COMM", "OMPI_MCA_orte"))}
+    env = child_env
     prefix = [] if ranks == 1 else mpirun
     procs = [subprocess.Popen(prefix + [sys.executable, "-m", "fem_squeal.cli", "--cache-dir", str(cache), "run",
                                         str(scene), "-o", str(tmp_path / f"out{i}")],

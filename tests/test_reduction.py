@@ -128,8 +128,9 @@ def test_shared_factorisation_block_solves_and_inertia(strong):
     """The factorisation that adaptive_reduce shares: block solves (MatMatSolve) equal one-at-a-time
     KSP solves, with the shift inside the band (K − ω²M indefinite) as well; the inertia count
     below a frequency equals the number of modes the eigensolver finds there."""
+    from fem_squeal.fe.dense import apply
     from fem_squeal.fe.eigen import TWO_PI, solve_real_modes
-    from fem_squeal.fe.projection import ShiftedSolver, apply, count_below
+    from fem_squeal.fe.projection import ShiftedSolver, count_below
 
     ops, par = strong
     rng = np.random.default_rng(1)
@@ -192,10 +193,10 @@ def test_lifted_residuals_term_by_term_equal_the_formed_operators():
     from petsc4py import PETSc
 
     from fem_squeal.fe.assembly import assemble_operators
+    from fem_squeal.fe.dense import apply
     from fem_squeal.fe.model import Material, ModelSpec, RigidPlate
     from fem_squeal.fe.projection import (
         ParametricOperators,
-        apply,
         common_mu,
         lifted_residuals,
         lifted_residuals_at,

@@ -1,0 +1,204 @@
+"""The reduced model of a basis: the basis built (modes, sampled modes, static corrections, contact
+attachments) and the operators projected onto it."""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+
+from fem_squeal.fe.assembly import Operators
+from fem_squeal.fe.dense import apply
+from fem_squeal.fe.eigen import (
+    TWO_PI,
+    drop_zeros,
+)
+from fem_squeal.fe.projection.basis import (
+    Basis,
+    _gather_rows,
+    _new_block,
+    _orthonormality,
+    _stack,
+    canonical_order,
+    project,
+)
+from fem_squeal.fe.projection.parametric import ParametricOperators, project_plates
+from fem_squeal.fe.projection.shifted import ShiftedSolver, modes_below, static_correction
+from fem_squeal.reduced.masa import polar_patches
+from fem_squeal.reduced.model import (
+    ContactRestriction,
+    ReducedModel,
+)
+from fem_squeal.util.errors import ModelError, ReductionError
+
+
+def restrict_contacts(ops: Operators, Phi: np.ndarray, preload=None) -> dict[str, ContactRestriction]:
+    """G_n Φ and G_t Φ of every contact interface (all points on every rank, canonical order)."""
+    out = {}
+    for it, op in ops.contacts:
+        comm = op.Gn.getComm().tompi4py()
+        x = _gather_rows(comm, op.x)
+        o = canonical_order(x)
+        g0 = _gather_rows(comm, op.gap0)[o]
+        g = _gather_rows(comm, preload.gap[it.name])[o] if preload is not None else g0
+        act = _gather_rows(comm, preload.active[it.name])[o] if preload is not None else np.ones(op.n_global, bool)
+        pres = _gather_rows(comm, preload.pressure[it.name])[o] if preload is not None else None
+        out[it.name] = ContactRestriction(
+            Gn=_gather_rows(comm, apply(op.Gn, Phi))[o], Gt=_gather_rows(comm, apply(op.Gt1, Phi))[o],
+            weight=_gather_rows(comm, op.weight)[o], kn=it.kn, mu=it.mu, sliding=float(it.sliding),
+            gap=g, active=act.astype(bool), gap0=g0, x=x[o], pressure=pres,
+            Gt2=_gather_rows(comm, apply(op.Gt2, Phi))[o], kt=float(it.kt))
+    return out
+
+
+def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
+                samples: list[dict[str, float]] = (), static: bool = True, sigma_hz: float | None = None,
+                options=None, prefix: str = "basis_", rtol: float = 1e-8, enrich_rtol: float = 1e-3,
+                n_start: int = 20, extra: np.ndarray | None = None, modes: tuple | None = None,
+                directions: np.ndarray | None = None, solver: ShiftedSolver | None = None) -> Basis:
+    """Frictionless modes ≤ ``f_cut_hz`` at the nominal point and at each of ``samples``, plus the
+    static corrections (K + σM)⁻¹ K_f Φ (of all the modes kept; and of C_d Φ with friction damping,
+    ``ops.Cd``), M-orthonormalised (see the module
+    docstring); sampled modes add only their directions beyond ``enrich_rtol`` (the corrections
+    are kept whole: truncating them at 1e-3 raised the ring's error at μ = 1 from 1.5e-6 to 5e-5).
+    ``n_start``: first guess of the number of modes below the cut; ``extra``: more vectors (local
+    rows), kept whole, e.g. the preload displacement and contact attachments for MASA.
+    Given by :func:`adaptive_reduce`, which shares them between its rounds: ``modes`` (ω², local
+    vectors) already solved up to at least the cut (the subset ≤ ``f_cut_hz`` is used),
+    ``directions`` (local rows) enriching like the sampled modes (e.g. their derivatives),
+    and ``solver``, the factorisation of K + σM for the corrections (then ``sigma_hz`` is its)."""
+    if not f_cut_hz > 0:
+        raise ModelError(f"f_cut_hz: must be > 0 (got {f_cut_hz})")
+    if modes is None:
+        w2, V = modes_below(ops.K, ops.M, f_cut_hz, n_start=n_start, options=options, prefix=prefix)
+    else:
+        keep = np.sqrt(np.abs(modes[0])) / TWO_PI <= f_cut_hz
+        w2, V = modes[0][keep], modes[1][:, keep]
+    # M Φ carried along: M is applied to the new columns only, without its stored zeros (a third of
+    # the work: the vector mass is assembled on the stiffness pattern's 3×3 blocks); the basis is
+    # kept as blocks [(Φ_b, MΦ_b)] and stacked once at the end
+    Mz = drop_zeros(ops.M)
+    blocks: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def extend(X: np.ndarray, tol: float, owned: bool = False) -> tuple[int, int]:
+        """(columns added, directions dropped); ``owned``: X made here, to be overwritten."""
+        W, MW, d = _new_block(Mz, X, tol, blocks, owned)
+        if W.shape[1]:
+            blocks.append((W, MW))
+        return W.shape[1], d
+
+    dropped = extend(V, rtol, owned=True)[1]        # V: modes_below's or a column subset (copies)
+    n_sample = n_static = n_extra = 0
+    if directions is not None and directions.shape[1]:
+        added, d = extend(directions, enrich_rtol)
+        n_sample, dropped = n_sample + added, dropped + d
+    for s in samples:
+        K = par.frictionless(s)
+        _, Vs = modes_below(K, ops.M, f_cut_hz, n_start=int(1.15 * V.shape[1]) + 4, options=options,
+                            prefix=prefix)
+        K.destroy()
+        # only what the sampled modes add beyond ``enrich_rtol`` of their norm: eigenvalue errors
+        # are quadratic in the subspace error for well-separated modes, but near a coalescence
+        # (non-normal) they are not: 1e-2 gave 1.0e-3 on the brake at a map corner, 1e-3 is the default
+        added, d = extend(Vs, enrich_rtol, owned=True)
+        n_sample, dropped = n_sample + added, dropped + d
+    loads = static_loads(ops, par, blocks) if static else []
+    if loads:
+        sigma = (TWO_PI * (sigma_hz if sigma_hz is not None else 0.1 * f_cut_hz)) ** 2
+        F = np.column_stack(loads)
+        S = solver.solve(F) if solver is not None else \
+            static_correction(ops.K, ops.M, F, sigma, options, prefix + "static_")
+        n_static, d = extend(S, rtol, owned=True)  # corrections: all of their new content
+        dropped += d
+    if extra is not None and extra.shape[1]:
+        n_extra, d = extend(extra, rtol)
+        dropped += d
+    Phi = _stack([b[0] for b in blocks], V.shape[0])
+    basis = Basis(Phi, ops.K.getSize()[0], np.sqrt(np.abs(w2)) / TWO_PI,
+                 {"modes": int(V.shape[1]), "sampled_modes": n_sample, "static": n_static, "extra": n_extra,
+                  "dropped": dropped, "size": int(Phi.shape[1])}, _orthonormality(Mz.getComm().tompi4py(), blocks))
+    if Mz is not ops.M:
+        Mz.destroy()
+    return basis
+
+
+def static_loads(ops: Operators, par: ParametricOperators, Phi: np.ndarray | list[tuple[np.ndarray, ...]]
+                 ) -> list[np.ndarray]:
+    """The loads A Φ whose static corrections (K + σM)⁻¹ A Φ join the basis: A = K_f (friction), C_d
+    (friction damping) and the gyroscopic G of a turning disc, the terms that the modes at rest do not
+    span.  The symmetric K_σ0, K_σc − S (prestress, spin softening: ~1e-4 of K) are left to the modes.
+    Measured on the coarse brake (50k DOFs, corners μ = ±0.6 × Ω = 2, 100 rad/s, worst relative error
+    of the unstable eigenvalues): K_f, C_d: 239 vectors, 2.6e-4; + G: 324, 7.3e-5; + G, K_σc − S, K_σ0:
+    496, 1.7e-4; + their sum at Ω₀: 325, 1.0e-4."""
+    op = par.operating
+    mats = [ops.Kf, getattr(ops, "Cd", None), op.G if op is not None else None]
+    if isinstance(Phi, list):   # a basis held as blocks [(Φ_b, …)]: A Φ_b side by side
+        return [np.hstack([apply(A, b[0]) for b in Phi]) for A in mats if A is not None]
+    return [apply(A, Phi) for A in mats if A is not None]
+
+
+def contact_attachments(ops: Operators, patches: tuple[int, int], sigma_hz: float, options=None,
+                        prefix: str = "basis_attach_", axis=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """(K + σM)⁻¹ (G_n + μG_t)ᵀ W 1_j: the static response to a unit pressure (with its friction
+    drag) on patch j of every contact interface, the patches being an n_radial × n_angular polar
+    grid over each slave surface (:func:`fem_squeal.reduced.masa.polar_patches`).  These carry
+    the local contact deformation that the nonlinear contact forces of MASA excite."""
+
+    loads = []
+    bc_local = np.asarray(ops.bc_dofs, dtype=int)
+    for it, op in ops.contacts:
+        comm = op.Gn.getComm().tompi4py()
+        sizes = comm.allgather(len(op.weight))
+        labels = polar_patches(_gather_rows(comm, op.x), patches[0], patches[1], axis)
+        start = sum(sizes[:comm.rank])
+        mine = labels[start:start + sizes[comm.rank]]
+        row, b, t = op.Gn.createVecLeft(), op.Gn.createVecRight(), op.Gn.createVecRight()
+        for j in range(patches[0] * patches[1]):
+            if not np.any(labels == j):
+                continue
+            row.array[:] = op.weight * (mine == j)
+            op.Gn.multTranspose(row, b)
+            if it.has_friction:
+                op.Gt1.multTranspose(row, t)
+                b.axpy(it.mu, t)
+            col = b.array_r.copy()
+            col[bc_local[bc_local < len(col)]] = 0.0
+            loads.append(col)
+        for v in (row, b, t):
+            v.destroy()
+    if not loads:
+        return np.zeros((ops.K.getLocalSize()[0], 0))
+    return static_correction(ops.K, ops.M, np.column_stack(loads), (TWO_PI * sigma_hz) ** 2, options, prefix)
+
+
+def reduce(ops: Operators, par: ParametricOperators, basis: Basis, preload=None) -> ReducedModel:
+    """The affine reduced model on ``basis`` (module docstring of :mod:`fem_squeal.reduced.model`)."""
+    Phi = basis.Phi
+    K0 = project(ops.K, Phi)
+    Kf1 = project(ops.Kf, Phi) / par.mu0 if ops.Kf is not None and par.mu0 != 0 else None
+    C0 = project(ops.C, Phi) if ops.C is not None else None
+    op = par.operating
+    if op is not None and op.Ks0 is not None:
+        K0 = K0 + project(op.Ks0, Phi)
+    speed = {}
+    if op is not None and op.G is not None:
+        speed.update(G1=project(op.G, Phi), K2=project(par.K2, Phi))
+    if ops.Cd is not None and par.mu0 != 0:   # C_d apart from C₀: it scales with μ and 1/Ω
+        speed["Cd0"] = project(ops.Cd, Phi)
+        C0 = None if ops.C is ops.Cd else C0 - speed["Cd0"]
+    if speed:
+        speed.update(speed0=par.speed0, speed_varies=par.speed_varies)
+    comm = ops.K.getComm().tompi4py()
+    err = basis.orthonormality if basis.orthonormality is not None else \
+        float(np.max(np.abs(project(ops.M, Phi) - np.eye(basis.size)), initial=0.0))
+    if err > 1e-8:
+        raise ReductionError(f"basis: not M-orthonormal (max |ΦᵀMΦ − I| = {err:.1e})")
+    f = comm.allreduce(Phi.T @ ops.f.array_r, op=MPI.SUM) if ops.f is not None else None
+    q_s = None
+    if preload is not None:
+        Mu = ops.M.createVecLeft()
+        ops.M.mult(preload.u, Mu)
+        q_s = comm.allreduce(Phi.T @ Mu.array_r, op=MPI.SUM)
+        Mu.destroy()
+    return ReducedModel(K0=K0, Kf1=Kf1, C0=C0, K_parts={p: project(A, Phi) for p, A in par.K_parts.items()},
+                        E0=dict(par.E0), beta=dict(par.beta), mu0=par.mu0,
+                        contacts=restrict_contacts(ops, Phi, preload), info=dict(basis.counts), f=f, q_static=q_s,
+                        eta0=dict(par.eta0), plates=project_plates(par, Phi), **speed)

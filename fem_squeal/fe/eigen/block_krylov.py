@@ -1,0 +1,236 @@
+"""Block Krylov methods on a factorisation's block solves, on rank-local rows (NumPy, mpi4py; PETSc
+only for the ``<prefix>block_size`` option): block Lanczos for K φ = ω² M φ with a threshold, block
+Arnoldi for the undamped CEA, and their memory budgets."""
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+from scipy.linalg import blas
+
+from fem_squeal.fe.dense import project_out
+
+# Block Lanczos (issue 23): the factor's multiple-right-hand-side solve (MatMatSolve) costs a
+# fraction of single solves per column (clamped disc, 85k DOFs: CHOLMOD 35 → 7 ms, MUMPS on 2 ranks
+# 43 → 11 ms with 16 columns), which more than pays for the larger Krylov space a block method
+# needs.  ``<prefix>block_size`` 0 turns it off (SLEPc's Krylov–Schur on the same factorisation).
+BLOCK_MEMORY = 4.0e9   # bytes per rank for the Lanczos vectors (V and MV); beyond it, Krylov–Schur
+BEYOND = 2             # converged pairs beyond a threshold λ_max that show none below it is missing
+
+
+def block_size(nev: int) -> int:
+    """Columns per block solve: ~nev/8, between 8 and 16.  Measured (seconds of the eigensolve after
+    the factorisation): clamped disc, 85k DOFs, 20 modes, CHOLMOD: Krylov–Schur 2.8, blocks of 5, 8,
+    12, 16: 2.8, 2.5, 3.0, 3.2; brake, 163k DOFs, 2 ranks, MUMPS, 90 modes ≤ 16 kHz (modes_below,
+    with its factorisation and the inertia count): Krylov–Schur 29.4, blocks of 8, 12, 23, 32: 16.7,
+    16.5, 19.4, 20.5.  Larger blocks cost less per column but need more columns."""
+    return int(min(max(8, -(-nev // 8)), 16))
+
+
+def _block_columns(nev: int, prefix: str) -> int:
+    """``<prefix>block_size`` if given (0: SLEPc's own iteration), else :func:`block_size`."""
+    return PETSc.Options().getInt(f"{prefix}block_size", block_size(nev))
+
+
+def _krylov_dim(nev: int, b: int, n: int) -> int:
+    """The vector budget of a block Krylov space without restart: max(6 nev, nev + 16 b, 256)
+    columns, at most n − b, in whole blocks."""
+    return min(max(6 * nev, nev + 16 * b, 256), n - b) // b * b
+
+
+def _start_block(rows: np.ndarray, b: int) -> np.ndarray:
+    """A start block that depends on the global row numbers only (the same on any rank count)."""
+    x = np.sin(np.outer(rows.astype(float) + 1.0, 12.9898 + 78.233 * np.arange(1, b + 1))) * 43758.5453
+    return np.asfortranarray(x - np.floor(x) - 0.5)
+
+
+def _m_orthonormal(comm, mass: Callable[[np.ndarray], np.ndarray], W: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Q, MQ, R with W = Q R and QᵀMQ = I (Cholesky QR, twice); None if W is numerically rank
+    deficient (an invariant subspace: nothing new to add).  ``mass``: W ↦ MW on rank-local rows.
+    M is applied once: MQ follows W through the same triangular transformations (MW L⁻ᵀ =
+    M(W L⁻ᵀ)), which keeps QᵀMQ = I to round-off times the condition of W, as the second pass
+    itself does.  The transformations are in-place triangular solves on column-major blocks
+    (BLAS dtrsm): ``W @ inv(Lᵀ)`` took 9 ms for 255k × 8 (NumPy's row-major result), dtrsm 0.4 ms."""
+    W = np.array(W, order="F")
+    MW = np.asfortranarray(mass(W))
+    R = np.eye(W.shape[1])
+    for _ in range(2):
+        G = comm.allreduce(W.T @ MW, op=MPI.SUM)
+        G = 0.5 * (G + G.T)
+        d = np.linalg.eigvalsh(G)
+        if not d[0] > 1e-12 * d[-1]:
+            return None
+        L = np.linalg.cholesky(G)
+        W = blas.dtrsm(1.0, L, W, side=1, lower=1, trans_a=1, overwrite_b=1)      # W L⁻ᵀ
+        MW = blas.dtrsm(1.0, L, MW, side=1, lower=1, trans_a=1, overwrite_b=1)
+        R = L.T @ R
+    return W, MW, R
+
+
+def _grown(A: np.ndarray, shape: tuple[int, int], order: str) -> np.ndarray:
+    """A copied into the leading block of zeros of ``shape``."""
+    out = np.zeros(shape, order=order)
+    out[:A.shape[0], :A.shape[1]] = A
+    return out
+
+
+def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np.ndarray], np.ndarray],
+                   comm, rows: tuple[int, int], n: int, nev: int, sigma: float, tol: float, b: int,
+                   lam_max: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+    """The ``nev`` eigenpairs of K x = λ M x nearest σ by block Lanczos on (K − σM)⁻¹M in the M-inner
+    product, with full reorthogonalisation.  ``solve``: B ↦ (K − σM)⁻¹B and ``mass``: W ↦ MW, both
+    on the rank-local rows ``rows`` (r0, r1) of column-major blocks; ``n``: the global size.
+    Returns (λ, local rows of the M-orthonormal vectors) or None (not converged within the vector
+    budget: max(6 nev, nev + 16 b, 256) vectors, at most :data:`BLOCK_MEMORY` bytes per rank; a
+    cluster of nearly equal eigenvalues, such as the clamped ring's 12 lowest within 0.1 %, needs ~150).
+
+    With V = [Q₀ … Q_j] M-orthonormal and W = (K − σM)⁻¹ M Q_j, T = Vᵀ M (K − σM)⁻¹ M V is
+    symmetric; its eigenpairs (θ, y) give λ = σ + 1/θ, x = V y, and the residual of the shift-inverted
+    operator ‖(K − σM)⁻¹Mx − θx‖_M = ‖R_{j+1} y_j‖ (the last block of y and the next block's
+    triangular factor).  A pair counts as converged where that is ≤ tol·|θ|, SLEPc's criterion.
+    Orthogonalisation: W against the last two blocks (the three-term recurrence, where W's large
+    components lie), then once against all of V (what round-off leaves along the older blocks), then
+    the Cholesky QR of :func:`_m_orthonormal`.
+
+    ``lam_max``: every pair with λ ≤ ``lam_max`` and the next :data:`BEYOND` in |θ| order instead of
+    ``nev`` (σ below the middle of [0, ``lam_max``]: those are the leading |θ|); ``nev`` is then a
+    guess that sizes the block and the first budget, which grows (×1.5, the vectors copied) up to
+    what :data:`BLOCK_MEMORY` holds.  This is how :func:`fem_squeal.fe.projection.modes_below` asks
+    for the modes below a cut without counting them first (an inertia count cost one more
+    factorisation)."""
+    r0, r1 = rows
+    dim = _krylov_dim(nev, b, n)
+    # with a threshold the budget grows (×1.5, the vectors copied) up to what BLOCK_MEMORY holds:
+    # allocating that at once cost 1.4 s of zeroed pages for the 50k-DOF brake's 89 modes
+    limit = dim if lam_max is None else \
+        min(n - b, int(BLOCK_MEMORY // (2 * 8 * max(comm.allreduce(r1 - r0, op=MPI.MAX), 1)))) // b * b
+    if (dim < nev and lam_max is None) or comm.allreduce(2 * 8 * (r1 - r0) * dim, op=MPI.MAX) > BLOCK_MEMORY:
+        return None
+    V = np.zeros((r1 - r0, dim), order="F")
+    MV = np.zeros(V.shape, order="F")    # calloc: pages are touched only as columns are filled
+    start = _m_orthonormal(comm, mass, _start_block(np.arange(r0, r1), b))
+    if start is None:
+        return None
+    V[:, :b], MV[:, :b] = start[0], start[1]
+    T = np.zeros((dim, dim))
+    k = b
+    while True:
+        W = np.asfortranarray(solve(MV[:, k - b:k]))
+        lo = max(0, k - 2 * b)
+        C = np.zeros((k, b))
+        C[lo:], W = project_out(comm, V[:, lo:k], MV[:, lo:k], W)   # the recurrence: the last two blocks
+        C2, W = project_out(comm, V[:, :k], MV[:, :k], W)            # full reorthogonalisation
+        C += C2
+        T[:k, k - b:k] = C
+        T[k - b:k, :k] = C.T
+        Tk = 0.5 * (T[:k, :k] + T[:k, :k].T)
+        theta, Y = np.linalg.eigh(Tk)
+        want = np.argsort(-np.abs(theta), kind="stable")
+        count = nev if lam_max is None else int(np.sum(sigma + 1.0 / theta <= lam_max)) + BEYOND
+        want = want[:count]
+        nxt = _m_orthonormal(comm, mass, W)
+        # an invariant subspace (nothing new in W): the Ritz pairs are exact
+        res = np.zeros(want.size) if nxt is None else np.linalg.norm(nxt[2] @ Y[k - b:k, want], axis=0)
+        if k >= count and np.all(res <= tol * np.abs(theta[want])):
+            return sigma + 1.0 / theta[want], blas.dgemm(1.0, V[:, :k], Y[:, want])
+        if nxt is not None and k + b > dim and dim < limit:
+            dim = min(limit, (3 * dim // 2) // b * b)
+            V, MV = (_grown(A, (A.shape[0], dim), "F") for A in (V, MV))
+            T = _grown(T, (dim, dim), "C")
+        if nxt is None or k + b > dim:
+            return None                       # fewer than nev pairs exist, or the budget is spent
+        V[:, k:k + b], MV[:, k:k + b] = nxt[0], nxt[1]
+        T[k:k + b, k - b:k] = nxt[2]
+        T[k - b:k, k:k + b] = nxt[2].T
+        k += b
+
+
+ARNOLDI_MEMORY_SHARE = 0.05   # of a machine's memory per rank for the block Arnoldi vectors
+
+
+def _arnoldi_memory(comm) -> float:
+    """Bytes per rank the block Arnoldi vectors may take: :data:`BLOCK_MEMORY`, and at most
+    :data:`ARNOLDI_MEMORY_SHARE` of this machine's memory over its ranks.  The CEA's memory model
+    (``app/resources.py``) was measured with Krylov–Schur's 2·nev vectors; beyond this share the
+    block path gives way to it (brake, 60 modes: 1.32M DOFs on one 24 GiB machine, or 711k on two
+    ranks, would need 3.8 and 2 × 1.0 GB for the 360-vector budget)."""
+    node = comm.Split_type(MPI.COMM_TYPE_SHARED)
+    try:
+        ranks = node.Get_size()
+    finally:
+        node.Free()
+    memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    return min(BLOCK_MEMORY, ARNOLDI_MEMORY_SHARE * memory / ranks)
+
+
+def _block_arnoldi(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np.ndarray], np.ndarray],
+                   comm, rows: tuple[int, int], n: int, nev: int, sigma: float, tol: float, b: int,
+                   progress: Callable[[int, int], None] | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+    """The ``nev`` eigenpairs of the non-symmetric pencil K x = ν M x nearest σ by block Arnoldi on
+    (K − σM)⁻¹M, with full reorthogonalisation (classical Gram–Schmidt twice) and no restart: the
+    same factor's block solves as :func:`_block_lanczos`, for the linear CEA.  ``solve``: B ↦
+    (K − σM)⁻¹B, ``mass``: W ↦ MW on rank-local rows ``rows`` of column-major blocks.  Returns
+    (ν, local rows of the unit Ritz vectors, complex) or None (not converged within max(6 nev,
+    nev + 16 b, 256) vectors).
+
+    With V = [Q₀ … Q_j] orthonormal, (K − σM)⁻¹M V_j = V_{j+1} H (block upper Hessenberg); the
+    eigenpairs (θ, y) of H_j give ν = σ + 1/θ, x = V y and ‖(K − σM)⁻¹Mx − θx‖ = ‖R_{j+1} y_j‖ (R the
+    next block's triangular factor, y_j the last block of y), converged where ≤ tol·|θ| (SLEPc's
+    relative criterion).  The start block is M times a fixed pseudo-random block, so that it has no
+    component in null(M) (the Dirichlet rows), where no eigenvector lies.  It returns the ``nev``
+    pairs of largest |θ| (nearest σ), once all of them have converged, largest first; where the cut
+    would split a complex-conjugate pair, the pair is kept whole (nev + 1).  Not the other pairs that
+    happen to have converged too (SLEPc returns those): which they are depends on round-off, and the
+    set returned must not (a scene run on two meshes numbered differently, or on 1 and 2 ranks, must
+    give the same modes).  The vectors are at most :func:`_arnoldi_memory` bytes per rank.
+    ``progress``: called with (converged wanted pairs, vectors) after each step."""
+    r0, r1 = rows
+    dim = _krylov_dim(nev, b, n)
+    if dim < nev + 1 or comm.allreduce(8 * (r1 - r0) * dim > _arnoldi_memory(comm), op=MPI.LOR):
+        return None
+
+    def unit(x):        # the Euclidean inner product (a copy: _m_orthonormal transforms both in place)
+        return np.array(x, order="F")
+
+    V = np.zeros((r1 - r0, dim), order="F")
+    start = _m_orthonormal(comm, unit, mass(_start_block(np.arange(r0, r1), b)))
+    if start is None:
+        return None
+    V[:, :b] = start[0]
+    H = np.zeros((dim, dim))
+    k = b
+    while True:
+        W = np.asfortranarray(solve(np.asfortranarray(mass(V[:, k - b:k]))))
+        C, W = project_out(comm, V[:, :k], V[:, :k], W)
+        C2, W = project_out(comm, V[:, :k], V[:, :k], W)     # the second pass: orthogonal to round-off
+        H[:k, k - b:k] = C + C2
+        nxt = _m_orthonormal(comm, unit, W)
+        if k >= nev + 1:
+            theta, Y = np.linalg.eig(H[:k, :k])
+            order = np.argsort(-np.abs(theta), kind="stable")
+            want = list(order[:nev])
+            last = theta[want[-1]]
+            if last.imag != 0.0:               # keep a conjugate pair whole
+                mate = int(np.argmin(np.abs(theta[order[nev:]] - np.conj(last)))) + nev
+                if abs(theta[order[mate]] - np.conj(last)) <= 1e-12 * abs(last) and \
+                        not any(abs(theta[i] - np.conj(last)) <= 1e-12 * abs(last) for i in want[:-1]):
+                    want.append(order[mate])
+            want = np.array(want)
+            res = np.zeros(k) if nxt is None else np.linalg.norm(nxt[2] @ Y[k - b:k], axis=0)
+            done = res <= tol * np.abs(theta)
+            if progress is not None:
+                progress(int(done[want].sum()), k)
+            if np.all(done[want]):            # x = V y in real products (V @ y would copy V to complex)
+                X = np.empty((r1 - r0, want.size), dtype=complex)
+                X.real = blas.dgemm(1.0, V[:, :k], np.asfortranarray(Y[:, want].real))
+                X.imag = blas.dgemm(1.0, V[:, :k], np.asfortranarray(Y[:, want].imag))
+                return sigma + 1.0 / theta[want], X
+        if nxt is None or k + b > dim:
+            return None
+        V[:, k:k + b] = nxt[0]
+        H[k:k + b, k - b:k] = nxt[2]
+        k += b

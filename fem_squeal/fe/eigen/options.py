@@ -1,0 +1,112 @@
+"""Solver settings: the PETSc/SLEPc option defaults with their prefix, the shift-and-invert EPS on a
+factorisation, the progress bar of a SLEPc solve, matrices without stored zeros."""
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+from slepc4py import SLEPc
+
+from fem_squeal.fe.csr import csr_view
+from fem_squeal.util.progress import ProgressBar
+
+# Scalar scaling of λ balances |λ|²‖M‖ against ‖K‖ (stiff bonded/contact penalties make ‖K‖
+# large); residual extraction picks the best eigenvector from the TOAR basis.  Measured on the
+# damped coarse brake: max relative residual 1.2e-7 without, 4e-13 with, at the same cost.
+PEP_OPTIONS = {"pep_scale": "scalar", "pep_extract": "residual"}
+DIRECT_SOLVER_OPTIONS = {
+    "st_ksp_type": "preonly",
+    "st_pc_type": "lu",
+    "st_pc_factor_mat_solver_type": "mumps",
+}
+# Real modes (K, M symmetric; benchmarks/modal_peers.py --speed, clamped P2 disc, 20 modes, 1 rank).
+# - CHOLMOD (SuiteSparse, in Debian's PETSc; serial) factorises K − σM faster than MUMPS' LDLᵀ and
+#   its triangular solves take 0.4–0.6 of MUMPS' time (METIS ordering: MUMPS here falls back to PORD);
+#   it needs K − σM positive definite (σ below the lowest mode), else MUMPS LDLᵀ takes over.
+# - No purification: it costs one more solve per returned pair and only removes components in
+#   null(M), which K⁻¹M never creates here (M's clamped rows are zero, K's are identity).
+# - The tolerance: the Ritz value of a symmetric pencil is accurate to the square of its relative
+#   residual (over the relative gap), so 1e-7 leaves the frequencies within 1e-12 of tol 1e-10's
+#   (measured: 8e-14, 4e-14, 4e-13 at 26k, 87k, 260k DOFs) and saves the restart that 1e-8 needs on
+#   some meshes (54 shift-invert solves instead of 66; 1e-10 with purification: 91).  1e-5 fails the
+#   1e-8 residual check at 26k DOFs.
+REAL_MODE_TOL = 1e-7
+REAL_MODE_TOL_FALLBACK = 1e-10   # the continuation when a pair misses the residual bound
+REAL_MODE_OPTIONS = {"st_ksp_type": "preonly", "st_pc_type": "cholesky", "eps_purify": False,
+                     "st_mat_cholmod_print": 0}   # CHOLMOD's own "not positive definite" line: we fall back
+
+
+def set_options(prefix: str, options: dict[str, object] | None, defaults: dict[str, object]) -> None:
+    """Write ``defaults`` (keys without prefix) under ``prefix`` into the PETSc options database,
+    keeping any value already given on the command line (``-<prefix><key>``), then ``options``
+    (full names with their solver prefix, e.g. ``cea_st_pc_factor_mat_solver_type``: the
+    scene's ``solver.petsc_options``), which win."""
+    db = PETSc.Options()
+
+    def text(value):
+        return value if not isinstance(value, bool) else ("true" if value else "false")
+    for key, value in defaults.items():
+        if not db.hasName(f"{prefix}{key}"):
+            db[f"{prefix}{key}"] = text(value)
+    for name, value in (options or {}).items():
+        db[name.lstrip("-")] = text(value)
+
+
+def _shift_invert_eps(A: PETSc.Mat, B: PETSc.Mat, problem_type, nev: int, target: float, tol: float,
+                      prefix: str) -> SLEPc.EPS:
+    """Krylov–Schur EPS for A x = θ B x, shift-and-invert at the real ``target``, nearest first."""
+    eps = SLEPc.EPS().create(A.getComm())
+    eps.setOptionsPrefix(prefix)
+    eps.setOperators(A, B)
+    eps.setProblemType(problem_type)
+    eps.setType(SLEPc.EPS.Type.KRYLOVSCHUR)
+    eps.setDimensions(nev, max(2 * nev, nev + 16))
+    eps.setTolerances(tol, 200)
+    eps.getST().setType(SLEPc.ST.Type.SINVERT)
+    eps.setTarget(target)
+    eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
+    return eps
+
+
+def drop_zeros(A: PETSc.Mat) -> PETSc.Mat:
+    """A copy of the AIJ matrix ``A`` without its stored zeros (``A`` itself if it has none or is
+    not AIJ).  A vector mass matrix is assembled on the stiffness pattern, whole 3×3 blocks of which
+    two thirds are zero: without them each product with M in the Krylov iteration (two per step:
+    the operator and the M-inner product) reads a third of the memory."""
+    if "aij" not in A.getType():
+        return A
+    with csr_view(A) as (ai, aj, av):       # serial: PETSc's arrays (the check alone copies nothing)
+        keep = av != 0.0
+        if A.getComm().tompi4py().allreduce(bool(keep.all()), op=MPI.LAND):
+            return A
+        counts = np.concatenate([[0], np.cumsum(keep)])
+        B = PETSc.Mat().createAIJ(A.getSizes(), csr=(counts[ai].astype(PETSc.IntType), aj[keep], av[keep]),
+                                  comm=A.getComm())
+    known, symmetric = A.isSymmetricKnown()
+    if known:
+        B.setOption(PETSc.Mat.Option.SYMMETRIC, symmetric)
+    return B
+
+
+@contextmanager
+def _progress(solver, total: int, label: str, enabled: bool):
+    """A progress bar of converged eigenpairs on rank 0, fed by the SLEPc monitor of ``solver``
+    (set on every rank: monitors are logically collective)."""
+    if not enabled:
+        yield
+        return
+
+    with ProgressBar(total, label, unit=" pairs", enabled=solver.getComm().getRank() == 0) as bar:
+        solver.setMonitor(lambda _s, its, nconv, *_: bar.update(min(nconv, total), extra=f"it {its}"))
+        try:
+            yield
+        finally:
+            solver.cancelMonitor()
+
+
+def _zero_like(M: PETSc.Mat) -> PETSc.Mat:
+    Z = M.duplicate()
+    Z.zeroEntries()
+    return Z

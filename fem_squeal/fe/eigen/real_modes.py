@@ -1,0 +1,316 @@
+"""Real modes K φ = ω² M φ: block Lanczos on CHOLMOD (one rank) or on PETSc's factorisation (MUMPS on N
+ranks), SLEPc's Krylov-Schur where it does not answer; the modes on a shared band-centre
+factorisation."""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI
+from petsc4py import PETSc
+from slepc4py import SLEPc
+
+from fem_squeal.fe import cholmod, kernels
+from fem_squeal.fe.csr import block_product, csr_view
+from fem_squeal.fe.dense import apply, block_solve
+from fem_squeal.fe.eigen.block_krylov import _block_columns, _block_lanczos, block_size
+from fem_squeal.fe.eigen.options import (
+    REAL_MODE_OPTIONS,
+    REAL_MODE_TOL,
+    REAL_MODE_TOL_FALLBACK,
+    _progress,
+    _shift_invert_eps,
+    drop_zeros,
+    set_options,
+)
+from fem_squeal.fe.eigen.results import TWO_PI, RealModes, _check, _norm_inf
+from fem_squeal.fe.ordering import ORDERINGS, fill_reducing_order, permuted
+from fem_squeal.util.blas import serial_openmp
+from fem_squeal.util.errors import ModelError
+
+_NOT_DEFINITE: dict[tuple[int, int], float] = {}  # (K, M) handles -> lowest shift CHOLMOD failed at
+
+
+def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, tol: float = REAL_MODE_TOL,
+                     max_residual: float = 1e-8, options: dict | None = None,
+                     prefix: str = "real_", progress: bool = False, f_max_hz: float | None = None) -> RealModes:
+    """Real modes nearest ``target_hz``: K φ = ω² M φ, shift-and-invert at ω_t², by block Lanczos
+    on the factor's block solves (:func:`_block_lanczos`; ``<prefix>block_size``, 0: off), else, or
+    where it does not converge within its vector budget or misses ``max_residual``, by SLEPc's
+    Krylov–Schur on the same factorisation.  On one rank, unless a factorisation is named
+    (``<prefix>st_pc_factor_mat_solver_type``), CHOLMOD is called directly
+    (:func:`_cholmod_block_lanczos`) with the fill-reducing order of the node graph handed in
+    (:mod:`fem_squeal.fe.ordering`; ``<prefix>ordering solver`` leaves the ordering to CHOLMOD);
+    PETSc's CHOLMOD works on K and M permuted to that order; the vectors come back in the caller's
+    order.  ``progress``: draw converged/requested pairs on rank 0's stderr (Krylov–Schur
+    only).  ``f_max_hz``: every mode up to it and :data:`BEYOND` more instead of ``nev`` (then a
+    guess: the block size follows it) where block Lanczos answers; Krylov–Schur, where it takes
+    over, returns ``nev``."""
+    if nev < 1:
+        raise ModelError(f"n_modes: must be >= 1 (got {nev})")
+    for A in (K, M):
+        A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    set_options(prefix, options, REAL_MODE_OPTIONS)
+    sigma, key = (TWO_PI * target_hz) ** 2, (K.handle, M.handle)
+    Ms = drop_zeros(M)
+    b = _block_columns(nev, prefix)
+    lam_max = None if f_max_hz is None else (TWO_PI * f_max_hz) ** 2
+    direct = _cholmod_block_lanczos(K, Ms, nev, sigma, tol, b, prefix, key, lam_max) if b > 0 else None
+    if direct is not None:
+        rm = _checked_modes(K, Ms, *direct[:2], max_residual, "cholmod", direct[2]["factor"], time.perf_counter(),
+                            direct[2]["solve"], b) if direct[0] is not None else None
+        if rm is not None:
+            if Ms is not M:
+                Ms.destroy()
+            return rm
+        b = 0          # not converged, or a residual missed: Krylov–Schur (PETSc's factorisation) below
+    t_order = time.perf_counter()       # the ordering and the permuted copies count as factorisation
+    perm = _fill_reducing_order(K, sigma, prefix, key)
+    Kw, Mw = (K, Ms) if perm is None else (permuted(K, perm), permuted(Ms, perm))
+    t_order = time.perf_counter() - t_order
+    eps, solver, t_factor = _factorised_eps(Kw, Mw, nev, sigma, tol, prefix, key, ordered=perm is not None)
+    t_factor += t_order
+    try:
+        t0 = time.perf_counter()
+        comm = K.getComm().tompi4py()
+        got = _block_lanczos(block_solve(eps.getST().getKSP().getPC().getFactorMatrix()),
+                             lambda W: apply(Mw, W), comm, Kw.getOwnershipRange(), Kw.getSize()[0], nev,
+                             sigma, tol, b, lam_max) if b > 0 else None
+        rm = _checked_modes(K, Ms, got[0], _caller_rows(got[1], perm), max_residual, solver, t_factor, t0,
+                            0.0, b) if got is not None else None
+        if rm is not None:
+            return rm
+        with _progress(eps, nev, "real modes", progress):
+            eps.solve()
+        nconv, vals, vecs, res = _real_pairs(eps, K, Ms, nev, perm)
+        if nconv >= nev and not np.all(res <= max_residual) and tol > REAL_MODE_TOL_FALLBACK:
+            # SLEPc's criterion is relative to the shift-inverted value 1/(λ − σ): pairs far from
+            # the target can pass it and still miss our ‖Kx − λMx‖/(‖K‖‖x‖) bound.  Continue from
+            # the pairs at hand with a tighter tolerance on the same factorisation (no new one).
+            eps.setTolerances(REAL_MODE_TOL_FALLBACK, 200)
+            start = [_eps_vector(Kw, v, perm) for v in vecs]
+            eps.setInitialSpace(start)
+            for v in (*vecs, *start):
+                v.destroy()
+            eps.solve()
+            nconv, vals, vecs, res = _real_pairs(eps, K, Ms, nev, perm)
+        t_solve = time.perf_counter() - t0
+    finally:
+        eps.destroy()
+        for A in {id(A): A for A in (Kw, Mw, Ms) if A is not K and A is not M}.values():
+            A.destroy()
+    _check(nconv, nev, res, max_residual, "real-mode EPS", np.sqrt(np.abs(vals)) / TWO_PI)
+    order = np.argsort(vals)
+    kernels.note("real_modes", f"{solver}, Krylov-Schur")
+    return RealModes(np.array(vals)[order], [vecs[i] for i in order], res[order], solver,
+                     {"factor": t_factor, "solve": t_solve}, "Krylov-Schur")
+
+
+def _checked_modes(K: PETSc.Mat, Ms: PETSc.Mat, lam: np.ndarray, X: np.ndarray, max_residual: float,
+                   solver: str, factor_s: float, t0: float, solve_s: float, b: int) -> RealModes | None:
+    """Block Lanczos's pairs (λ, rank-local rows X) as :class:`RealModes` in ascending λ, where every
+    relative residual (:func:`_pairs_from_rows`) is ≤ ``max_residual``; else None, the vectors
+    destroyed.  The solve's seconds: ``solve_s`` and the time since ``t0``, these pairs included."""
+    vals, vecs, res = _pairs_from_rows(K, Ms, lam, X)
+    if len(vecs) and np.all(res <= max_residual):
+        order = np.argsort(vals)
+        kernels.note("real_modes", f"{solver}, block Lanczos")
+        return RealModes(vals[order], [vecs[i] for i in order], res[order], solver,
+                         {"factor": factor_s, "solve": solve_s + time.perf_counter() - t0},
+                         f"block Lanczos, {b} columns")
+    for v in vecs:
+        v.destroy()
+    return None
+
+
+def modes_on_factor(solve: Callable[[np.ndarray], np.ndarray], K: PETSc.Mat, M: PETSc.Mat, sigma: float,
+                    f_max_hz: float, nev_guess: int, *, tol: float = REAL_MODE_TOL,
+                    max_residual: float = 1e-8) -> RealModes | None:
+    """Every real mode up to ``f_max_hz`` and :data:`BEYOND` more, by block Lanczos on a
+    factorisation at hand: ``solve``: B ↦ (K − σM)⁻¹B on rank-local column-major rows, K − σM
+    indefinite or not, σ ≤ (2π f_max)²/2 (the modes below the cut then lead in |1/(λ − σ)|).  One
+    factorisation then serves the modes and the static solves that share its shift (issue 23:
+    the reduced basis of the 163k-DOF brake on 2 ranks factorised K twice with MUMPS, at the band
+    centre and near 0).  None where the Lanczos does not converge within its budget or a pair
+    misses ``max_residual`` (the caller factorises then)."""
+    lam_max = (TWO_PI * f_max_hz) ** 2
+    if not sigma <= 0.5 * lam_max:
+        return None
+    Ms = drop_zeros(M)
+    try:
+        t0 = time.perf_counter()
+        b = block_size(nev_guess)
+        got = _block_lanczos(solve, lambda W: apply(Ms, W), K.getComm().tompi4py(), K.getOwnershipRange(),
+                             K.getSize()[0], nev_guess, sigma, tol, b, lam_max)
+        if got is None:
+            return None
+        return _checked_modes(K, Ms, *got, max_residual, "shared", 0.0, t0, 0.0, b)
+    finally:
+        if Ms is not M:
+            Ms.destroy()
+
+
+def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, tol: float, b: int, prefix: str,
+                           key: tuple[int, int], lam_max: float | None = None
+                           ) -> tuple[np.ndarray | None, np.ndarray | None, dict] | None:
+    """Block Lanczos (:func:`_block_lanczos`) on CHOLMOD's supernodal factorisation of K − σM,
+    called directly (:mod:`fem_squeal.fe.cholmod`) with the fill-reducing order of K's node
+    graph handed in (:func:`_fill_reducing_order`): no permuted copies of K and M, no PETSc dense
+    matrices per block solve (:meth:`fem_squeal.fe.cholmod.Cholesky.solve`), and M applied by the
+    compiled CSR block product (:func:`fem_squeal.fe.csr.block_product`; SciPy's where it cannot be
+    had).  The path of one rank where no factorisation is chosen
+    (``<prefix>st_pc_factor_mat_solver_type``; choosing ``cholmod`` there takes PETSc's interface to
+    it, with all its options).  Returns None where it does not apply or K − σM is not positive
+    definite (then recorded for these K, M: MUMPS takes over); else (λ, rows of the vectors,
+    seconds), λ and rows None where the Lanczos did not converge within its budget."""
+    if (K.getComm().getSize() > 1 or "aij" not in K.getType() or "aij" not in Ms.getType()
+            or not cholmod.available() or PETSc.Options().hasName(f"{prefix}st_pc_factor_mat_solver_type")
+            or sigma >= _NOT_DEFINITE.get(key, np.inf)):
+        return None
+    t0 = time.perf_counter()
+    n = K.getSize()[0]
+    with csr_view(K) as k_csr, csr_view(Ms) as m_csr:      # PETSc's arrays, not copies
+        A = sp.csr_matrix(k_csr[::-1], shape=(n, n))
+        Msp = sp.csr_matrix(m_csr[::-1], shape=(n, n))
+        if sigma != 0.0:
+            A = (A - sigma * Msp).tocsr()
+        perm = _fill_reducing_order(K, sigma, prefix, key, (A.indptr, A.indices))
+        try:
+            factor = cholmod.Cholesky(A.indptr, A.indices, A.data, perm)
+            kernels.note("factorisation", "cholmod")
+        except cholmod.NotPositiveDefinite:
+            # σ above the lowest mode, or a free body: neither is K − σ'M definite for σ' ≥ σ
+            _NOT_DEFINITE[key] = min(sigma, _NOT_DEFINITE.get(key, np.inf))
+            return None
+        del A
+        t1 = time.perf_counter()
+        try:
+            mass = block_product(m_csr) or Msp.__matmul__
+            got = _block_lanczos(factor.solve, mass, K.getComm().tompi4py(), (0, n), n, nev, sigma, tol, b,
+                                 lam_max)
+        finally:
+            factor.close()
+    seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1}
+    return (None, None, seconds) if got is None else (*got, seconds)
+
+
+def _fill_reducing_order(K: PETSc.Mat, sigma: float, prefix: str, key: tuple[int, int],
+                         pattern: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
+    """The fill-reducing row order of K's node graph (:func:`fem_squeal.fe.ordering.fill_reducing_order`;
+    ``pattern``: the CSR pattern of K − σM where the caller has it) where CHOLMOD will factorise
+    K − σM first: ``<prefix>ordering`` ``auto`` (the default: AMD, or METIS where it pays for
+    itself), ``metis`` or ``amd``; None for ``solver`` and where MUMPS factorises (it orders in its
+    own analysis, and in parallel)."""
+    how = PETSc.Options().getString(f"{prefix}ordering", "auto")
+    if how not in (*ORDERINGS, "solver"):
+        raise ModelError(f"{prefix}ordering: must be one of {', '.join((*ORDERINGS, 'solver'))} (got {how!r})")
+    if how == "solver" or _real_solvers(K, sigma, prefix, key)[0][0] != "cholmod":
+        return None
+    return fill_reducing_order(K, pattern, how)
+
+
+def _caller_rows(X: np.ndarray, perm: np.ndarray | None) -> np.ndarray:
+    """Rows of the permuted problem (row i = the caller's row perm[i]) in the caller's order."""
+    if perm is None:
+        return X
+    out = np.empty_like(X)
+    out[perm] = X
+    return out
+
+
+def _eps_vector(A: PETSc.Mat, v: PETSc.Vec, perm: np.ndarray | None) -> PETSc.Vec:
+    """The caller's vector ``v`` as a vector of the (permuted) problem of matrix ``A``."""
+    x = A.createVecRight()
+    x.array[:] = v.array_r if perm is None else v.array_r[perm]
+    return x
+
+
+def _pairs_from_rows(K: PETSc.Mat, M: PETSc.Mat, lam: np.ndarray, X: np.ndarray
+                     ) -> tuple[np.ndarray, list[PETSc.Vec], np.ndarray]:
+    """(λ, M-normalised vectors, relative residuals ‖Kx − λMx‖ / (‖K‖∞ ‖x‖)) of the pairs given as
+    rank-local rows X (columns), as :func:`_real_pairs`."""
+    comm = K.getComm().tompi4py()
+    MX = apply(M, X)
+    scale = 1.0 / np.sqrt(comm.allreduce(np.einsum("ij,ij->j", X, MX), op=MPI.SUM))
+    X, MX = X * scale, MX * scale
+    R = apply(K, X) - MX * lam
+    res = np.sqrt(comm.allreduce(np.einsum("ij,ij->j", R, R), op=MPI.SUM)) / \
+        (_norm_inf(K) * np.sqrt(comm.allreduce(np.einsum("ij,ij->j", X, X), op=MPI.SUM)))
+    vecs = []
+    for j in range(X.shape[1]):
+        x = K.createVecRight()
+        x.array[:] = X[:, j]
+        vecs.append(x)
+    return np.asarray(lam, float), vecs, res
+
+
+def _real_pairs(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, perm: np.ndarray | None = None
+                ) -> tuple[int, np.ndarray, list[PETSc.Vec], np.ndarray]:
+    """The first ``nev`` converged pairs of ``eps``, M-normalised, with their relative residuals
+    ‖Kx − λMx‖ / (‖K‖∞ ‖x‖) (:func:`_pairs_from_rows`); ``perm``: the EPS works on K and M in that
+    row order, the pairs come back in K's."""
+    nconv = eps.getConverged()
+    if min(nconv, nev) == 0:
+        return nconv, np.zeros(0), [], np.zeros(0)
+    x = eps.getOperators()[0].createVecRight()
+    lam, rows = [], []
+    for i in range(min(nconv, nev)):
+        lam.append(eps.getEigenpair(i, x).real)
+        rows.append(x.array_r.copy())
+    x.destroy()
+    return (nconv, *_pairs_from_rows(K, M, np.array(lam), _caller_rows(np.column_stack(rows), perm)))
+
+
+def _real_solvers(K: PETSc.Mat, shift: float, prefix: str, key: tuple[int, int]) -> tuple[list[str], bool]:
+    """The factorisations to try for K − σM, in order, and whether the user chose one
+    (``<prefix>st_pc_factor_mat_solver_type``): else CHOLMOD on one rank (MUMPS LDLᵀ after it, for
+    K − σM not positive definite) and MUMPS on more ranks."""
+    chosen = PETSc.Options().getString(f"{prefix}st_pc_factor_mat_solver_type", "")
+    if chosen:
+        return [chosen], True
+    if (K.getComm().getSize() == 1 and PETSc.Sys.hasExternalPackage("suitesparse")
+            and shift < _NOT_DEFINITE.get(key, np.inf)):
+        return ["cholmod", "mumps"], False
+    return ["mumps"], False
+
+
+def _factorised_eps(K: PETSc.Mat, M: PETSc.Mat, nev: int, shift: float, tol: float, prefix: str,
+                    key: tuple[int, int], ordered: bool = False) -> tuple[SLEPc.EPS, str, float]:
+    """The real-mode EPS with K − σM factorised (``eps.setUp``) by the first of
+    :func:`_real_solvers` that succeeds.  ``ordered``: K and M are already in a fill-reducing order
+    (:func:`fem_squeal.fe.ordering.fill_reducing_order`), which CHOLMOD then keeps (natural ordering,
+    one method) instead of running its own analysis.  Returns the EPS, the solver's name and the
+    factorisation's wall time.  ``key``: the handles of the caller's K and M."""
+    db = PETSc.Options()
+    name = f"{prefix}st_pc_factor_mat_solver_type"
+    solvers, chosen = _real_solvers(K, shift, prefix, key)
+    t0 = time.perf_counter()       # a failed CHOLMOD attempt counts in the factorisation time
+    for k, solver in enumerate(solvers):
+        eps = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GHEP, nev, shift, tol, prefix)
+        # defaults for this solve only, not left in the options database
+        temporary = {} if chosen else {name: solver}
+        if ordered and solver == "cholmod":
+            temporary.update({f"{prefix}st_pc_factor_mat_ordering_type": "natural",
+                              f"{prefix}st_mat_cholmod_nmethods": "1"})
+        temporary = {o: v for o, v in temporary.items() if not db.hasName(o)}
+        for o, v in temporary.items():
+            db[o] = v
+        try:
+            eps.setFromOptions()
+            with serial_openmp():      # CHOLMOD's OpenMP loops: see fem_squeal.util.blas
+                eps.setUp()    # the factorisation of K − σM (it reads the factor's options)
+        except PETSc.Error:
+            eps.destroy()
+            if k + 1 == len(solvers):
+                raise
+            # CHOLMOD: K − σM not positive definite (σ above the lowest mode, free bodies); then
+            # neither is it for any larger σ: later solves on the same K, M go to MUMPS directly
+            _NOT_DEFINITE[key] = min(shift, _NOT_DEFINITE.get(key, np.inf))
+            continue
+        finally:
+            for o in temporary:
+                db.delValue(o)
+        return eps, solver, time.perf_counter() - t0
+    raise AssertionError("unreachable")

@@ -1,0 +1,133 @@
+"""The results of the eigensolvers (real modes, complex modes) and their checks: the relative residual
+of a quadratic eigenpair, the ordering of eigenvalues, the M-normalisation, the check of a solve's
+pairs."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from petsc4py import PETSc
+
+from fem_squeal.util.errors import EigenSolveError
+
+TWO_PI = 2.0 * np.pi
+
+
+
+@dataclass
+class RealModes:
+    """Real modes of K φ = ω² M φ, M-normalised (φᵀMφ = 1)."""
+
+    omega2: np.ndarray            # ω² [rad²/s²], ascending
+    vectors: list[PETSc.Vec]
+    residuals: np.ndarray         # ‖Kφ − ω²Mφ‖ / (‖K‖ ‖φ‖)
+    solver: str = ""              # the factorisation used: "cholmod" or "mumps"
+    seconds: dict[str, float] = field(default_factory=dict)   # "factor", "solve" (wall, rank 0)
+    method: str = ""              # "block Lanczos, <b> columns" or "Krylov-Schur"
+
+    @property
+    def freqs_hz(self) -> np.ndarray:
+        return np.sqrt(np.abs(self.omega2)) * np.sign(self.omega2) / TWO_PI
+
+
+@dataclass
+class ComplexModes:
+    """Complex modes λ = σ + iω (Im λ ≥ 0 only), with vectors x = xr + i xi, x^H M x = 1."""
+
+    eigenvalues: np.ndarray       # complex λ [1/s]
+    vectors_re: list[PETSc.Vec]
+    vectors_im: list[PETSc.Vec]
+    residuals: np.ndarray         # ‖(λ²M+λC+K)x‖ / (‖K‖ ‖x‖)
+    method: str
+    seconds: dict[str, float] = field(default_factory=dict)   # "factor" (setUp), "solve" (wall, rank 0)
+    algorithm: str = ""           # "block Arnoldi, <b> columns", "Krylov-Schur" or "TOAR"
+
+    @property
+    def freqs_hz(self) -> np.ndarray:
+        return self.eigenvalues.imag / TWO_PI
+
+    @property
+    def real_parts(self) -> np.ndarray:
+        return self.eigenvalues.real
+
+    @property
+    def damping_ratios(self) -> np.ndarray:
+        """ζ = −Re λ / |λ| (negative for unstable modes)."""
+        return 0.0 - self.eigenvalues.real / np.abs(self.eigenvalues)  # 0.0 - x: no "-0.0"
+
+
+def _norm_inf(A: PETSc.Mat | None) -> float:
+    return 0.0 if A is None else A.norm(PETSc.NormType.INFINITY)
+
+
+def _sort_key(lam: np.ndarray, rel: float = 1e-7) -> np.ndarray:
+    """Order by frequency; eigenvalues whose frequencies agree to ``rel`` are ordered by real part,
+    so that the order does not depend on round-off (PEP resolves the two halves of a quadruple
+    ±σ + iω to ~1e-9 relative in ω)."""
+    order = np.argsort(lam.imag, kind="stable")
+    groups, g = np.zeros(len(lam)), 0
+    for j in range(1, len(order)):
+        a, b = lam[order[j - 1]].imag, lam[order[j]].imag
+        if abs(b - a) > rel * max(abs(a), abs(b), 1.0):
+            g += 1
+        groups[order[j]] = g
+    return np.lexsort((lam.real, groups))
+
+
+def quadratic_residual(K, C, M, lam: complex, xr: PETSc.Vec, xi: PETSc.Vec) -> float:
+    """‖(λ²M + λC + K)x‖₂ / (‖K‖_∞ ‖x‖₂) for x = xr + i xi, in real arithmetic."""
+    a, b = lam.real, lam.imag
+    l2r, l2i = a * a - b * b, 2 * a * b
+    rr, ri, t = xr.duplicate(), xr.duplicate(), xr.duplicate()
+    K.mult(xr, rr)
+    K.mult(xi, ri)
+    M.mult(xr, t)
+    rr.axpy(l2r, t)
+    ri.axpy(l2i, t)
+    M.mult(xi, t)
+    rr.axpy(-l2i, t)
+    ri.axpy(l2r, t)
+    if C is not None:
+        C.mult(xr, t)
+        rr.axpy(a, t)
+        ri.axpy(b, t)
+        C.mult(xi, t)
+        rr.axpy(-b, t)
+        ri.axpy(a, t)
+    num = np.hypot(rr.norm(), ri.norm())
+    den = _norm_inf(K) * np.hypot(xr.norm(), xi.norm())
+    for w in (rr, ri, t):
+        w.destroy()
+    return float(num / den)
+
+
+def _m_normalise(M: PETSc.Mat, xr: PETSc.Vec, xi: PETSc.Vec) -> None:
+    """Scale x = xr + i xi to x^H M x = 1 with the phase making Σ x_j² real (a fixed, mesh-
+    independent phase convention: for a standing mode the vector becomes real)."""
+    Mxr, Mxi = xr.duplicate(), xi.duplicate()
+    M.mult(xr, Mxr)
+    M.mult(xi, Mxi)
+    mass = xr.dot(Mxr) + xi.dot(Mxi)
+    # x^T M x (no conjugate) = (xr·Mxr − xi·Mxi) + 2i xr·Mxi ; rotate so that it is real and ≥ 0
+    q = complex(xr.dot(Mxr) - xi.dot(Mxi), 2 * xr.dot(Mxi))
+    phase = np.exp(-0.5j * np.angle(q)) if abs(q) > 1e-14 * mass else 1.0
+    scale = phase / np.sqrt(mass)
+    r, i = xr.copy(), xi.copy()
+    xr.scale(scale.real)
+    xr.axpy(-scale.imag, i)
+    xi.scale(scale.real)
+    xi.axpy(scale.imag, r)
+    for w in (Mxr, Mxi, r, i):
+        w.destroy()
+
+
+def _check(nconv: int, nev: int, res: np.ndarray, max_residual: float, what: str, freqs) -> None:
+    if nconv < nev:
+        raise EigenSolveError(
+            f"{what}: {nconv} of {nev} requested eigenpairs converged; residuals of the converged: "
+            + ", ".join(f"{f:.1f} Hz: {r:.1e}" for f, r in zip(freqs, res)))
+    bad = np.flatnonzero(~(res <= max_residual))
+    if bad.size:
+        raise EigenSolveError(
+            f"{what}: residual above {max_residual:.0e} for " +
+            ", ".join(f"{freqs[i]:.1f} Hz: {res[i]:.1e}" for i in bad))

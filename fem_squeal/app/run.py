@@ -164,7 +164,7 @@ def _run_stage(fn, ctx: Context, work: Path, stage_t: dict, stage: str, comm, wh
     error = None
     try:
         sections = fn(ctx, work, stage_t)
-    except BaseException as e:
+    except Exception as e:          # not KeyboardInterrupt/SystemExit: those end the run at once
         error = _as_storage_error(e, stage, where)
     failed = comm.allreduce(error is not None, op=MPI.LOR)
     if error is not None:

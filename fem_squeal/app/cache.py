@@ -55,6 +55,20 @@ def manifest(folder: Path) -> dict[str, dict[str, Any]]:
     return out
 
 
+def file_problem(path: Path, rec: dict[str, Any], rel: str) -> str:
+    """'' when ``path`` has the size and SHA-256 of its manifest record ``rec``, else why not (the
+    file named ``rel``).  The size is compared first: a truncated file is not hashed."""
+    try:
+        size = path.stat().st_size
+    except OSError:
+        return f"{rel} is missing"
+    if size != rec["size"]:
+        return f"{rel} has {size} bytes, {rec['size']} recorded (truncated or rewritten)"
+    if digest(path)[1] != rec["sha256"]:
+        return f"{rel} does not match its recorded SHA-256 (corrupted or edited)"
+    return ""
+
+
 class Verdict(NamedTuple):
     """What :meth:`Cache.verify` found: ``state`` "ok", "absent" or "bad" (then ``reason`` says why)."""
     state: str
@@ -90,15 +104,8 @@ class Cache:
         if entry["seal"] != seal(entry):
             return Verdict("bad", "entry.json does not match its seal (edited or corrupted)")
         for rel, rec in entry["files"].items():
-            p = folder / rel
-            try:
-                size = p.stat().st_size
-            except OSError:
-                return Verdict("bad", f"{rel} is missing")
-            if size != rec["size"]:
-                return Verdict("bad", f"{rel} has {size} bytes, {rec['size']} recorded (truncated or rewritten)")
-            if digest(p)[1] != rec["sha256"]:
-                return Verdict("bad", f"{rel} does not match its recorded SHA-256 (corrupted or edited)")
+            if why := file_problem(folder / rel, rec, rel):
+                return Verdict("bad", why)
         st = index.stat()
         self._verified[folder] = (st.st_mtime_ns, st.st_size)
         return Verdict("ok")

@@ -22,9 +22,9 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from fem_squeal.app.cache import INDEX
+from fem_squeal.app.cache import INDEX, file_problem
 from fem_squeal.util.errors import PipelineError, StorageError
-from fem_squeal.util.storage import clone_file, digest, free_bytes, mib, storage_errors
+from fem_squeal.util.storage import clone_file, free_bytes, mib, storage_errors
 
 #: field files (XDMF, its HDF5, VTU): in the cache always, published only when fields are asked for
 FIELD_SUFFIXES = (".xdmf", ".h5", ".vtu")
@@ -67,7 +67,7 @@ def publish(entry: Path, outdir: Path, stage: Path, fields: bool = True) -> list
     names (relative to ``outdir``)."""
     files = json.loads((entry / INDEX).read_text())["files"]
     names = [rel for rel in sorted(files) if fields or not is_field(rel)]
-    todo = [rel for rel in names if not _holds(outdir / rel, files[rel])]
+    todo = [rel for rel in names if file_problem(outdir / rel, files[rel], rel)]
     needed = sum(files[rel]["size"] for rel in todo)
     if needed and needed > free_bytes(stage):
         raise StorageError(f"{outdir}: no space left for the outputs of {entry.name} ({mib(needed)} needed, "
@@ -77,20 +77,10 @@ def publish(entry: Path, outdir: Path, stage: Path, fields: bool = True) -> list
         with storage_errors(f"copying {entry.name}/{rel} into the output folder", outdir, needed):
             dst.parent.mkdir(parents=True, exist_ok=True)
             clone_file(entry / rel, dst)
-        if digest(dst) != (files[rel]["size"], files[rel]["sha256"]):
+        if file_problem(dst, files[rel], rel):
             raise PipelineError(f"cache entry {entry}: {rel} changed after it was verified; nothing was "
                                 "published; run again (the entry is recomputed)")
     return names
-
-
-def _holds(path: Path, rec: dict) -> bool:
-    """True when ``path`` is a file with the recorded size and SHA-256."""
-    try:
-        if path.stat().st_size != rec["size"]:
-            return False
-    except OSError:
-        return False
-    return digest(path)[1] == rec["sha256"]
 
 
 def remove_stale_outputs(outdir: Path, old_files: list[str], files: list[str]) -> None:

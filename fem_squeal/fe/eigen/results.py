@@ -74,6 +74,17 @@ def _sort_key(lam: np.ndarray, rel: float = 1e-7) -> np.ndarray:
     return np.lexsort((lam.real, groups))
 
 
+def _add_times(A, cr: float, ci: float, xr: PETSc.Vec, xi: PETSc.Vec, rr: PETSc.Vec, ri: PETSc.Vec,
+               t: PETSc.Vec) -> None:
+    """rr + i ri += (cr + i ci) A (xr + i xi), in real arithmetic (t: workspace)."""
+    A.mult(xr, t)
+    rr.axpy(cr, t)
+    ri.axpy(ci, t)
+    A.mult(xi, t)
+    rr.axpy(-ci, t)
+    ri.axpy(cr, t)
+
+
 def quadratic_residual(K, C, M, lam: complex, xr: PETSc.Vec, xi: PETSc.Vec) -> float:
     """‖(λ²M + λC + K)x‖₂ / (‖K‖_∞ ‖x‖₂) for x = xr + i xi, in real arithmetic."""
     a, b = lam.real, lam.imag
@@ -81,19 +92,9 @@ def quadratic_residual(K, C, M, lam: complex, xr: PETSc.Vec, xi: PETSc.Vec) -> f
     rr, ri, t = xr.duplicate(), xr.duplicate(), xr.duplicate()
     K.mult(xr, rr)
     K.mult(xi, ri)
-    M.mult(xr, t)
-    rr.axpy(l2r, t)
-    ri.axpy(l2i, t)
-    M.mult(xi, t)
-    rr.axpy(-l2i, t)
-    ri.axpy(l2r, t)
+    _add_times(M, l2r, l2i, xr, xi, rr, ri, t)
     if C is not None:
-        C.mult(xr, t)
-        rr.axpy(a, t)
-        ri.axpy(b, t)
-        C.mult(xi, t)
-        rr.axpy(-b, t)
-        ri.axpy(a, t)
+        _add_times(C, a, b, xr, xi, rr, ri, t)
     num = np.hypot(rr.norm(), ri.norm())
     den = _norm_inf(K) * np.hypot(xr.norm(), xi.norm())
     for w in (rr, ri, t):

@@ -114,8 +114,8 @@ def test_real_modes_inside_the_spectrum_fall_back_to_mumps():
     ops = ring_operators(kn=0, clamped=("inner",))
     low = solve_real_modes(ops.K, ops.M, 12, 0.0).freqs_hz
     target = 0.5 * (low[5] + low[6])
-    for _ in range(2):     # the second call goes to MUMPS directly (CHOLMOD failed at this σ)
-        mid = solve_real_modes(ops.K, ops.M, 4, target)
+    for known in (None, False):     # False: K − σM known to be indefinite, MUMPS directly
+        mid = solve_real_modes(ops.K, ops.M, 4, target, positive_definite=known)
         assert mid.solver == "mumps"
         near = np.sort(low[np.argsort(np.abs(low - target))[:4]])
         assert np.max(np.abs(mid.freqs_hz / near - 1)) < 1e-10   # as above: both converged to ~1e-14

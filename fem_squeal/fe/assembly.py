@@ -27,7 +27,7 @@ from ufl.corealg.multifunction import MultiFunction
 
 from fem_squeal.fe import cell_assembly, forms, kernels
 from fem_squeal.fe import interface as itf
-from fem_squeal.fe.eigen import set_options
+from fem_squeal.fe.factorisation import LU, factor_solver
 from fem_squeal.fe.model import Interface, ModelSpec, RigidPlate, sliding_speed, speed_friction
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
@@ -525,13 +525,9 @@ def rotation_matrices(ops: Operators, mesh_data, spec: ModelSpec, parts, frame: 
 
 
 def direct_solver(A: PETSc.Mat, options: dict | None, prefix: str) -> PETSc.KSP:
-    """A direct solver of A (MUMPS LU by default; PETSc options under ``prefix`` override it)."""
-    ksp = PETSc.KSP().create(A.getComm())
-    ksp.setOptionsPrefix(prefix)
-    set_options(prefix, options, {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"})
-    ksp.setOperators(A)
-    ksp.setFromOptions()
-    return ksp
+    """A direct solver of A, factorised (:func:`fem_squeal.fe.factorisation.factor_solver`: MUMPS LU
+    by default; PETSc options under ``prefix`` override it)."""
+    return factor_solver(A, LU, prefix, options)
 
 
 def static_displacement(K: PETSc.Mat, f: PETSc.Vec, options: dict | None = None,
@@ -540,10 +536,11 @@ def static_displacement(K: PETSc.Mat, f: PETSc.Vec, options: dict | None = None,
     :class:`ModelError` when the solve fails or its residual exceeds 1e-6‖f‖ (a part not held against
     rigid-body motion under a load that is not self-equilibrated).  A free body under a self-equilibrated
     load (the centrifugal load of a free disc) gets one solution: its rigid part carries no stress."""
-    ksp = direct_solver(K, options, prefix)
+    ksp = None
     u = K.createVecRight()
     r = K.createVecLeft()
     try:
+        ksp = direct_solver(K, options, prefix)
         ksp.solve(f, u)
         K.mult(u, r)
         r.axpy(-1.0, f)
@@ -552,7 +549,8 @@ def static_displacement(K: PETSc.Mat, f: PETSc.Vec, options: dict | None = None,
     except PETSc.Error:
         bad = True
     finally:
-        ksp.destroy()
+        if ksp is not None:
+            ksp.destroy()
         r.destroy()
     if bad:
         u.destroy()

@@ -1,8 +1,10 @@
 """SLEPc eigen-solvers: real modes (EPS, GHEP) and complex modes of λ²M + λC + K (PEP or linear EPS).
 
 PETSc here is a real build: targets are real shifts, and complex eigenpairs come back as a complex
-eigenvalue plus real and imaginary vector parts.  Every solver takes a PETSc options dict and a
-prefix, so ``-cea_st_pc_factor_mat_solver_type superlu_dist`` and the like work from the command line.
+eigenvalue plus real and imaginary vector parts.  Every solver takes a PETSc options dict (the
+scene's) and a prefix, so ``-cea_st_pc_factor_mat_solver_type superlu_dist`` and the like work from
+the command line; the defaults are typed (:mod:`fem_squeal.fe.factorisation`) and every option
+applies for the duration of its solve, nothing is left in PETSc's options database.
 
 Complex modes, undamped (C = 0): with θ = −λ², (λ²M + K)x = 0 is the non-symmetric linear
 problem K x = θ M x; each θ gives λ = i√θ (principal root, Im λ > 0).  A real shift θ_t = ω_t²
@@ -34,13 +36,11 @@ from fem_squeal.fe.eigen.left_vectors import (  # noqa: F401
     solve_left_vectors,
 )
 from fem_squeal.fe.eigen.options import (  # noqa: F401
-    DIRECT_SOLVER_OPTIONS,
     PEP_OPTIONS,
-    REAL_MODE_OPTIONS,
+    REAL_MODE_FACTOR,
     REAL_MODE_TOL,
     REAL_MODE_TOL_FALLBACK,
     drop_zeros,
-    set_options,
 )
 from fem_squeal.fe.eigen.real_modes import (  # noqa: F401
     modes_on_factor,

@@ -11,15 +11,9 @@ from slepc4py import SLEPc
 from fem_squeal.fe import kernels
 from fem_squeal.fe.dense import apply, block_solve
 from fem_squeal.fe.eigen.block_krylov import _block_arnoldi, _block_columns
-from fem_squeal.fe.eigen.options import (
-    DIRECT_SOLVER_OPTIONS,
-    PEP_OPTIONS,
-    _progress,
-    _shift_invert_eps,
-    _zero_like,
-    set_options,
-)
+from fem_squeal.fe.eigen.options import PEP_OPTIONS, _progress, _shift_invert_eps, _zero_like, eps_defaults
 from fem_squeal.fe.eigen.results import TWO_PI, ComplexModes, _check, _m_normalise, _sort_key, quadratic_residual
+from fem_squeal.fe.factorisation import LU, scoped_options
 from fem_squeal.util.errors import ModelError
 from fem_squeal.util.progress import ProgressBar
 
@@ -47,62 +41,62 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
         raise ModelError("method: 'linear' needs an undamped model (C = 0); use 'pep'")
     if method not in ("linear", "pep"):
         raise ModelError(f"method: must be 'auto', 'linear' or 'pep' (got {method!r})")
-    set_options(prefix, options, DIRECT_SOLVER_OPTIONS if method == "linear" else
-                {**DIRECT_SOLVER_OPTIONS, **PEP_OPTIONS})
-    comm = K.getComm()
-    lams, xrs, xis = [], [], []
-    if method == "linear":
-        solver = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GNHEP, nev, (TWO_PI * target_hz) ** 2,
-                                   tol, prefix)
-    else:
-        solver = SLEPc.PEP().create(comm)
-        solver.setOptionsPrefix(prefix)
-        solver.setOperators([K, C if C is not None else _zero_like(M), M])
-        solver.setType(SLEPc.PEP.Type.TOAR)
-        n_wanted = 2 * nev  # conjugate pairs are both counted
-        solver.setDimensions(n_wanted, max(2 * n_wanted, n_wanted + 16))
-        solver.setTolerances(tol, 200)
-        solver.getST().setType(SLEPc.ST.Type.SINVERT)
-        solver.setTarget(TWO_PI * max(target_hz, 1.0))
-        solver.setWhichEigenpairs(SLEPc.PEP.Which.TARGET_MAGNITUDE)
-        solver.setConvergenceTest(SLEPc.PEP.Conv.REL)
-    try:
-        solver.setFromOptions()
-        t0 = time.perf_counter()
-        solver.setUp()          # the factorisation of the shifted operator
-        t1 = time.perf_counter()
-        got = _cea_block(solver, K, M, nev, (TWO_PI * target_hz) ** 2, tol, prefix, progress) \
-            if method == "linear" else None
-        if got is not None:
-            for val, x in zip(got[0], got[1].T):
+    defaults = eps_defaults(prefix, LU, None if method == "linear" else PEP_OPTIONS)
+    with scoped_options(defaults, options):      # the user's options over these, for this solve only
+        comm = K.getComm()
+        lams, xrs, xis = [], [], []
+        if method == "linear":
+            solver = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GNHEP, nev, (TWO_PI * target_hz) ** 2,
+                                       tol, prefix)
+        else:
+            solver = SLEPc.PEP().create(comm)
+            solver.setOptionsPrefix(prefix)
+            solver.setOperators([K, C if C is not None else _zero_like(M), M])
+            solver.setType(SLEPc.PEP.Type.TOAR)
+            n_wanted = 2 * nev  # conjugate pairs are both counted
+            solver.setDimensions(n_wanted, max(2 * n_wanted, n_wanted + 16))
+            solver.setTolerances(tol, 200)
+            solver.getST().setType(SLEPc.ST.Type.SINVERT)
+            solver.setTarget(TWO_PI * max(target_hz, 1.0))
+            solver.setWhichEigenpairs(SLEPc.PEP.Which.TARGET_MAGNITUDE)
+            solver.setConvergenceTest(SLEPc.PEP.Conv.REL)
+        try:
+            solver.setFromOptions()
+            t0 = time.perf_counter()
+            solver.setUp()          # the factorisation of the shifted operator
+            t1 = time.perf_counter()
+            got = _cea_block(solver, K, M, nev, (TWO_PI * target_hz) ** 2, tol, prefix, progress) \
+                if method == "linear" else None
+            if got is not None:
+                for val, x in zip(got[0], got[1].T):
+                    xr, xi = K.createVecRight(), K.createVecRight()
+                    xr.array[:], xi.array[:] = x.real, x.imag
+                    lams.append(1j * np.sqrt(val))
+                    xrs.append(xr)
+                    xis.append(xi)
+                nconv = 0
+                algorithm = f"block Arnoldi, {_block_columns(nev, prefix)} columns"
+            else:
+                algorithm = "Krylov-Schur" if method == "linear" else "TOAR"
+                with _progress(solver, nev if method == "linear" else 2 * nev, "CEA", progress):
+                    solver.solve()
+                nconv = solver.getConverged()
+            seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1}
+            for i in range(nconv):
                 xr, xi = K.createVecRight(), K.createVecRight()
-                xr.array[:], xi.array[:] = x.real, x.imag
-                lams.append(1j * np.sqrt(val))
+                val = complex(solver.getEigenpair(i, xr, xi))
+                lam = 1j * np.sqrt(val) if method == "linear" else val
+                if method == "pep" and lam.imag < 0:
+                    xr.destroy()
+                    xi.destroy()
+                    continue
+                if method == "pep" and lam.imag == 0:
+                    xi.set(0.0)
+                lams.append(lam)
                 xrs.append(xr)
                 xis.append(xi)
-            nconv = 0
-            algorithm = f"block Arnoldi, {_block_columns(nev, prefix)} columns"
-        else:
-            algorithm = "Krylov-Schur" if method == "linear" else "TOAR"
-            with _progress(solver, nev if method == "linear" else 2 * nev, "CEA", progress):
-                solver.solve()
-            nconv = solver.getConverged()
-        seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1}
-        for i in range(nconv):
-            xr, xi = K.createVecRight(), K.createVecRight()
-            val = complex(solver.getEigenpair(i, xr, xi))
-            lam = 1j * np.sqrt(val) if method == "linear" else val
-            if method == "pep" and lam.imag < 0:
-                xr.destroy()
-                xi.destroy()
-                continue
-            if method == "pep" and lam.imag == 0:
-                xi.set(0.0)
-            lams.append(lam)
-            xrs.append(xr)
-            xis.append(xi)
-    finally:
-        solver.destroy()
+        finally:
+            solver.destroy()
     lams = np.array(lams, dtype=complex)
     n_found = len(lams)
     if band_hz is not None:

@@ -1,7 +1,9 @@
-"""Solver settings: the PETSc/SLEPc option defaults with their prefix, the shift-and-invert EPS on a
-factorisation, the progress bar of a SLEPc solve, matrices without stored zeros."""
+"""Solver settings: the eigensolvers' default options (their factorisations typed by
+:mod:`fem_squeal.fe.factorisation`), the shift-and-invert EPS on a factorisation, the progress bar of
+a SLEPc solve, matrices without stored zeros."""
 from __future__ import annotations
 
+from collections.abc import Mapping
 from contextlib import contextmanager
 
 import numpy as np
@@ -10,17 +12,13 @@ from petsc4py import PETSc
 from slepc4py import SLEPc
 
 from fem_squeal.fe.csr import csr_view
+from fem_squeal.fe.factorisation import CHOLESKY, Factorisation
 from fem_squeal.util.progress import ProgressBar
 
 # Scalar scaling of λ balances |λ|²‖M‖ against ‖K‖ (stiff bonded/contact penalties make ‖K‖
 # large); residual extraction picks the best eigenvector from the TOAR basis.  Measured on the
 # damped coarse brake: max relative residual 1.2e-7 without, 4e-13 with, at the same cost.
 PEP_OPTIONS = {"pep_scale": "scalar", "pep_extract": "residual"}
-DIRECT_SOLVER_OPTIONS = {
-    "st_ksp_type": "preonly",
-    "st_pc_type": "lu",
-    "st_pc_factor_mat_solver_type": "mumps",
-}
 # Real modes (K, M symmetric; benchmarks/modal_peers.py --speed, clamped P2 disc, 20 modes, 1 rank).
 # - CHOLMOD (SuiteSparse, in Debian's PETSc; serial) factorises K − σM faster than MUMPS' LDLᵀ and
 #   its triangular solves take 0.4–0.6 of MUMPS' time (METIS ordering: MUMPS here falls back to PORD);
@@ -34,24 +32,18 @@ DIRECT_SOLVER_OPTIONS = {
 #   1e-8 residual check at 26k DOFs.
 REAL_MODE_TOL = 1e-7
 REAL_MODE_TOL_FALLBACK = 1e-10   # the continuation when a pair misses the residual bound
-REAL_MODE_OPTIONS = {"st_ksp_type": "preonly", "st_pc_type": "cholesky", "eps_purify": False,
-                     "st_mat_cholmod_print": 0}   # CHOLMOD's own "not positive definite" line: we fall back
+REAL_MODE_EPS = {"eps_purify": "false"}
+#: The real modes' factorisation of K − σM (the package is chosen per solve: CHOLMOD, then MUMPS);
+#: CHOLMOD's own "not positive definite" line is silenced: MUMPS takes over.
+REAL_MODE_FACTOR = CHOLESKY.with_(package="", extra={"mat_cholmod_print": "0"})
 
 
-def set_options(prefix: str, options: dict[str, object] | None, defaults: dict[str, object]) -> None:
-    """Write ``defaults`` (keys without prefix) under ``prefix`` into the PETSc options database,
-    keeping any value already given on the command line (``-<prefix><key>``), then ``options``
-    (full names with their solver prefix, e.g. ``cea_st_pc_factor_mat_solver_type``: the
-    scene's ``solver.petsc_options``), which win."""
-    db = PETSc.Options()
-
-    def text(value):
-        return value if not isinstance(value, bool) else ("true" if value else "false")
-    for key, value in defaults.items():
-        if not db.hasName(f"{prefix}{key}"):
-            db[f"{prefix}{key}"] = text(value)
-    for name, value in (options or {}).items():
-        db[name.lstrip("-")] = text(value)
+def eps_defaults(prefix: str, factorisation: Factorisation, eps: Mapping[str, str] | None = None
+                 ) -> dict[str, str]:
+    """The default PETSc options of a shift-and-invert eigensolver with options prefix ``prefix``:
+    its ``eps`` settings (keys without prefix) and the factorisation of its spectral transformation
+    (under ``<prefix>st_``), for :func:`fem_squeal.fe.factorisation.scoped_options`."""
+    return {**{f"{prefix}{k}": v for k, v in (eps or {}).items()}, **factorisation.options(f"{prefix}st_")}
 
 
 def _shift_invert_eps(A: PETSc.Mat, B: PETSc.Mat, problem_type, nev: int, target: float, tol: float,

@@ -17,25 +17,26 @@ from fem_squeal.fe.csr import block_product, csr_view
 from fem_squeal.fe.dense import apply, block_solve
 from fem_squeal.fe.eigen.block_krylov import _block_columns, _block_lanczos, block_size
 from fem_squeal.fe.eigen.options import (
-    REAL_MODE_OPTIONS,
+    REAL_MODE_EPS,
+    REAL_MODE_FACTOR,
     REAL_MODE_TOL,
     REAL_MODE_TOL_FALLBACK,
     _progress,
     _shift_invert_eps,
     drop_zeros,
-    set_options,
+    eps_defaults,
 )
 from fem_squeal.fe.eigen.results import TWO_PI, RealModes, _check, _norm_inf
+from fem_squeal.fe.factorisation import scoped_options, user_option
 from fem_squeal.fe.ordering import ORDERINGS, fill_reducing_order, permuted
 from fem_squeal.util.blas import serial_openmp
 from fem_squeal.util.errors import ModelError
 
-_NOT_DEFINITE: dict[tuple[int, int], float] = {}  # (K, M) handles -> lowest shift CHOLMOD failed at
-
 
 def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, tol: float = REAL_MODE_TOL,
                      max_residual: float = 1e-8, options: dict | None = None,
-                     prefix: str = "real_", progress: bool = False, f_max_hz: float | None = None) -> RealModes:
+                     prefix: str = "real_", progress: bool = False, f_max_hz: float | None = None,
+                     positive_definite: bool | None = None) -> RealModes:
     """Real modes nearest ``target_hz``: K φ = ω² M φ, shift-and-invert at ω_t², by block Lanczos
     on the factor's block solves (:func:`_block_lanczos`; ``<prefix>block_size``, 0: off), else, or
     where it does not converge within its vector budget or misses ``max_residual``, by SLEPc's
@@ -47,17 +48,31 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     order.  ``progress``: draw converged/requested pairs on rank 0's stderr (Krylov–Schur
     only).  ``f_max_hz``: every mode up to it and :data:`BEYOND` more instead of ``nev`` (then a
     guess: the block size follows it) where block Lanczos answers; Krylov–Schur, where it takes
-    over, returns ``nev``."""
+    over, returns ``nev``.  ``positive_definite``: False where K − σM is known not to be (an earlier
+    solve of these K, M at this or a lower σ came back from MUMPS: ``RealModes.solver``), so that
+    CHOLMOD's LLᵀ is not tried again; None: not known.  The user's PETSc options (``options``, the
+    command line) apply for this solve only (:func:`fem_squeal.fe.factorisation.scoped_options`)."""
     if nev < 1:
         raise ModelError(f"n_modes: must be >= 1 (got {nev})")
     for A in (K, M):
         A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-    set_options(prefix, options, REAL_MODE_OPTIONS)
-    sigma, key = (TWO_PI * target_hz) ** 2, (K.handle, M.handle)
+    with scoped_options(eps_defaults(prefix, REAL_MODE_FACTOR, REAL_MODE_EPS), options):
+        lam_max = None if f_max_hz is None else (TWO_PI * f_max_hz) ** 2
+        return _solve_real_modes(K, M, nev, (TWO_PI * target_hz) ** 2, tol, max_residual, prefix, progress,
+                                 lam_max, positive_definite is not False)
+
+
+def _solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: float, max_residual: float,
+                      prefix: str, progress: bool, lam_max: float | None, definite: bool) -> RealModes:
+    """:func:`solve_real_modes` with the user's options in PETSc's database; ``definite``: CHOLMOD's
+    LLᵀ may be tried (K − σM not known to be indefinite)."""
     Ms = drop_zeros(M)
     b = _block_columns(nev, prefix)
-    lam_max = None if f_max_hz is None else (TWO_PI * f_max_hz) ** 2
-    direct = _cholmod_block_lanczos(K, Ms, nev, sigma, tol, b, prefix, key, lam_max) if b > 0 else None
+    try:
+        direct = _cholmod_block_lanczos(K, Ms, nev, sigma, tol, b, prefix, definite, lam_max) if b > 0 else None
+    except cholmod.NotPositiveDefinite:
+        # σ above the lowest mode, or a free body: neither is K − σ'M definite for σ' ≥ σ: MUMPS below
+        direct, definite = None, False
     if direct is not None:
         rm = _checked_modes(K, Ms, *direct[:2], max_residual, "cholmod", direct[2]["factor"], time.perf_counter(),
                             direct[2]["solve"], b) if direct[0] is not None else None
@@ -67,10 +82,10 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
             return rm
         b = 0          # not converged, or a residual missed: Krylov–Schur (PETSc's factorisation) below
     t_order = time.perf_counter()       # the ordering and the permuted copies count as factorisation
-    perm = _fill_reducing_order(K, sigma, prefix, key)
+    perm = _fill_reducing_order(K, prefix, definite)
     Kw, Mw = (K, Ms) if perm is None else (permuted(K, perm), permuted(Ms, perm))
     t_order = time.perf_counter() - t_order
-    eps, solver, t_factor = _factorised_eps(Kw, Mw, nev, sigma, tol, prefix, key, ordered=perm is not None)
+    eps, solver, t_factor = _factorised_eps(Kw, Mw, nev, sigma, tol, prefix, definite, ordered=perm is not None)
     t_factor += t_order
     try:
         t0 = time.perf_counter()
@@ -153,7 +168,7 @@ def modes_on_factor(solve: Callable[[np.ndarray], np.ndarray], K: PETSc.Mat, M: 
 
 
 def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, tol: float, b: int, prefix: str,
-                           key: tuple[int, int], lam_max: float | None = None
+                           definite: bool, lam_max: float | None = None
                            ) -> tuple[np.ndarray | None, np.ndarray | None, dict] | None:
     """Block Lanczos (:func:`_block_lanczos`) on CHOLMOD's supernodal factorisation of K − σM,
     called directly (:mod:`fem_squeal.fe.cholmod`) with the fill-reducing order of K's node
@@ -162,12 +177,12 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
     compiled CSR block product (:func:`fem_squeal.fe.csr.block_product`; SciPy's where it cannot be
     had).  The path of one rank where no factorisation is chosen
     (``<prefix>st_pc_factor_mat_solver_type``; choosing ``cholmod`` there takes PETSc's interface to
-    it, with all its options).  Returns None where it does not apply or K − σM is not positive
-    definite (then recorded for these K, M: MUMPS takes over); else (λ, rows of the vectors,
-    seconds), λ and rows None where the Lanczos did not converge within its budget."""
-    if (K.getComm().getSize() > 1 or "aij" not in K.getType() or "aij" not in Ms.getType()
-            or not cholmod.available() or PETSc.Options().hasName(f"{prefix}st_pc_factor_mat_solver_type")
-            or sigma >= _NOT_DEFINITE.get(key, np.inf)):
+    it, with all its options).  Returns None where it does not apply (``definite`` False: K − σM is
+    known not to be positive definite); else (λ, rows of the vectors, seconds), λ and rows None where
+    the Lanczos did not converge within its budget.  Raises :class:`fem_squeal.fe.cholmod.NotPositiveDefinite`
+    where the factorisation finds K − σM not positive definite."""
+    if (not definite or K.getComm().getSize() > 1 or "aij" not in K.getType() or "aij" not in Ms.getType()
+            or not cholmod.available() or user_option(f"{prefix}st_pc_factor_mat_solver_type") is not None):
         return None
     t0 = time.perf_counter()
     n = K.getSize()[0]
@@ -176,14 +191,9 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
         Msp = sp.csr_matrix(m_csr[::-1], shape=(n, n))
         if sigma != 0.0:
             A = (A - sigma * Msp).tocsr()
-        perm = _fill_reducing_order(K, sigma, prefix, key, (A.indptr, A.indices))
-        try:
-            factor = cholmod.Cholesky(A.indptr, A.indices, A.data, perm)
-            kernels.note("factorisation", "cholmod")
-        except cholmod.NotPositiveDefinite:
-            # σ above the lowest mode, or a free body: neither is K − σ'M definite for σ' ≥ σ
-            _NOT_DEFINITE[key] = min(sigma, _NOT_DEFINITE.get(key, np.inf))
-            return None
+        perm = _fill_reducing_order(K, prefix, definite, (A.indptr, A.indices))
+        factor = cholmod.Cholesky(A.indptr, A.indices, A.data, perm)      # NotPositiveDefinite: to the caller
+        kernels.note("factorisation", "cholmod")
         del A
         t1 = time.perf_counter()
         try:
@@ -196,17 +206,17 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
     return (None, None, seconds) if got is None else (*got, seconds)
 
 
-def _fill_reducing_order(K: PETSc.Mat, sigma: float, prefix: str, key: tuple[int, int],
+def _fill_reducing_order(K: PETSc.Mat, prefix: str, definite: bool,
                          pattern: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
     """The fill-reducing row order of K's node graph (:func:`fem_squeal.fe.ordering.fill_reducing_order`;
     ``pattern``: the CSR pattern of K − σM where the caller has it) where CHOLMOD will factorise
     K − σM first: ``<prefix>ordering`` ``auto`` (the default: AMD, or METIS where it pays for
     itself), ``metis`` or ``amd``; None for ``solver`` and where MUMPS factorises (it orders in its
     own analysis, and in parallel)."""
-    how = PETSc.Options().getString(f"{prefix}ordering", "auto")
+    how = user_option(f"{prefix}ordering") or "auto"
     if how not in (*ORDERINGS, "solver"):
         raise ModelError(f"{prefix}ordering: must be one of {', '.join((*ORDERINGS, 'solver'))} (got {how!r})")
-    if how == "solver" or _real_solvers(K, sigma, prefix, key)[0][0] != "cholmod":
+    if how == "solver" or _real_solvers(K, prefix, definite)[0][0] != "cholmod":
         return None
     return fill_reducing_order(K, pattern, how)
 
@@ -263,54 +273,42 @@ def _real_pairs(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, perm: np.n
     return (nconv, *_pairs_from_rows(K, M, np.array(lam), _caller_rows(np.column_stack(rows), perm)))
 
 
-def _real_solvers(K: PETSc.Mat, shift: float, prefix: str, key: tuple[int, int]) -> tuple[list[str], bool]:
+def _real_solvers(K: PETSc.Mat, prefix: str, definite: bool) -> tuple[list[str], bool]:
     """The factorisations to try for K − σM, in order, and whether the user chose one
     (``<prefix>st_pc_factor_mat_solver_type``): else CHOLMOD on one rank (MUMPS LDLᵀ after it, for
-    K − σM not positive definite) and MUMPS on more ranks."""
-    chosen = PETSc.Options().getString(f"{prefix}st_pc_factor_mat_solver_type", "")
+    K − σM not positive definite; MUMPS alone where ``definite`` is False) and MUMPS on more ranks."""
+    chosen = user_option(f"{prefix}st_pc_factor_mat_solver_type")
     if chosen:
         return [chosen], True
-    if (K.getComm().getSize() == 1 and PETSc.Sys.hasExternalPackage("suitesparse")
-            and shift < _NOT_DEFINITE.get(key, np.inf)):
+    if K.getComm().getSize() == 1 and PETSc.Sys.hasExternalPackage("suitesparse") and definite:
         return ["cholmod", "mumps"], False
     return ["mumps"], False
 
 
 def _factorised_eps(K: PETSc.Mat, M: PETSc.Mat, nev: int, shift: float, tol: float, prefix: str,
-                    key: tuple[int, int], ordered: bool = False) -> tuple[SLEPc.EPS, str, float]:
+                    definite: bool, ordered: bool = False) -> tuple[SLEPc.EPS, str, float]:
     """The real-mode EPS with K − σM factorised (``eps.setUp``) by the first of
     :func:`_real_solvers` that succeeds.  ``ordered``: K and M are already in a fill-reducing order
     (:func:`fem_squeal.fe.ordering.fill_reducing_order`), which CHOLMOD then keeps (natural ordering,
     one method) instead of running its own analysis.  Returns the EPS, the solver's name and the
-    factorisation's wall time.  ``key``: the handles of the caller's K and M."""
-    db = PETSc.Options()
-    name = f"{prefix}st_pc_factor_mat_solver_type"
-    solvers, chosen = _real_solvers(K, shift, prefix, key)
+    factorisation's wall time."""
+    solvers, _ = _real_solvers(K, prefix, definite)
     t0 = time.perf_counter()       # a failed CHOLMOD attempt counts in the factorisation time
     for k, solver in enumerate(solvers):
         eps = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GHEP, nev, shift, tol, prefix)
-        # defaults for this solve only, not left in the options database
-        temporary = {} if chosen else {name: solver}
+        factor = REAL_MODE_FACTOR.with_(package=solver)
         if ordered and solver == "cholmod":
-            temporary.update({f"{prefix}st_pc_factor_mat_ordering_type": "natural",
-                              f"{prefix}st_mat_cholmod_nmethods": "1"})
-        temporary = {o: v for o, v in temporary.items() if not db.hasName(o)}
-        for o, v in temporary.items():
-            db[o] = v
+            factor = factor.with_(extra={"pc_factor_mat_ordering_type": "natural", "mat_cholmod_nmethods": "1"})
         try:
-            eps.setFromOptions()
-            with serial_openmp():      # CHOLMOD's OpenMP loops: see fem_squeal.util.blas
-                eps.setUp()    # the factorisation of K − σM (it reads the factor's options)
+            with scoped_options(factor.options(f"{prefix}st_")):     # the user's options win
+                eps.setFromOptions()
+                with serial_openmp():      # CHOLMOD's OpenMP loops: see fem_squeal.util.blas
+                    eps.setUp()    # the factorisation of K − σM (it reads the factor's options)
         except PETSc.Error:
             eps.destroy()
             if k + 1 == len(solvers):
                 raise
-            # CHOLMOD: K − σM not positive definite (σ above the lowest mode, free bodies); then
-            # neither is it for any larger σ: later solves on the same K, M go to MUMPS directly
-            _NOT_DEFINITE[key] = min(shift, _NOT_DEFINITE.get(key, np.inf))
+            # CHOLMOD: K − σM not positive definite (σ above the lowest mode, free bodies): MUMPS
             continue
-        finally:
-            for o in temporary:
-                db.delValue(o)
         return eps, solver, time.perf_counter() - t0
     raise AssertionError("unreachable")

@@ -6,13 +6,8 @@ import numpy as np
 from petsc4py import PETSc
 
 from fem_squeal.fe.dense import block_solve
-from fem_squeal.fe.eigen import (
-    DIRECT_SOLVER_OPTIONS,
-    TWO_PI,
-    modes_on_factor,
-    set_options,
-    solve_real_modes,
-)
+from fem_squeal.fe.eigen import TWO_PI, modes_on_factor, solve_real_modes
+from fem_squeal.fe.factorisation import CHOLESKY, factor_solver
 from fem_squeal.fe.projection.basis import _local_array
 
 #: convergence of the basis modes (shift-inverted residual, SLEPc's criterion; the real-mode analysis
@@ -23,6 +18,12 @@ from fem_squeal.fe.projection.basis import _local_array
 #: design corners unchanged (docs/validation.md, "Fifth pass").
 BASIS_MODE_TOL = 1e-5
 BASIS_MODE_RESIDUAL = 1e-6   # the pairs' residual bound beyond which Krylov–Schur takes over (8× the measured)
+#: The negative inertia of K − σM: MUMPS LDLᵀ with ICNTL(13) = 1 (no ScaLAPACK root) and ICNTL(24) = 1
+#: (null pivot detection), as its inertia needs.
+INERTIA = CHOLESKY.with_(icntl={13: 1, 24: 1})
+#: K + σM for blocks of columns: MUMPS LDLᵀ taking its right-hand sides 64 at a time (ICNTL(27); its
+#: default of 32 for MatMatSolve): the 50k-DOF brake's 172 columns 0.43 → 0.38 s, the factorisation the same.
+SHIFTED = CHOLESKY.with_(icntl={27: 64})
 
 
 def modes_below(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, *, n_start: int = 20, options=None,
@@ -50,9 +51,11 @@ def modes_below(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, *, n_start: int = 2
             v.destroy()
     nev = n_start
     target = 1e-3 * f_cut_hz  # a small positive shift: K may be singular (free bodies)
+    definite = None           # K − σM: not known; False once a solve fell back from CHOLMOD to MUMPS
     while True:
         rm = solve_real_modes(K, M, nev, target, options=options, prefix=prefix, progress=True, f_max_hz=f_cut_hz,
-                              tol=BASIS_MODE_TOL, max_residual=BASIS_MODE_RESIDUAL)
+                              tol=BASIS_MODE_TOL, max_residual=BASIS_MODE_RESIDUAL, positive_definite=definite)
+        definite = None if rm.solver == "cholmod" else False
         f = rm.freqs_hz
         if f[-1] > f_cut_hz or nev >= max_modes:
             return local(rm)
@@ -68,26 +71,17 @@ def count_below(K: PETSc.Mat, M: PETSc.Mat, f_hz: float, options=None, prefix: s
     """The number of modes with f < ``f_hz``: the negative inertia of K − (2πf)²M (Sylvester's law;
     one MUMPS LDLᵀ factorisation, ICNTL(13) = 1 and ICNTL(24) = 1 as its inertia needs).  A check of
     the modes a solve returns (tests); :func:`adaptive_reduce` no longer counts before solving."""
-    set_options(prefix, options, {"pc_type": "cholesky", "mat_mumps_icntl_13": 1, "mat_mumps_icntl_24": 1})
     A = K.copy()
     A.axpy(-(TWO_PI * f_hz) ** 2, M, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
     A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-    ksp = _solver(A, options, prefix)
     try:
-        ksp.setUp()
-        return int(ksp.getPC().getFactorMatrix().getInertia()[0])
+        ksp = factor_solver(A, INERTIA, prefix, options)
+        try:
+            return int(ksp.getPC().getFactorMatrix().getInertia()[0])
+        finally:
+            ksp.destroy()
     finally:
-        ksp.destroy()
         A.destroy()
-
-
-def _solver(A: PETSc.Mat, options, prefix: str) -> PETSc.KSP:
-    set_options(prefix, options, {k.removeprefix("st_"): v for k, v in DIRECT_SOLVER_OPTIONS.items()})
-    ksp = PETSc.KSP().create(A.getComm())
-    ksp.setOptionsPrefix(prefix)
-    ksp.setOperators(A)
-    ksp.setFromOptions()
-    return ksp
 
 
 class ShiftedSolver:
@@ -102,11 +96,7 @@ class ShiftedSolver:
         self.A = K.copy()
         self.A.axpy(sigma, M, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
         self.A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        # MUMPS's solve takes its right-hand sides 64 at a time (ICNTL(27); its default of 32 for
-        # MatMatSolve): the 50k-DOF brake's 172 columns 0.43 → 0.38 s, the factorisation the same
-        set_options(prefix, options, {"pc_type": "cholesky", "mat_mumps_icntl_27": 64})
-        self.ksp = _solver(self.A, options, prefix)
-        self.ksp.setUp()
+        self.ksp = factor_solver(self.A, SHIFTED, prefix, options)
         pc = self.ksp.getPC()
         self.factor = pc.getFactorMatrix() if self.ksp.getType() == "preonly" and \
             pc.getType() in ("lu", "cholesky") else None

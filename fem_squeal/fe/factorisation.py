@@ -1,0 +1,121 @@
+"""The factorisation factory: sparse direct solvers of A with their settings as a typed object.
+
+A :class:`Factorisation` says how a matrix is factorised: PETSc's ``pc_type`` (``lu``, or ``cholesky``:
+MUMPS' LDLᵀ, CHOLMOD's LLᵀ), the solver package (``pc_factor_mat_solver_type``), MUMPS' integer
+controls ICNTL(i) and any other option of the factor.  Its values are **defaults**: the user's PETSc
+options under the solver's prefix override them, given on the command line
+(``-basis_static_pc_factor_mat_solver_type superlu_dist``) or in the scene's ``solver.petsc_options``
+(which win over the command line, as they always have).
+
+The factory hands these settings to the objects it sets up only for the duration of that set-up
+(:func:`scoped_options`): afterwards PETSc's global options database holds exactly what it held
+before.  Nothing is keyed by object handles (PETSc reuses them); what a solve learns about a matrix
+(K − σM not positive definite) the caller passes on explicitly.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
+
+from petsc4py import PETSc
+
+Options = Mapping[str, object]     # PETSc options with their full prefix, e.g. the scene's petsc_options
+
+
+@dataclass(frozen=True)
+class Factorisation:
+    """How a sparse matrix is factorised (defaults; the user's PETSc options under the prefix win)."""
+
+    kind: str = "lu"                          # PETSc pc_type: "lu" or "cholesky"
+    package: str = "mumps"                    # PETSc MatSolverType (mumps, cholmod, ...); "": chosen later
+    icntl: tuple[tuple[int, int], ...] = ()   # MUMPS ICNTL(i) = v (MUMPS' own defaults otherwise)
+    extra: tuple[tuple[str, str], ...] = ()   # further options of the factor, without prefix
+
+    def options(self, prefix: str) -> dict[str, str]:
+        """These settings as PETSc options under ``prefix`` (the KSP's prefix)."""
+        out = {f"{prefix}ksp_type": "preonly", f"{prefix}pc_type": self.kind}
+        if self.package:
+            out[f"{prefix}pc_factor_mat_solver_type"] = self.package
+        out.update({f"{prefix}mat_mumps_icntl_{i}": str(v) for i, v in self.icntl})
+        out.update({f"{prefix}{k}": v for k, v in self.extra})
+        return out
+
+    def with_(self, **changes) -> Factorisation:
+        """A copy with ``changes`` (dataclass fields); ``icntl``/``extra`` given as dicts are merged."""
+        for name in ("icntl", "extra"):
+            if isinstance(changes.get(name), Mapping):
+                changes[name] = tuple({**dict(getattr(self, name)), **changes[name]}.items())
+        return replace(self, **changes)
+
+
+#: MUMPS LU: the default for non-symmetric operators (the CEA's shift-and-invert, the preload's Jacobian).
+LU = Factorisation()
+#: MUMPS LDLᵀ of a symmetric matrix.
+CHOLESKY = Factorisation("cholesky")
+
+
+def _text(value: object) -> str:
+    return ("true" if value else "false") if isinstance(value, bool) else str(value)
+
+
+def user_option(name: str, options: Options | None = None) -> str | None:
+    """The user's value of the PETSc option ``name`` (full name with its prefix, no dash): the
+    scene's ``options`` first, then PETSc's options database (the command line); None if not given."""
+    for key, value in (options or {}).items():
+        if key.lstrip("-") == name:
+            return _text(value)
+    db = PETSc.Options()
+    return db.getString(name) if db.hasName(name) else None
+
+
+def user_int(name: str, options: Options | None, default: int) -> int:
+    """:func:`user_option` as an integer (``default`` where not given); a value that is not an
+    integer names the option."""
+    value = user_option(name, options)
+    if value is None:
+        return default
+    try:
+        return int(value)
+    except ValueError:
+        from fem_squeal.util.errors import ModelError
+        raise ModelError(f"{name}: must be an integer (got {value!r})") from None
+
+
+@contextmanager
+def scoped_options(defaults: Mapping[str, str], options: Options | None = None) -> Iterator[None]:
+    """PETSc's options database with ``defaults`` where the user gave no value and with the scene's
+    ``options`` (they win over the command line), for the duration of the block; afterwards every
+    entry is as it was (a removed default, a restored command-line value)."""
+    db = PETSc.Options()
+    saved: dict[str, str | None] = {}
+    for name, value in (options or {}).items():
+        name = name.lstrip("-")
+        saved.setdefault(name, db.getString(name) if db.hasName(name) else None)
+        db[name] = _text(value)
+    for name, value in defaults.items():
+        if not db.hasName(name):
+            saved.setdefault(name, None)
+            db[name] = value
+    try:
+        yield
+    finally:
+        for name, old in saved.items():
+            if old is None:
+                db.delValue(name)
+            else:
+                db[name] = old
+
+
+def factor_solver(A: PETSc.Mat, factorisation: Factorisation, prefix: str, options: Options | None = None
+                  ) -> PETSc.KSP:
+    """A KSP that solves with a factorisation of ``A``, set up (factorised) here: ``factorisation``'s
+    settings under ``prefix``, overridden by the user's (``options``: the scene's, then the command
+    line).  Later solves with new values of ``A`` (same pattern) refactorise numerically only."""
+    ksp = PETSc.KSP().create(A.getComm())
+    ksp.setOptionsPrefix(prefix)
+    ksp.setOperators(A)
+    with scoped_options(factorisation.options(prefix), options):
+        ksp.setFromOptions()
+        ksp.setUp()
+    return ksp

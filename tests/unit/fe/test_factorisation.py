@@ -1,0 +1,71 @@
+"""The factorisation factory (fem_squeal.fe.factorisation): typed defaults, the user's options over
+them, and nothing left in PETSc's options database after a solve."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from fem_squeal.fe.factorisation import CHOLESKY, LU, factor_solver, scoped_options, user_option
+
+
+def _database() -> dict[str, str]:
+    return dict(PETSc.Options().getAll())
+
+
+def _laplacian(n: int) -> PETSc.Mat:
+    A = PETSc.Mat().createAIJ([n, n], nnz=3, comm=PETSc.COMM_SELF)
+    for i in range(n):
+        A.setValue(i, i, 2.0)
+        if i:
+            A.setValue(i, i - 1, -1.0)
+            A.setValue(i - 1, i, -1.0)
+    A.assemble()
+    return A
+
+
+def test_options_of_a_factorisation():
+    f = CHOLESKY.with_(icntl={13: 1, 24: 1}).with_(icntl={27: 64}, extra={"mat_cholmod_print": "0"})
+    assert f.options("x_") == {"x_ksp_type": "preonly", "x_pc_type": "cholesky",
+                               "x_pc_factor_mat_solver_type": "mumps", "x_mat_mumps_icntl_13": "1",
+                               "x_mat_mumps_icntl_24": "1", "x_mat_mumps_icntl_27": "64",
+                               "x_mat_cholmod_print": "0"}
+    assert "x_pc_factor_mat_solver_type" not in f.with_(package="").options("x_")
+
+
+def test_scoped_options_restore_the_database():
+    """Defaults fill only what the user did not give; the scene's options win over the command
+    line's; afterwards the database is exactly as before (a command-line value restored)."""
+    db = PETSc.Options()
+    db["fs_test_pc_type"] = "lu"            # as if given on the command line
+    before = _database()
+    try:
+        with scoped_options({"fs_test_pc_type": "cholesky", "fs_test_ksp_type": "preonly"},
+                            {"-fs_test_pc_factor_mat_solver_type": "superlu_dist", "fs_test_pc_type": "qr"}):
+            assert db.getString("fs_test_pc_type") == "qr"               # scene over command line
+            assert db.getString("fs_test_ksp_type") == "preonly"         # a default
+            assert user_option("fs_test_pc_factor_mat_solver_type") == "superlu_dist"
+        assert _database() == before
+        with pytest.raises(RuntimeError), scoped_options({"fs_test_ksp_type": "cg"}):
+            raise RuntimeError("a failed set-up")
+        assert _database() == before
+    finally:
+        db.delValue("fs_test_pc_type")
+
+
+def test_factor_solver_solves_and_leaves_nothing_behind():
+    """A MUMPS LU and a user's choice (PETSc's own LU by the scene's options) solve the same
+    tridiagonal system; no option stays in the database."""
+    before = _database()
+    A = _laplacian(20)
+    b, x = A.createVecs()
+    b.set(1.0)
+    exact = np.array([0.5 * (i + 1) * (20 - i) for i in range(20)])     # -u'' = 1, u(0) = u(21) = 0
+    for factorisation, options, package in ((LU, None, "mumps"),
+                                            (LU, {"fs_user_pc_factor_mat_solver_type": "petsc"}, "petsc")):
+        ksp = factor_solver(A, factorisation, "fs_user_", options)
+        assert ksp.getPC().getFactorSolverType() == package
+        ksp.solve(b, x)
+        assert np.allclose(x.array_r, exact, rtol=1e-12)
+        ksp.destroy()
+    assert _database() == before

@@ -66,6 +66,26 @@ def project_out(comm, V: np.ndarray, MV: np.ndarray, W: np.ndarray) -> tuple[np.
     return C, blas.dgemm(-1.0, V, C, beta=1.0, c=W, overwrite_c=1)
 
 
+def m_cholesky_qr(comm, W: np.ndarray, MW: np.ndarray, check: bool = False
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """One Cholesky QR pass in the M inner product, on rank-local column-major rows: G = WᵀMW
+    (summed over the ranks, symmetrised), G = L Lᵀ, then W L⁻ᵀ and M W L⁻ᵀ in place (BLAS dtrsm;
+    M W follows W through the triangular solve instead of a new product).  Returns (W, MW, L);
+    ``check``: None where G is numerically singular (λ_min(G) ≤ 1e-12 λ_max(G)).  The one
+    M-orthonormalisation step of the block Krylov methods and of the reduced bases."""
+    G = gram(comm, W, MW)
+    G = 0.5 * (G + G.T)
+    if check:
+        d = np.linalg.eigvalsh(G)
+        if not d[0] > 1e-12 * d[-1]:
+            return None
+    L = np.linalg.cholesky(G)
+    if W.shape[0]:     # a rank may own no rows
+        W = blas.dtrsm(1.0, L, W, side=1, lower=1, trans_a=1, overwrite_b=1)      # W L⁻ᵀ
+        MW = blas.dtrsm(1.0, L, MW, side=1, lower=1, trans_a=1, overwrite_b=1)
+    return W, MW, L
+
+
 def block_solve(factor: PETSc.Mat) -> Callable[[np.ndarray], np.ndarray]:
     """B ↦ A⁻¹B for rank-local column-major blocks, by the PETSc factor matrix of A (MatMatSolve:
     one multiple-right-hand-side solve per block)."""

@@ -10,7 +10,7 @@ from petsc4py import PETSc
 from scipy.linalg import blas
 
 from fem_squeal.fe.csr import csr_view
-from fem_squeal.fe.dense import apply, gram, matmul_f, project_out
+from fem_squeal.fe.dense import apply, gram, m_cholesky_qr, matmul_f, project_out
 
 
 @dataclass
@@ -139,13 +139,9 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
     W = against_basis(matmul_f(W, Q[:, keep] / np.sqrt(s[keep])))[0]
     MW = apply(M, W)
     if W.shape[1]:
-        # the new block's Cholesky QR, in place (BLAS dtrsm; L well conditioned, G ≈ I), M W
-        # following W through it (M W L⁻ᵀ = M(W L⁻ᵀ) to round-off times κ(L) ≈ 1)
-        G = gram(comm, W, MW)
-        L = np.linalg.cholesky(0.5 * (G + G.T))
-        if W.shape[0]:     # a rank may own no rows
-            W = blas.dtrsm(1.0, L, W, side=1, lower=1, trans_a=1, overwrite_b=1)
-            MW = blas.dtrsm(1.0, L, MW, side=1, lower=1, trans_a=1, overwrite_b=1)
+        # the new block's Cholesky QR, in place (L well conditioned, G ≈ I), M W following W
+        # through it (M W L⁻ᵀ = M(W L⁻ᵀ) to round-off times κ(L) ≈ 1)
+        W, MW, _ = m_cholesky_qr(comm, W, MW)
     return W, MW, dropped
 
 

@@ -292,3 +292,25 @@ def test_scene_is_typed_frozen_and_hashes_its_plain_content():
     assert _canonical(s) == json.dumps(p, sort_keys=True, separators=(",", ":"))
     assert "Preload(" not in _canonical({"inputs": s.preload})
     assert "geometry" in s and "geometry" not in validate({"analyses": {"segmented_pad": {}}})
+
+
+def test_model_spec_is_built_once_by_the_validation(monkeypatch):
+    """The validation pass builds the scene's model description; the cache keys read that one (no
+    second build per run), and a scene changed with replace gets its own."""
+    import fem_squeal.app.scene.validation as validation
+    from fem_squeal.app.pipeline import required, stage_keys
+
+    s = load_scene(SCENE)
+    spec = s.spec
+    assert spec is not None and model_spec(s) is spec
+
+    def refuse(*a, **k):
+        raise AssertionError("model_spec built again")
+
+    monkeypatch.setattr(validation, "build_model_spec", refuse)
+    assert stage_keys(s, required(s), version="once") and model_spec(s) is spec
+    with pytest.raises(AssertionError, match="built again"):
+        model_spec(s.replace(title="changed"))
+    monkeypatch.undo()
+    changed = s.replace(title="changed")
+    assert model_spec(changed) == spec and model_spec(changed) is model_spec(changed)

@@ -1,15 +1,16 @@
 """The vocabulary of the scene schema: a typed field with its default and check, the checks every
 section uses, and the table checker.  Sections are dicts ``name -> Field``; the model sections live
-in :mod:`fem_squeal.app.scene`, each analysis's section in its module of :mod:`fem_squeal.app.analyses`.
+in :mod:`fem_squeal.app.scene.schema`, each analysis's section in its module of
+:mod:`fem_squeal.app.analyses`.
 
 A check returns ``None`` when the value is fine, else the reason (``"must be > 0 (got -1)"``); the
 table checker prefixes the key path, so every error reads ``analyses.sweep.n: must be >= 2 (got 1)``.
 
-A validated table becomes a typed section (:func:`freeze`): a frozen dataclass made from its field
-table (:func:`section_type`), read by attribute (``scene.preload.tol``) or, as the dict it replaces,
-by key (``scene["preload"]["tol"]``).  ``None`` means "not set" (the field's documented fallback
-applies); a field's ``unset`` names the value that meant "not set" in the older scene format (``0``),
-which still reads as ``None``.
+A table is checked and becomes its typed section in one step (:func:`section`: :func:`check_fields`
+then :func:`freeze`): a frozen dataclass made from its field table (:func:`section_type`), read by
+attribute (``scene.preload.tol``) or, as the dict it replaces, by key (``scene["preload"]["tol"]``).
+``None`` means "not set" (the field's documented fallback applies); a field's ``unset`` names the
+value that meant "not set" in the older scene format (``0``), which still reads as ``None``.
 """
 from __future__ import annotations
 
@@ -149,8 +150,8 @@ class Section(Mapping):
 
 
 @cache
-def _section_type(name: str, names: tuple[str, ...]) -> type[Section]:
-    return dataclasses.make_dataclass(name, [(n, Any) for n in names], bases=(Section,), frozen=True,
+def _section_type(name: str, names: tuple[str, ...], base: type[Section] = Section) -> type[Section]:
+    return dataclasses.make_dataclass(name, [(n, Any) for n in names], bases=(base,), frozen=True,
                                       eq=False)     # equality as mappings (Mapping.__eq__), like the dicts
 
 
@@ -163,11 +164,18 @@ def _class_name(path: str) -> str:
     return "".join(p[:1].upper() + p[1:] for p in path.replace("_", ".").split(".") if p) or "Section"
 
 
-def freeze(values: Mapping[str, Any], fields: dict[str, Field] | None = None, path: str = "") -> Section:
-    """A checked table (from :func:`check_fields`) as its typed section; nested plain tables
-    (name -> table maps such as ``boundary.fixed``) stay mappings of their values."""
+def freeze(values: Mapping[str, Any], fields: dict[str, Field] | None = None, path: str = "",
+           base: type[Section] = Section) -> Section:
+    """A checked table (from :func:`check_fields`) as its typed section (a subclass of ``base``);
+    nested plain tables (name -> table maps such as ``boundary.fixed``) stay mappings of their values."""
     names = tuple(fields) if fields is not None else tuple(values)
-    return _section_type(_class_name(path), names)(**{n: values[n] for n in names})
+    return _section_type(_class_name(path), names, base)(**{n: values[n] for n in names})
+
+
+def section(table: Any, fields: dict[str, Field], path: str, kind: str | None = None) -> Section:
+    """``table`` checked against ``fields`` (:func:`check_fields`, errors named ``path.key``) and frozen
+    as its typed section in the same step; ``kind`` names the section's type (default ``path``)."""
+    return freeze(check_fields(table, fields, path), fields, path if kind is None else kind)
 
 
 def plain(obj: Any) -> Any:

@@ -96,17 +96,14 @@ def _canonical(obj: Any) -> str:
     return json.dumps(plain(obj), sort_keys=True, separators=(",", ":"), default=repr)
 
 
-_NO_SPEC = object()
-
-
 def stage_keys(scene: dict, stages: list[str], *, write_fields: bool = True,
-               version: str | None = None, spec=_NO_SPEC) -> dict[str, str]:
-    """Content key of each stage: hash of (stage, its inputs, upstream keys, code version).
-    ``spec``: the scene's :func:`model_spec` where the caller has it (computed here otherwise).
-    ``write_fields`` is accepted for old callers and ignored: output choices are not inputs."""
+               version: str | None = None) -> dict[str, str]:
+    """Content key of each stage: hash of (stage, its inputs, upstream keys, code version).  A stage's
+    inputs may read the scene's model description: the one its validation built
+    (:func:`~fem_squeal.app.scene.model_spec`, not built again here).  ``write_fields`` is accepted for
+    old callers and ignored: output choices are not inputs."""
     version = version or code_version()
-    if spec is _NO_SPEC:
-        spec = model_spec(scene) if "geometry" in scene else None
+    spec = model_spec(scene) if "geometry" in scene else None
     keys: dict[str, str] = {}
     for name in stages:
         st = STAGES[name]
@@ -137,7 +134,7 @@ def scratch(comm):
 
 
 def make_plan(scene: dict, cache: Cache, *, force: Iterable[str] = (), write_fields: bool = True,
-              version: str | None = None, spec=_NO_SPEC) -> list[PlanItem]:
+              version: str | None = None) -> list[PlanItem]:
     """What a run would do: each required stage is cached (its entry verifies), run (absent, or
     failing verification: ``note`` says why), forced (``force`` and every stage after it), or rebuilt
     in ``memory`` for a stage after it that runs.  ``write_fields`` is ignored (output choices are
@@ -149,7 +146,7 @@ def make_plan(scene: dict, cache: Cache, *, force: Iterable[str] = (), write_fie
     unknown = sorted(set(force) - set(stages))
     if unknown:
         raise PipelineError(f"--force {unknown[0]}: not a stage of this scene; its stages: {stages}")
-    keys = stage_keys(scene, stages, version=version, spec=spec)
+    keys = stage_keys(scene, stages, version=version)
     forced = downstream(force, stages)
     status, notes = {}, {}
     for n in stages:

@@ -193,8 +193,8 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
         cache = comm.bcast(tempfile.mkdtemp(prefix="fem_squeal_cache.") if rank0 else None, root=0)
     store = Cache(cache)
     try:
-        spec = model_spec(scene) if "geometry" in scene else None           # once per run
-        plan = on_root(comm, lambda: make_plan(scene, store, force=force, spec=spec))   # rank 0 reads the cache
+        spec = model_spec(scene) if "geometry" in scene else None   # the one the scene's validation built
+        plan = on_root(comm, lambda: make_plan(scene, store, force=force))   # rank 0 reads the cache
         for item in plan:
             if item.note:
                 say(f"[fem_squeal] warning: {item.note}")

@@ -81,7 +81,8 @@ def _default(f: Field) -> str:
 
 def describe_check(check) -> str:
     """A field's check in words: the named checks of :mod:`fem_squeal.app.fields`, the arguments of
-    the factories (``one_of``, ``at_least``, ``increasing``) read from the closure, else 'custom'."""
+    the factories (``one_of``, ``at_least``, ``increasing``) read from the closure, a named check's
+    docstring, else 'custom'."""
     if check is None:
         return ""
     if check in _NAMED_CHECKS:
@@ -96,6 +97,9 @@ def describe_check(check) -> str:
         low = free.get("low")
         text = f"increasing list of ≥ {free['min_len']} numbers"
         return text + (f", first > {low}" if low is not None else "")
+    if check.__doc__:                   # a named custom check: its docstring's first sentence is the rule
+        rule = _md(check.__doc__).split(". ")[0].rstrip(".")
+        return rule[:1].lower() + rule[1:]
     return "custom check (its error names the rule)"
 
 

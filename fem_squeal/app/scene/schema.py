@@ -1,0 +1,162 @@
+"""The scene schema: the fields of every model section (types, defaults, bounds and their documentation)
+and the parts and faces a geometry has.  With each analysis's section (declared by its module in
+:mod:`fem_squeal.app.analyses`) this is the one place where a scene's keys are defined: the loader
+(:mod:`fem_squeal.app.scene.validation`) checks against these tables and the user guide's reference
+(:mod:`fem_squeal.app.schema_reference`) is rendered from them.  A field without a default (``...``)
+is required; a default of ``None`` means "not set" (the documented fallback applies)."""
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from fem_squeal.app.fields import (
+    REAL,
+    Field,
+    at_least,
+    dataclass_fields,
+    non_negative,
+    nonempty_str,
+    one_of,
+    poisson,
+    positive,
+)
+from geometry.brake_corner import BrakeCornerParams
+from geometry.tags import GEOMETRY_TAGS, mesh_file_tags
+
+
+def _brake_corner_fields() -> dict[str, Field]:
+
+    return {"builder": Field(str), **dataclass_fields(BrakeCornerParams),
+            "order": Field(int, 2, one_of(1, 2), "geometry order: 2 = curved tetrahedra")}
+
+
+GEOMETRY = {
+    "annular_disc": {
+        "builder": Field(str),
+        "mean_radius": Field(REAL, check=positive, doc="mean radius R [m]"),
+        "width": Field(REAL, check=positive, doc="radial width b [m]"),
+        "thickness": Field(REAL, check=positive, doc="axial thickness h [m]"),
+        "mesh_size": Field(REAL, check=positive, doc="target element size [m]"),
+        "order": Field(int, 2, one_of(1, 2), "geometry order: 2 = curved tetrahedra"),
+    },
+    "brake_corner": _brake_corner_fields(),
+    "mesh_file": {
+        "builder": Field(str),
+        "file": Field(str, check=nonempty_str,
+                      doc="mesh file (.msh, .inp, .bdf/.nas, .vtu), relative to the scene"),
+        "format": Field(str, "", None, "meshio format name; '' = from the extension"),
+        "scale": Field(REAL, 1.0, positive, "length factor to metres (0.001 for a mesh in mm)"),
+        "center": Field(list, [0.0, 0.0, 0.0], None, "a point of the disc axis, after scaling [m]"),
+        "axis": Field(list, [0.0, 0.0, 1.0], None, "disc axis; the mesh is turned so that it becomes +z"),
+        "id_field": Field(str, "", None, "integer cell data holding set numbers; '' = automatic"),
+        "max_aspect_ratio": Field(REAL, 10.0, at_least(1), "warn about elements of larger aspect ratio"),
+        "parts": Field(dict, check=lambda v: None if v else "must map at least one part",
+                       doc="part -> [element sets / PSOLID IDs / physical groups / cell-data values]"),
+        "faces": Field(dict, {}, None, "face -> [surfaces / node sets / surface PIDs / physical groups]"),
+    },
+}
+
+
+
+def geometry_tags(geo: Mapping) -> tuple[dict[str, int], dict[str, int]]:
+    """Part and face tags of a validated geometry section (``volumes``, ``faces``: name -> tag)."""
+    if geo["builder"] == "mesh_file":
+        return mesh_file_tags(list(geo["parts"]), list(geo["faces"]))
+    return dict(GEOMETRY_TAGS[geo["builder"]][0]), dict(GEOMETRY_TAGS[geo["builder"]][1])
+
+
+MATERIAL = {
+    "E": Field(REAL, check=positive, doc="Young's modulus [Pa]"),
+    "nu": Field(REAL, check=poisson, doc="Poisson's ratio"),
+    "rho": Field(REAL, check=positive, doc="density [kg/m³]"),
+    "rayleigh_alpha": Field(REAL, 0.0, non_negative, "mass-proportional damping [1/s]"),
+    "rayleigh_beta": Field(REAL, 0.0, non_negative, "stiffness-proportional damping [s]"),
+    "E_axial": Field(REAL, None, positive, "transversely isotropic: modulus along the axis [Pa]"),
+    "nu_axial": Field(REAL, None, None, "transversely isotropic: in-plane contraction under axial stress"),
+    "G_axial": Field(REAL, None, positive, "transversely isotropic: shear modulus of axial planes [Pa]"),
+    "eta": Field(REAL, 0.0, non_negative, "loss factor η: structural damping K(1 + iη) of the part, in the "
+                 "reduced model (whose basis then carries the part's stiffness) and its full-order checks (the "
+                 "real problem of twice the size); analyses.cea, with real arithmetic, leaves it out"),
+}
+_TYPE = Field(str, "rigid_plate", one_of("rigid_plate", "contact", "spring", "bonded"))
+_PAIR = {"slave": Field(str, check=nonempty_str, doc="slave face (quadrature side: the lining)"),
+         "master": Field(str, check=nonempty_str, doc="master face (the disc)")}
+_FRICTION = {"mu": Field(REAL, 0.0, non_negative, "friction coefficient"),
+             "sliding": Field(int, 1, one_of(-1, 0, 1), "+1 forward (+e_θ), -1 backward, 0 none")}
+_KT = Field(REAL, 0.0, non_negative, "tangential penalty across the sliding direction [N/m³] (0: seed 001)")
+#: the friction law of a sliding contact or plate and its velocity terms (names as in analyses.transient)
+_SPEED_LAWS = ("constant", "stribeck")
+_FRICTION_LAW = {
+    "friction": Field(str, "constant", one_of(*_SPEED_LAWS),
+                      "constant: mu; stribeck: μ(V) of seed 004 eq. 4 at V = operating.speed·r (mu_s, mu_d, "
+                      "v_s, v_d), in the preload and K_f too"),
+    "mu_s": Field(REAL, None, positive, "static μ (stribeck); not set: mu", unset=0),
+    "mu_d": Field(REAL, None, positive, "dynamic μ (stribeck; the nominal μ a μ sweep scales); not set: mu",
+                  unset=0),
+    "v_s": Field(REAL, 1e-3, positive, "Stribeck static transition velocity [m/s]"),
+    "v_d": Field(REAL, 1e-2, positive, "Stribeck dynamic transition velocity [m/s]"),
+    "friction_damping": Field(bool, False, None, "velocity terms of the linearised friction force (Abaqus "
+                              "FRICTION DAMPING=YES): p μ/V t₂t₂ᵀ + p dμ/dV ssᵀ in C; needs operating.speed > 0"),
+}
+INTERFACES = {
+    "rigid_plate": {"type": _TYPE, "face": Field(str, check=nonempty_str, doc="face name of the geometry"),
+                    "kn": Field(REAL, check=non_negative, doc="penalty stiffness per area [N/m³]"), **_FRICTION,
+                    "kt": _KT, **_FRICTION_LAW},
+    "contact": {"type": _TYPE, **_PAIR, "kn": Field(REAL, check=positive, doc="penalty [N/m³]"), **_FRICTION,
+                "kt": _KT, **_FRICTION_LAW},
+    "spring": {"type": _TYPE, **_PAIR, "kn": Field(REAL, check=positive, doc="normal stiffness [N/m³]"),
+               "kt": Field(REAL, 0.0, non_negative, "tangential stiffness [N/m³]")},
+    "bonded": {"type": _TYPE, **_PAIR, "kn": Field(REAL, 1e14, positive, "tie penalty [N/m³]")},
+}
+FIXED = {
+    "face": Field(str, check=nonempty_str),
+    "components": Field(list, check=lambda v: None if v and all(c in ("x", "y", "z") for c in v) and
+                        len(set(v)) == len(v) else f"must be a non-empty subset of ['x', 'y', 'z'] (got {v!r})",
+                        doc="global displacement components held at 0"),
+}
+GROUND_SPRING = {
+    "face": Field(str, check=nonempty_str),
+    "k_axial": Field(REAL, 0.0, non_negative, "stiffness along the axis [N/m³]"),
+    "k_transverse": Field(REAL, 0.0, non_negative, "stiffness across the axis [N/m³]"),
+}
+PRESSURE = {"face": Field(str, check=nonempty_str), "p": Field(REAL, check=None, doc="pressure [Pa]")}
+
+
+def _part_names(v: list) -> str | None:
+    """Part names, each at most once.  (Checked against the geometry's parts when operating.gyroscopic
+    is true: :func:`fem_squeal.app.scene.validation.check_rotation`.)"""
+    if not all(isinstance(p, str) for p in v):
+        return f"must be a list of part names (got {v!r})"
+    return None if len(set(v)) == len(v) else f"a part is listed twice (got {v!r})"
+
+
+SECTIONS = {
+    "boundary": {"clamped": Field(list, [], None, "faces with all displacements fixed"),
+                 "fixed": Field(dict, {}, None, "name -> {face, components}: global components fixed"),
+                 "ground_springs": Field(dict, {}, None, "name -> {face, k_axial, k_transverse}")},
+    "loads": {"pressure": Field(dict, {}, None, "name -> {face, p}")},
+    "preload": {
+        "mode": Field(str, "nonlinear", one_of("nonlinear", "all_closed")),
+        "friction": Field(bool, True, None, "sliding friction in the static step"),
+        "tol": Field(REAL, 1e-9, positive, "Newton tolerance on ‖R‖/‖f‖"),
+        "max_iterations": Field(int, 25, positive),
+        "geometric_stiffness": Field(bool, False, None, "stress stiffening K_σ(σ₀) of the static stress in the "
+                                     "CEA (preload, and the centrifugal prestress with operating.gyroscopic)"),
+    },
+    "discretisation": {
+        "degree": Field(int, 2, one_of(1, 2), "Lagrange degree (P1 locks in bending)"),
+        "quadrature_degree": Field(int, None, positive, "not set: estimated by the form compiler", unset=0),
+        "interface_quadrature_degree": Field(int, 4, positive, "slave-surface quadrature of interfaces"),
+    },
+    "operating": {
+        "speed": Field(REAL, 0.0, non_negative, "disc speed Ω [rad/s] (sliding speed V = Ω r at each contact "
+                       "point); 0 = no velocity terms"),
+        "gyroscopic": Field(bool, False, None, "the disc's rotation in the space-fixed frame (gyroscopic and "
+                            "convective terms; needs speed > 0)"),
+        "rotating_parts": Field(list, ["disc"], _part_names, "parts that turn at operating.speed about z (with "
+                                "gyroscopic = true)"),
+    },
+    "solver": {"petsc_options": Field(dict, {}, None, "PETSc options, with their solver prefix")},
+}
+#: the name -> table maps inside model sections, with the fields of their tables
+SUBTABLES = {("boundary", "fixed"): FIXED, ("boundary", "ground_springs"): GROUND_SPRING,
+             ("loads", "pressure"): PRESSURE}

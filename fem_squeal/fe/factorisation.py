@@ -69,19 +69,6 @@ def user_option(name: str, options: Options | None = None) -> str | None:
     return db.getString(name) if db.hasName(name) else None
 
 
-def user_int(name: str, options: Options | None, default: int) -> int:
-    """:func:`user_option` as an integer (``default`` where not given); a value that is not an
-    integer names the option."""
-    value = user_option(name, options)
-    if value is None:
-        return default
-    try:
-        return int(value)
-    except ValueError:
-        from fem_squeal.util.errors import ModelError
-        raise ModelError(f"{name}: must be an integer (got {value!r})") from None
-
-
 @contextmanager
 def scoped_options(defaults: Mapping[str, str], options: Options | None = None) -> Iterator[None]:
     """PETSc's options database with ``defaults`` where the user gave no value and with the scene's

@@ -5,7 +5,8 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from conftest import ROOT, clean_env
+from support.paths import ROOT
+from support.processes import clean_env
 
 
 def test_bench_quick_smoke(tmp_path):

@@ -12,8 +12,9 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, clean_env
 from mpi4py import MPI
+from support.paths import ROOT
+from support.processes import clean_env
 
 COMM = MPI.COMM_WORLD
 SCENE = ROOT / "scenes" / "brake_corner_cea.toml"

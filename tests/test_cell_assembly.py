@@ -30,7 +30,7 @@ SPEC = ModelSpec({"disc": Material(3e9, 0.4, 1400.0)}, clamped=("bottom",), fixe
 
 @functools.cache
 def ring_case():
-    from conftest import ring_mesh
+    from support.ring import ring_mesh
 
     md = ring_mesh(mesh_size=0.004)
     mesh = md.mesh

@@ -9,7 +9,6 @@ from contextlib import nullcontext
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from conftest import ring_operators
 
 from fem_squeal.fe import cholmod, eigen
 from fem_squeal.fe.eigen import solve_real_modes
@@ -160,7 +159,7 @@ def _same_modes(a, b, M) -> None:
         assert abs(np.linalg.norm(MXb[:, twins].T @ Xa[:, j]) - 1) < 1e-8
 
 
-def test_direct_path_gives_the_modes_of_petscs_cholmod():
+def test_direct_path_gives_the_modes_of_petscs_cholmod(ring_operators):
     """The default on one rank (CHOLMOD called directly, METIS order handed in, block Lanczos)
     against PETSc's CHOLMOD interface (chosen by name: K, M permuted, MatMatSolve): the same modes."""
     ops = ring_operators(kn=0, clamped=("inner",))
@@ -173,7 +172,7 @@ def test_direct_path_gives_the_modes_of_petscs_cholmod():
     _same_modes(direct, petsc, ops.M)
 
 
-def test_shifted_factor_and_the_krylov_schur_fallback(monkeypatch):
+def test_shifted_factor_and_the_krylov_schur_fallback(monkeypatch, ring_operators):
     """σ > 0 below the lowest mode (K − σM factorised directly), and a block Lanczos that cannot
     run (no vector budget: Krylov–Schur on PETSc's factorisation takes over): the modes of the
     unshifted default."""

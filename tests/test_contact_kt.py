@@ -16,11 +16,11 @@ import functools
 
 import numpy as np
 import pytest
-from blocks import CONTACT_AREA, UPPER, two_blocks
-from conftest import ring_mesh
 from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
+from support.blocks import CONTACT_AREA, UPPER, two_blocks
+from support.ring import ring_mesh
 
 from fem_squeal.fe.assembly import assemble_operators, contact_matrices, linearise
 from fem_squeal.fe.model import GroundSpring, Interface, Material, ModelSpec, Pressure, RigidPlate
@@ -267,7 +267,7 @@ def _close(a, b, rel):
 
 @pytest.mark.mpi
 def test_two_ranks_give_the_same_numbers(mpirun, tmp_path):
-    from conftest import assert_same_spectrum, two_rank_signature
+    from support.ranks import assert_same_spectrum, two_rank_signature
 
     if COMM.size > 1:
         pytest.skip("compares a serial run with an mpirun -n 2 child")

@@ -9,7 +9,8 @@ import subprocess
 import sys
 
 import pytest
-from conftest import ROOT, clean_env
+from support.paths import ROOT
+from support.processes import clean_env
 
 
 def _demo(name: str, out, *args, prefix=(), timeout=900) -> str:

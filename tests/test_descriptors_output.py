@@ -7,7 +7,6 @@ import os
 
 import numpy as np
 import pytest
-from conftest import ring_operators
 
 from fem_squeal.fe.descriptors import CircumferentialBasis
 from fem_squeal.fe.output import write_modes_xdmf
@@ -26,7 +25,7 @@ def cyl_field(ops, fn):
 
 
 @pytest.mark.parametrize("k", [0, 2, 5])
-def test_nodal_diameter_and_in_plane_share(k):
+def test_nodal_diameter_and_in_plane_share(k, ring_operators):
     ops = ring_operators()
     b = CircumferentialBasis(ops.V, ops.M, ops.M_axial)
     z = np.zeros
@@ -40,7 +39,7 @@ def test_nodal_diameter_and_in_plane_share(k):
 
 
 @pytest.mark.parametrize("sign", [1, -1])
-def test_travelling_direction(sign):
+def test_travelling_direction(sign, ring_operators):
     """x = e^{−i·sign·kθ} e_r: Re(x e^{iωt}) = cos(ωt − sign·kθ) travels towards sign·θ."""
     ops = ring_operators()
     b = CircumferentialBasis(ops.V, ops.M, ops.M_axial)
@@ -84,7 +83,7 @@ def _h5_vector(path, group: str, name: str, n: int):
     return v
 
 
-def test_modes_xdmf_equals_dolfinx_writer(tmp_path):
+def test_modes_xdmf_equals_dolfinx_writer(tmp_path, ring_operators):
     """The mode writer (PETSc HDF5, no per-point evaluation) gives the XML and datasets that
     XDMFFile.write_function gives for the same fields."""
     from dolfinx import fem
@@ -118,7 +117,7 @@ def test_modes_xdmf_equals_dolfinx_writer(tmp_path):
             assert b.norm() <= 1e-12 * max(a.norm(), 1.0)
 
 
-def test_batched_descriptors_equal_the_per_mode_ones():
+def test_batched_descriptors_equal_the_per_mode_ones(ring_operators):
     """describe_all / strain_energy_shares_all over more modes than one block (real and complex mixed)
     give each mode's describe / strain_energy_shares."""
     from fem_squeal.fe.descriptors import BLOCK_MODES, strain_energy_shares, strain_energy_shares_all

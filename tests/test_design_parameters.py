@@ -6,8 +6,8 @@ import functools
 
 import numpy as np
 import pytest
-from blocks import two_blocks
 from mpi4py import MPI
+from support.blocks import two_blocks
 
 from fem_squeal.fe.model import GroundSpring, Interface, Material, ModelSpec, Pressure
 from fem_squeal.reduced.model import ReducedModel
@@ -52,7 +52,7 @@ POINTS = [{"kn.pad": 2.5 * KN}, {"kt.pad": 0.0}, {"kt.pad": 4 * KT}, {"mu.pad": 
 def test_reduced_interface_terms_are_the_projection_of_the_full_operators(point):
     """K_r(p) = Φᵀ K(p) Φ for the interface parameters: the reduced interface matrices are formed from
     the restricted G_nΦ, G_sΦ, G_t₂Φ, the full ones assembled from G (the same closed points)."""
-    from fe_helpers import projection_mismatch
+    from support.operators import projection_mismatch
 
     par, basis, model = reduced_blocks()
     # round-off of sums of m·n_points products of terms ~k_n w |G|²: 1e-10 of the largest entry

@@ -11,7 +11,8 @@ import subprocess
 import time
 
 import pytest
-from conftest import ROOT, clean_env
+from support.paths import ROOT
+from support.processes import clean_env
 
 from fem_squeal.app.analyses import ANALYSES
 from fem_squeal.app.scene import GEOMETRY, INTERFACES, MATERIAL, SECTIONS

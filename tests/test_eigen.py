@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import ring_operators
 
 from fem_squeal.fe.eigen import EigenSolveError, solve_complex_modes, solve_real_modes
 
@@ -19,19 +18,19 @@ def in_band(cm):
 
 
 @pytest.fixture(scope="module")
-def linear():
+def linear(ring_operators):
     ops = ring_operators()
     return solve_complex_modes(ops.K_total(), ops.M, None, 16, TARGET, band_hz=BAND, method="linear")
 
 
-def test_residuals_below_1e8(linear):
+def test_residuals_below_1e8(linear, ring_operators):
     assert np.all(linear.residuals < 1e-8)
     ops = ring_operators()
     rm = solve_real_modes(ops.K, ops.M, 12, 2000.0)
     assert np.all(rm.residuals < 1e-8)
 
 
-def test_pep_agrees_with_linear_eps(linear):
+def test_pep_agrees_with_linear_eps(linear, ring_operators):
     ops = ring_operators()
     pep = solve_complex_modes(ops.K_total(), ops.M, None, 16, TARGET, band_hz=BAND, method="pep")
     a, b = in_band(linear), in_band(pep)
@@ -40,7 +39,7 @@ def test_pep_agrees_with_linear_eps(linear):
     assert np.max(np.abs(a - b) / np.abs(a)) < 1e-8
 
 
-def test_undamped_frictionless_real_parts_vanish():
+def test_undamped_frictionless_real_parts_vanish(ring_operators):
     ops = ring_operators(mu=0.0)
     cm = solve_complex_modes(ops.K_total(), ops.M, None, 16, TARGET, band_hz=BAND)
     lam = in_band(cm)
@@ -48,7 +47,7 @@ def test_undamped_frictionless_real_parts_vanish():
     assert np.max(np.abs(lam.real) / np.abs(lam)) < 1e-10
 
 
-def test_mass_proportional_damping_shifts_every_real_part_by_half_alpha():
+def test_mass_proportional_damping_shifts_every_real_part_by_half_alpha(ring_operators):
     """C = αM: λ² + αλ + ω²(1 ± ig) = 0 has λ = −α/2 + λ₀ + O(α²/ω): every real part moves left."""
     alpha = 4.0
     ops0, ops = ring_operators(), ring_operators(alpha=alpha)
@@ -60,26 +59,26 @@ def test_mass_proportional_damping_shifts_every_real_part_by_half_alpha():
     assert np.allclose(shift, -alpha / 2, atol=1e-3)
 
 
-def test_stiffness_proportional_damping_moves_real_parts_left():
+def test_stiffness_proportional_damping_moves_real_parts_left(ring_operators):
     ops0, ops = ring_operators(), ring_operators(beta=2e-6)
     lam0 = in_band(solve_complex_modes(ops0.K_total(), ops0.M, None, 16, TARGET, band_hz=BAND))
     lam = in_band(solve_complex_modes(ops.K_total(), ops.M, ops.C, 16, TARGET, band_hz=BAND, method="pep"))
     assert np.all(lam.real < lam0.real)
 
 
-def test_linear_method_refuses_damping():
+def test_linear_method_refuses_damping(ring_operators):
     ops = ring_operators(alpha=1.0)
     with pytest.raises(ValueError, match="method"):
         solve_complex_modes(ops.K_total(), ops.M, ops.C, 4, TARGET, method="linear")
 
 
-def test_residual_tolerance_violation_is_reported_with_residuals():
+def test_residual_tolerance_violation_is_reported_with_residuals(ring_operators):
     ops = ring_operators()
     with pytest.raises(EigenSolveError, match=r"residual above 1e-30 for .*Hz: \d"):
         solve_complex_modes(ops.K_total(), ops.M, None, 4, TARGET, max_residual=1e-30)
 
 
-def test_too_few_converged_pairs_is_an_error():
+def test_too_few_converged_pairs_is_an_error(ring_operators):
     ops = ring_operators()
     with pytest.raises(EigenSolveError, match="of 16 requested eigenpairs converged"):
         solve_complex_modes(ops.K_total(), ops.M, None, 16, TARGET, band_hz=BAND,
@@ -93,7 +92,7 @@ def _expected_solver(ops) -> str:
     return "cholmod" if serial and PETSc.Sys.hasExternalPackage("suitesparse") else "mumps"
 
 
-def test_real_mode_defaults_match_the_tight_mumps_solve():
+def test_real_mode_defaults_match_the_tight_mumps_solve(ring_operators):
     """The defaults (CHOLMOD on one rank, tol 1e-7, no purification) against the settings before
     issue #23 (MUMPS LDLᵀ, tol 1e-10, purified eigenvectors) on the clamped ring, σ = 0."""
     ops = ring_operators(kn=0, clamped=("inner",))
@@ -108,7 +107,7 @@ def test_real_mode_defaults_match_the_tight_mumps_solve():
     assert np.all(new.residuals < 1e-8)
 
 
-def test_real_modes_inside_the_spectrum_fall_back_to_mumps():
+def test_real_modes_inside_the_spectrum_fall_back_to_mumps(ring_operators):
     """A shift between two modes makes K − σM indefinite: CHOLMOD (LLᵀ) fails and MUMPS LDLᵀ
     gives the modes nearest the target, the same as the lowest-modes solve."""
     ops = ring_operators(kn=0, clamped=("inner",))
@@ -122,7 +121,7 @@ def test_real_modes_inside_the_spectrum_fall_back_to_mumps():
 
 
 @pytest.mark.parametrize("target", [0.0, "mid"])
-def test_block_lanczos_equals_krylov_schur(target):
+def test_block_lanczos_equals_krylov_schur(target, ring_operators):
     """The default block Lanczos (the factor's block solves) and SLEPc's Krylov–Schur on the same
     factorisation (``block_size`` 0) give the same modes of the clamped ring, whose sin/cos pairs
     are double eigenvalues (a block of 8 holds both), at σ = 0 (CHOLMOD) and with the shift inside
@@ -144,7 +143,7 @@ def test_block_lanczos_equals_krylov_schur(target):
     assert isinstance(block.vectors[0], PETSc.Vec)
 
 
-def test_block_arnoldi_equals_krylov_schur(monkeypatch):
+def test_block_arnoldi_equals_krylov_schur(monkeypatch, ring_operators):
     """The linear CEA's default block Arnoldi (the factor's block solves) and SLEPc's Krylov–Schur on
     the same factorisation (``block_size`` 0) give the same eigenvalues of the frictional ring.
     Both converge to a relative residual of 1e-10 on the shift-inverted operator; for a

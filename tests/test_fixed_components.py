@@ -27,7 +27,7 @@ MAT = {"disc": Material(3e9, 0.4, 1400.0)}
 
 @functools.cache
 def mesh():
-    from conftest import ring_mesh
+    from support.ring import ring_mesh
     return ring_mesh(mesh_size=0.004)
 
 
@@ -98,7 +98,7 @@ def test_model_spec_rejects_a_face_fixed_twice():
 
 
 # ------------------------------------------------------------------ scene keys and their errors
-from conftest import ROOT  # noqa: E402
+from support.paths import ROOT  # noqa: E402
 
 SCENE = ROOT / "scenes" / "ryzhik_ring.toml"
 

@@ -6,7 +6,6 @@ import math
 import numpy as np
 import pytest
 import ufl
-from conftest import ring_mesh, ring_operators
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -42,7 +41,7 @@ def rigid_modes(ops):
         field(ops, lambda x: np.stack([x[:, 2], 0 * x[:, 0], -x[:, 0]], 1))]
 
 
-def test_rigid_body_modes_have_zero_strain_energy():
+def test_rigid_body_modes_have_zero_strain_energy(ring_operators):
     ops = ring_operators(kn=0.0)
     scale = ops.K.norm(PETSc.NormType.INFINITY)
     for u in rigid_modes(ops):
@@ -52,7 +51,7 @@ def test_rigid_body_modes_have_zero_strain_energy():
         assert y.norm() <= 1e-10 * scale * u.norm()
 
 
-def test_in_plane_rigid_modes_stay_free_between_plates():
+def test_in_plane_rigid_modes_stay_free_between_plates(ring_operators):
     ops = ring_operators()
     for u in rigid_modes(ops)[:2] + rigid_modes(ops)[3:4]:   # x, y translation, rotation about z
         assert abs(quad(ops.K, u)) <= 1e-10 * ops.K.norm(PETSc.NormType.INFINITY) * u.dot(u)
@@ -61,7 +60,7 @@ def test_in_plane_rigid_modes_stay_free_between_plates():
     assert quad(ops.K, uz) == pytest.approx(2 * 1e10 * AREA, rel=GEOM_TOL)
 
 
-def test_mass_matrix_gives_the_ring_mass():
+def test_mass_matrix_gives_the_ring_mass(ring_operators):
     ops = ring_operators(kn=0.0)
     ux = rigid_modes(ops)[0]
     assert quad(ops.M, ux) == pytest.approx(1400.0 * AREA * H, rel=GEOM_TOL)
@@ -72,7 +71,7 @@ def test_mass_matrix_gives_the_ring_mass():
 
 
 @pytest.mark.parametrize("sliding", [1, -1])
-def test_friction_form_moment_and_sign(sliding):
+def test_friction_form_moment_and_sign(sliding, ring_operators):
     """u = e_z closes the top face only (bottom plate: sliding 0).  The friction traction
     μ kn (u·n) s with s = sliding·e_θ does virtual work on the rotation v = r e_θ of
     sliding·μ kn ∫_top r dA = sliding·μ kn 2π(r_o³ − r_i³)/3."""
@@ -85,7 +84,7 @@ def test_friction_form_moment_and_sign(sliding):
     assert abs(quad(ops.Kf, rot, uz)) <= 1e-10 * abs(expect)
 
 
-def test_friction_cancels_for_opposite_sliding_under_uniform_closure():
+def test_friction_cancels_for_opposite_sliding_under_uniform_closure(ring_operators):
     ops = ring_operators(sliding=(1, -1))
     uz, rot = rigid_modes(ops)[2], rigid_modes(ops)[3]
     # u_z = 1: top u·n = +1 with s = +e_θ, bottom u·n = −1 with s = −e_θ: same torque twice
@@ -95,7 +94,7 @@ def test_friction_cancels_for_opposite_sliding_under_uniform_closure():
     assert abs(quad(ops2.Kf, uz, rot)) <= 1e-8 * expect
 
 
-def test_rayleigh_damping_matrix():
+def test_rayleigh_damping_matrix(ring_operators):
     ops = ring_operators(alpha=3.0, beta=1e-6)
     ref = ring_operators(kn=0.0)
     for u in rigid_modes(ops)[:3]:
@@ -103,12 +102,12 @@ def test_rayleigh_damping_matrix():
         assert quad(ops.C, u) == pytest.approx(3.0 * quad(ref.M, u), rel=1e-12)
 
 
-def test_p1_warns_about_locking():
+def test_p1_warns_about_locking(ring_operators):
     with pytest.warns(UserWarning, match="lock"):
         ring_operators(mesh_size=0.004, degree=1, kn=0.0)
 
 
-def test_transversely_isotropic_stiffness():
+def test_transversely_isotropic_stiffness(ring_mesh):
     """The Voigt form: equal constants reproduce the isotropic matrix; uniform axial strain ε_z
     and shear γ_xz store ½C₃₃ε²V and ½C₅₅γ²V with C from inverting the compliance (1e-12)."""
     from dolfinx import fem
@@ -146,7 +145,7 @@ def test_transversely_isotropic_stiffness():
         Material(8e9, 0.3, 2500.0, E_axial=3e9, nu_axial=0.9, G_axial=1.5e9)
 
 
-def test_quadrature_degree_is_honoured():
+def test_quadrature_degree_is_honoured(ring_mesh):
     """discretisation.quadrature_degree reaches FFCx (it was silently ignored as a form-compiler
     parameter): the P2 mass on curved P2 cells is a degree-7 polynomial, so degree 7 and the
     default integrate it alike, while the 4-point rule (degree 2) under-integrates it (ccx's C3D10)."""

@@ -14,11 +14,12 @@ import functools
 
 import numpy as np
 import pytest
-from blocks import two_blocks
-from conftest import ROOT, ring_mesh
 from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
+from support.blocks import two_blocks
+from support.paths import ROOT
+from support.ring import ring_mesh
 
 from fem_squeal.fe.assembly import assemble_operators, linearise
 from fem_squeal.fe.model import (
@@ -418,7 +419,7 @@ def signature() -> dict:
 @pytest.mark.slow     # 26 s (a serial and a 2-rank run of the blocks and the ring)
 @pytest.mark.mpi
 def test_two_ranks_give_the_same_numbers(mpirun, tmp_path):
-    from conftest import assert_same_spectrum, two_rank_signature
+    from support.ranks import assert_same_spectrum, two_rank_signature
 
     if COMM.size > 1:
         pytest.skip("compares a serial run with an mpirun -n 2 child")

@@ -9,9 +9,9 @@ import functools
 
 import numpy as np
 import pytest
-from fe_helpers import bilinear, nodal_vector
 from mpi4py import MPI
 from petsc4py import PETSc
+from support.operators import bilinear, nodal_vector
 
 R_I, R_O, H = 0.05, 0.15, 0.01
 E, NU, RHO = 2.1e11, 0.3, 7850.0

@@ -10,9 +10,9 @@ import functools
 
 import numpy as np
 import pytest
-from fe_helpers import bilinear, nodal_vector
 from mpi4py import MPI
 from petsc4py import PETSc
+from support.operators import bilinear, nodal_vector
 
 from fem_squeal.app.scene import validate
 from fem_squeal.util.errors import SceneError
@@ -232,7 +232,7 @@ def test_spinning_disc_one_and_two_ranks_agree(tmp_path, mpirun):
     import subprocess
     import sys
 
-    from conftest import clean_env
+    from support.processes import clean_env
 
     from fem_squeal.app.run import run_scene
     from fem_squeal.app.scene import load_scene
@@ -267,7 +267,7 @@ def test_rotating_frame_matches_calculix_coriolis(tmp_path):
 
     if shutil.which("ccx") is None:
         pytest.skip("ccx not installed")
-    from conftest import ROOT
+    from support.paths import ROOT
 
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import coriolis_calculix as bench

@@ -11,11 +11,11 @@ import functools
 import numpy as np
 import pytest
 import ufl
-from blocks import CONTACT_AREA, FACES, UPPER, two_blocks
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
+from support.blocks import CONTACT_AREA, FACES, UPPER, two_blocks
 
 from fem_squeal.fe import interface as itf
 
@@ -242,11 +242,13 @@ def test_interface_tests_pass_on_two_ranks_with_pairs_across_ranks(mpirun):
     owned by the other rank (checked: n_remote > 0)."""
     import subprocess
     import sys
+    from pathlib import Path
 
-    from conftest import ROOT, clean_env
+    from support.paths import ROOT
+    from support.processes import clean_env
 
     p = subprocess.run(mpirun + [sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider",
-                                 "-m", "not mpi", str(ROOT / "tests" / "test_interface.py")],
+                                 "-m", "not mpi", str(Path(__file__).resolve())],
                        capture_output=True, text=True, timeout=900, env=clean_env(), cwd=ROOT)
     assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
 

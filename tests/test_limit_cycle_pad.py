@@ -121,7 +121,8 @@ def test_segmented_pad_demo_serial_and_two_ranks(tmp_path, mpirun):
     import subprocess
     import sys
 
-    from conftest import ROOT, clean_env
+    from support.paths import ROOT
+    from support.processes import clean_env
 
     out = {}
     for n, prefix in ((1, []), (2, mpirun)):

@@ -8,7 +8,8 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, clean_env
+from support.paths import ROOT
+from support.processes import clean_env
 
 # Slow (105 s, the longest case of the suite): the MASA arithmetic's rank independence is checked bit for
 # bit in the default suite (tests/test_masa.py); this runs the whole brake chain twice.

@@ -20,8 +20,9 @@ import warnings
 import meshio
 import numpy as np
 import pytest
-from conftest import ROOT, clean_env
 from mpi4py import MPI
+from support.paths import ROOT
+from support.processes import clean_env
 
 from fem_squeal.app.convert import write_geometry, write_mesh_file
 from fem_squeal.app.run import run_scene
@@ -360,10 +361,9 @@ def test_import_demo_runs_and_checks_itself(ranks, mpirun, tmp_path):
 
 
 # --- export: fields on the mesh nodes through meshio ---------------------------------------------
-def test_vtu_fields_and_snapshots_are_the_functions_at_the_nodes(tmp_path):
+def test_vtu_fields_and_snapshots_are_the_functions_at_the_nodes(tmp_path, ring_mesh):
     """Quadratic fields are exact in P2, so the VTU values at the (curved) P2 nodes equal the
     formulas to round-off; snapshots Φ q from the stored basis (float32: 1e-7 relative) likewise."""
-    from conftest import ring_mesh
     from dolfinx import fem
 
     from fem_squeal.fe.output import write_basis_field, write_vtu

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import ring_mesh, ring_operators
+from support.ring import ring_mesh, ring_operators
 
 from fem_squeal.fe import ordering
 from fem_squeal.fe.eigen import solve_real_modes

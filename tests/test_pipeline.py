@@ -20,8 +20,9 @@ import time
 
 import numpy as np
 import pytest
-from conftest import ROOT, clean_env
 from mpi4py import MPI
+from support.paths import ROOT
+from support.processes import clean_env
 
 from fem_squeal.app import run as run_module
 from fem_squeal.app.pipeline import Cache, PipelineError, make_plan, required, stage_keys

@@ -8,7 +8,7 @@ import functools
 
 import numpy as np
 import pytest
-from conftest import ring_mesh
+from support.ring import ring_mesh
 
 from fem_squeal.fe.model import Material, ModelSpec, RigidPlate
 
@@ -69,7 +69,7 @@ def test_plate_parameters_give_the_operators_of_the_changed_model(point):
 def test_plate_parameters_of_the_reduced_model_are_the_projection_of_the_full_ones():
     """The reduced model's plate terms (Φᵀ K_c,p Φ, Φᵀ K_f,p Φ, Φᵀ K_t,p Φ) reproduce Φᵀ K(p) Φ at every
     point (round-off of the projection: 1e-10 of the largest entry), and the nominal values change nothing."""
-    from fe_helpers import projection_mismatch
+    from support.operators import projection_mismatch
 
     from fem_squeal.fe.projection import build_basis, reduce
 

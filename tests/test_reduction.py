@@ -13,7 +13,9 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, clean_env, ring_mesh
+from support.paths import ROOT
+from support.processes import clean_env
+from support.ring import ring_mesh
 
 from fem_squeal.fe.eigen import solve_complex_modes
 from fem_squeal.reduced.sweep import solve_points

@@ -15,8 +15,9 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, clean_env
 from mpi4py import MPI
+from support.paths import ROOT
+from support.processes import clean_env
 
 from fem_squeal.app.run import run_scene
 from fem_squeal.app.scene import load_scene

@@ -7,8 +7,9 @@ import subprocess
 import sys
 
 import pytest
-from conftest import ROOT, clean_env, ring_mesh
 from mpi4py import MPI
+from support.paths import ROOT
+from support.processes import clean_env
 
 from fem_squeal.app.pipeline import default_cache_dir
 from fem_squeal.app.resources import GIB, check_outdir, factorisation_kind, machines_needed, solve_memory
@@ -24,7 +25,7 @@ def _cells(md) -> int:
     return md.mesh.topology.index_map(3).size_global
 
 
-def test_cell_estimate_against_real_meshes():
+def test_cell_estimate_against_real_meshes(ring_mesh):
     """The estimate is for refusing absurd sizes and warning near the limit: 35 % is its stated accuracy
     (calibrated on the ring at 2 mm and the brake at 16/11 mm; checked here on other sizes too)."""
     ring = _cells(ring_mesh(mesh_size=0.0025))

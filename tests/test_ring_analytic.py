@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import ring_operators
+from support.ring import ring_operators
 
 from fem_squeal.fe.descriptors import CircumferentialBasis
 from fem_squeal.fe.eigen import solve_complex_modes, solve_real_modes

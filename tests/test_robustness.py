@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import clean_env
 from scipy.stats import spearmanr
+from support.paths import ROOT
+from support.processes import clean_env
 
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
 from fem_squeal.reduced.model import ReducedModel
@@ -25,7 +26,6 @@ from fem_squeal.reduced.stability_map import equal_bands
 from fem_squeal.reduced.sweep import solve_points
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
-ROOT = Path(__file__).resolve().parents[1]
 MU_C = 0.25
 BAND = (0.0, 3200.0)
 
@@ -118,7 +118,7 @@ SCRIPT = """
 import json, sys
 import numpy as np
 from mpi4py import MPI
-sys.path.insert(0, {tests!r})
+sys.path[:0] = {paths!r}
 from test_robustness import brake_like, BAND
 from fem_squeal.reduced.robustness import Distribution, run_robustness
 from fem_squeal.reduced.stability_map import equal_bands
@@ -133,7 +133,7 @@ if comm.rank == 0:
 
 def test_same_results_on_one_and_two_ranks(tmp_path, mpirun):
     script = tmp_path / "rob.py"
-    script.write_text(SCRIPT.format(tests=str(ROOT / "tests")))
+    script.write_text(SCRIPT.format(paths=[str(Path(__file__).parent), str(ROOT / "tests")]))
     env = {**clean_env(), "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
     outs = []
     for cmd in ([sys.executable, str(script)], [*mpirun, sys.executable, str(script)]):

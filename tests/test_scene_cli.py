@@ -7,9 +7,10 @@ import sys
 import tomllib
 
 import pytest
-from conftest import ROOT, clean_env
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from support.paths import ROOT
+from support.processes import clean_env
 
 from fem_squeal.app.scene import SceneError, apply_overrides, load_scene, model_spec, read_scene, validate
 

@@ -156,11 +156,10 @@ def test_report_says_near_coalescence(tmp_path):
     assert (tmp_path / "t.png").stat().st_size > 1000
 
 
-def test_full_model_ring_d_real_part_d_mu():
+def test_full_model_ring_d_real_part_d_mu(ring_operators):
     """The full model (FE ring between two plates, left vectors from SLEPc): Re λ of each flutter pair is
     linear in μ (eq. 11), so μ ∂Re λ/∂μ = Re λ to O(g²) (g = μνα_k ≤ 0.05 here), and the imaginary part
     ∂f/∂μ is O(g) small: the same relation as the closed form above, on the FE eigenvectors."""
-    from conftest import ring_operators
 
     from fem_squeal.fe.eigen import solve_complex_modes
     from fem_squeal.fe.model import Material, ModelSpec, RigidPlate

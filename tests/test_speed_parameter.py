@@ -7,7 +7,7 @@ import functools
 
 import numpy as np
 import pytest
-from conftest import ring_mesh
+from support.ring import ring_mesh
 
 from fem_squeal.fe.model import FixedFace, Material, ModelSpec, Pressure, RigidPlate
 
@@ -80,7 +80,7 @@ def test_friction_damping_scales_with_mu(mu):
 def test_reduced_speed_terms_are_the_projection_of_the_full_ones():
     """Φᵀ K(p) Φ and Φᵀ C(p) Φ at (μ, Ω) points equal the reduced model's (round-off: 1e-10 of the largest
     entry); 'speed' is a parameter with its nominal value."""
-    from fe_helpers import projection_mismatch
+    from support.operators import projection_mismatch
 
     _, _, _, par, basis, rm = model()
     assert "speed" in rm.parameters and rm.nominal()["speed"] == W0
@@ -239,8 +239,8 @@ def test_speed_sweep_and_map_scene_one_and_two_ranks(tmp_path, mpirun):
     import subprocess
     import sys
 
-    from conftest import clean_env
     from mpi4py import MPI
+    from support.processes import clean_env
 
     from fem_squeal.app.run import run_scene
     from fem_squeal.app.scene import load_scene

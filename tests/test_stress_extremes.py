@@ -6,11 +6,11 @@ and P2 at 3 mm adds 0.3 % growth-rate error (benchmarks/ring_convergence.py), he
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import pytest
+from support.paths import ROOT
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 import stress_extremes as se  # noqa: E402
 
 COARSE = ["geometry.mesh_size=0.003"]

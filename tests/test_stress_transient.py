@@ -4,17 +4,17 @@ bounded response and HHT damping of the high mode at Δt ≫ its period."""
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from support.paths import ROOT
 
 from fem_squeal.reduced.eigensolve import quadratic_eigs
 from fem_squeal.reduced.masa import linearise, static_equilibrium
 from fem_squeal.reduced.transient import DynamicModel, from_masa, run_transient
 from fem_squeal.reduced.two_dof import two_dof_model
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 import transient_order  # noqa: E402  (the belt of its section 3c: stick spring ω_t = 1e5 rad/s)
 
 

@@ -21,7 +21,8 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, clean_env
+from support.paths import ROOT
+from support.processes import clean_env
 
 SCENE = ROOT / "scenes" / "brake_transient.toml"
 COARSE = ["geometry.mesh_size=0.016", "analyses.reduced.band_hz=[0.0, 6000.0]",

@@ -105,7 +105,7 @@ def test_hopf_point_in_an_earlier_step_than_the_threshold():
 
 
 def test_hopf_point_several_steps_before_a_coarse_threshold():
-    """Model of tests/test_reduced.py (ω = 1, 1.2; Kf = [[0, 1], [−1, 0]]) with the same damping
+    """Model of tests/unit/reduced/test_reduced.py (ω = 1, 1.2; Kf = [[0, 1], [−1, 0]]) with the same damping
     and growth_tol = 0.02: the threshold is crossed in [0.22, 0.23] on both sliding directions,
     the Hopf point (Routh–Hurwitz: 0.131909) is nine grid steps before it."""
     c1, c2 = C_LIGHT

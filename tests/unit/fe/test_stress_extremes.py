@@ -1,7 +1,7 @@
 """Extremes on the ring against its analytic growth rates (short version of
 benchmarks/stress_extremes.py, P2 at 3 mm: 13k DOFs).
 
-Tolerance: the corrected ring theory is exact to 0.2 % for k = 2..6 (tests/test_ring_analytic.py)
+Tolerance: the corrected ring theory is exact to 0.2 % for k = 2..6 (tests/unit/fe/test_ring_analytic.py)
 and P2 at 3 mm adds 0.3 % growth-rate error (benchmarks/ring_convergence.py), hence 1 %."""
 from __future__ import annotations
 

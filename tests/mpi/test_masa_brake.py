@@ -12,7 +12,7 @@ from support.paths import ROOT
 from support.processes import clean_env
 
 # Slow (105 s, the longest case of the suite): the MASA arithmetic's rank independence is checked bit for
-# bit in the default suite (tests/test_masa.py); this runs the whole brake chain twice.
+# bit in the default suite (tests/unit/reduced/test_masa.py); this runs the whole brake chain twice.
 pytestmark = pytest.mark.slow
 
 COARSE = ["--set=geometry.mesh_size=0.016", "--set=analyses.masa.n_amplitudes=30",
@@ -35,7 +35,7 @@ def runs(tmp_path_factory, mpirun):
 
 @pytest.mark.mpi
 def test_masa_brake_demo_serial_equals_two_ranks(runs):
-    """The MASA arithmetic is rank-independent bit for bit (tests/test_masa.py); the brake's
+    """The MASA arithmetic is rank-independent bit for bit (tests/unit/reduced/test_masa.py); the brake's
     inputs are not: the preload Newton stops at ‖R‖ ≤ 1e-9‖f‖ and the SLEPc bases differ in
     round-off between partitionings.  Measured (two runs): frequencies ≤ 1.3e-7 relative, real
     parts ≤ 9e-8 of |λ| (a pair near its coalescence amplifies perturbations as a square root),

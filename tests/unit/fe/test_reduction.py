@@ -239,7 +239,7 @@ def test_events_refined_to_the_model_error():
     from fem_squeal.reduced.sweep import path_solver, signed_mu_axis
     from fem_squeal.reduced.tracking import track
 
-    # 2-DOF mode coupling (tests/test_reduced.py): undamped coalescence at μc = (ω₂² − ω₁²)/2
+    # 2-DOF mode coupling (tests/unit/reduced/test_reduced.py): undamped coalescence at μc = (ω₂² − ω₁²)/2
     model = ReducedModel(K0=np.diag([1.0, 1.44]), Kf1=np.array([[0.0, 1.0], [-1.0, 0.0]]))
     mu_c = 0.22
     values = signed_mu_axis(0.5, 101)

@@ -1,7 +1,7 @@
 """Threads of the numerical libraries (fem_squeal.util.blas): the OpenMP guard around CHOLMOD's
 factorisation switches parallel regions off inside its block and restores the previous setting
 after it, also on an exception and when nested (that the factor is the same to the bit with and
-without it: tests/test_cholmod.py); the one-BLAS-thread block of the transients likewise."""
+without it: tests/unit/fe/test_cholmod.py); the one-BLAS-thread block of the transients likewise."""
 from __future__ import annotations
 
 import pytest

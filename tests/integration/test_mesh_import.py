@@ -126,8 +126,8 @@ def test_missing_and_empty_sets_list_the_available_ones(ring):
 
 
 def test_unsupported_elements_are_named(tmp_path):
-    """Hexahedra, wedges and pyramids are split into tetrahedra (tests/test_mesh_hex.py); what is still
-    refused is named with its count and the supported list."""
+    """Hexahedra, wedges and pyramids are split into tetrahedra (tests/unit/geometry/test_mesh_hex.py); what is
+    still refused is named with its count and the supported list."""
     cube = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]],
                     float)
     meshio.write(tmp_path / "hex.inp", meshio.Mesh(cube, [("hexahedron", [list(range(8))])]))

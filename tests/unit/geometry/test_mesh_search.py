@@ -4,7 +4,7 @@ the generic builders use to avoid slivers and curved elements inverted by their 
 The logic is tested on a unit box with the quality measure replaced by a table per attempt, so each
 branch (accept the first good one, keep the best when none is good, skip attempts already judged, a
 last attempt that fails to mesh, no judging) is reached on purpose.  The real measure is exercised by
-tests/test_stress_extremes.py (a ring whose default mesh has a zero-Jacobian curved element).
+tests/unit/fe/test_stress_extremes.py (a ring whose default mesh has a zero-Jacobian curved element).
 """
 from __future__ import annotations
 

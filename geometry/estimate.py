@@ -4,7 +4,7 @@ its mesh size.
 A gmsh tetrahedral mesh of target size h puts about ``TETS_PER_H3`` · V/h³ elements in the bulk of
 a part of volume V, and at least about ``TETS_PER_H2`` · A/h² in a part whose thickness is below a
 few h (its faces of area A are meshed at size h and the tetrahedra span the thickness): a part gets
-the larger of the two.  Calibrated on real meshes (``tests/test_resources.py`` re-checks them within
+the larger of the two.  Calibrated on real meshes (``tests/unit/app/test_resources.py`` re-checks them within
 35 %): the ring of ``scenes/ryzhik_ring.toml`` (h = 2 mm: 4,533 cells, estimate 4,525) and the brake
 corner, whose graded bore and imprinted pad footprints multiply the count of its surface-dominated
 parts by ``BUILDER_FACTOR`` = 1.75: h = 16, 11, 5.6 and 3 mm give 8,570, 15,605, 67,285 and 361,758

@@ -9,8 +9,8 @@
 # Usage: scripts/setup.sh [--test] [--docs] [--bench] [--packages-only]
 #   (prints the venv python path on its last line, except with --packages-only)
 #   --test:  also what only the test suite needs: chromium (485 MB; the headless render of
-#            report.html in tests/test_pipeline.py), pytest-xdist (the suite on every core) and
-#            Sphinx with the MyST parser (the user guide, built by tests/test_docs.py through
+#            report.html in tests/integration/test_pipeline.py), pytest-xdist (the suite on every core) and
+#            Sphinx with the MyST parser (the user guide, built by tests/integration/test_docs.py through
 #            scripts/docs.sh).  scripts/test.sh passes it.
 #   --docs:  also Sphinx with the MyST parser (scripts/docs.sh passes it).
 #   --bench: also the peers of the benchmark suite: CalculiX (Debian calculix-ccx), GetFEM (Debian

@@ -4,7 +4,11 @@ util ← theory ← reduced ← fe ← app, each importing only from the layers 
 imports nothing from fem_squeal; ``reduced`` imports no dolfinx/PETSc/UFL; no import cycles between
 modules; an import inside a function body is allowed only with a comment naming the heavy optional
 import it defers (``# heavy: ...`` on the line or the line before); no private module of another
-package is imported, and nothing is compiled at run time (the kernels are built with the package)."""
+package is imported, and nothing is compiled at run time (the kernels are built with the package).
+
+The tests themselves: every test file lives in ``tests/unit/<layer>``, ``tests/integration`` or
+``tests/mpi`` (this file alone at the top), file names are unique, and no test imports ``conftest``:
+shared code is a fixture of a ``conftest.py`` or a helper of ``tests/support``."""
 from __future__ import annotations
 
 import ast
@@ -206,3 +210,53 @@ def test_the_checks_catch_a_runtime_compiler_and_a_private_import(tmp_path):
     assert [n for n, _ in _private_imports(p)] == ["_cffi_backend", "meshio._mesh"]
     consts = [n.value for n in ast.walk(ast.parse(p.read_text())) if isinstance(n, ast.Constant)]
     assert "gcc" in consts and "gcc" in COMPILERS
+
+
+TESTS = ROOT / "tests"
+TEST_FOLDERS = {f"unit/{layer}" for layer in ("geometry", "util", "reduced", "fe", "app")} | {"integration", "mpi"}
+
+
+def _test_files() -> list[Path]:
+    return sorted(p for p in TESTS.rglob("test_*.py") if p != Path(__file__).resolve())
+
+
+def _imports_conftest(path: Path) -> list[int]:
+    """Lines of ``path`` that import ``conftest`` (``import conftest``, ``from conftest import ...``)."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import) and any(a.name.split(".")[0] == "conftest" for a in node.names):
+            out.append(node.lineno)
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "conftest":
+            out.append(node.lineno)
+    return out
+
+
+def test_every_test_file_lives_in_a_layer_integration_or_mpi():
+    """A newcomer finds a test beside its subject: tests/unit/<layer>, tests/integration, tests/mpi;
+    at the top of tests/ only the fixtures (conftest.py), this file, support/ and data/."""
+    assert len(_test_files()) > 40
+    bad = [str(p.relative_to(TESTS)) for p in _test_files()
+           if p.parent.relative_to(TESTS).as_posix() not in TEST_FOLDERS]
+    assert not bad, f"test files outside {sorted(TEST_FOLDERS)}: {bad}"
+    assert {p.name for p in TESTS.glob("*.py")} == {"conftest.py", "test_architecture.py"}
+    assert {p.name for p in TESTS.iterdir() if p.is_dir() and not p.name.startswith((".", "__"))} == \
+        {"unit", "integration", "mpi", "support", "data"}
+
+
+def test_test_file_names_are_unique():
+    """pytest imports test files without packages by their base name (and the two-rank children find a
+    test module by it): two files of one name in two folders would collide."""
+    names = [p.name for p in _test_files()]
+    assert len(names) == len(set(names)), sorted({n for n in names if names.count(n) > 1})
+
+
+def test_no_test_imports_conftest():
+    """Shared code is a fixture (conftest.py) or a helper of tests/support, never an import of a conftest."""
+    bad = [f"{p.relative_to(ROOT)}:{line}" for p in sorted(TESTS.rglob("*.py")) for line in _imports_conftest(p)]
+    assert not bad, "imports of conftest:\n" + "\n".join(bad)
+
+
+def test_the_conftest_check_catches_both_forms(tmp_path):
+    p = tmp_path / "test_x.py"
+    p.write_text("import os\nfrom conftest import ROOT\n\ndef test_a():\n    import conftest\n")
+    assert _imports_conftest(p) == [2, 5]

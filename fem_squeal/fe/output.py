@@ -7,7 +7,7 @@ function at every geometry node by a Newton pull-back per point (0.13 s per fiel
 of a CEA's eigensolve for 55 modes).  A field in the coordinate space already holds those values:
 they are taken by the cell-wise map geometry node -> DOF and written collectively with PETSc's HDF5
 viewer into the file ``write_mesh`` made, and the XML lists them as dolfinx would (same datasets
-``/Function/<name>/<t>``, same grids); tests/test_descriptors_output.py compares both writers."""
+``/Function/<name>/<t>``, same grids); tests/unit/fe/test_descriptors_output.py compares both writers."""
 from __future__ import annotations
 
 import ctypes

@@ -33,7 +33,7 @@ largest growth rate, from the same samples (no further solves: the "given data" 
 2010): the samples sorted by X_i fall into M = round(√N/2) bins of equal count, S_i is the variance
 of the bin means of Y over Var(Y), less its bias (M − 1)/(N − 1) for an unrelated X_i (then
 clipped to [0, 1]); the 95 % interval is the percentile interval of 200 bootstrap resamples.  An
-additive model Y = Σ aᵢXᵢ has Sᵢ = aᵢ²Var Xᵢ / Σ aⱼ²Var Xⱼ (tests/test_robustness.py); ρ ranks
+additive model Y = Σ aᵢXᵢ has Sᵢ = aᵢ²Var Xᵢ / Σ aⱼ²Var Xⱼ (tests/unit/reduced/test_robustness.py); ρ ranks
 monotone drivers, S_i also catches non-monotone ones (e.g. a growth rate peaking at mid μ).
 """
 from __future__ import annotations

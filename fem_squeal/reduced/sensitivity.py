@@ -25,8 +25,8 @@ condition number ‖x‖‖y‖/|yᴴx| of θ = −λ² as an eigenvalue of K.  
 any coalescence; it is reported beside κ_loc but not used for the flag.  For a pair of modes
 driven towards coalescence by a parameter p (a 2×2 block, the Hoffmann model) κ_loc ≈ c/√(2Δ)
 with Δ = |p − p_c|/p_c the relative distance to the exceptional point and c of order one (1 for
-a symmetric coupling, 0.79 for the two-DOF Hoffmann model: tests/test_sensitivity.py), and the first-order
-prediction λ + h dλ/dp over a relative step h has a relative error ≈ h/(4Δ) of the change.  The
+a symmetric coupling, 0.79 for the two-DOF Hoffmann model: tests/unit/reduced/test_sensitivity.py), and the
+first-order prediction λ + h dλ/dp over a relative step h has a relative error ≈ h/(4Δ) of the change.  The
 default threshold κ_loc > 10 (:data:`KAPPA_COALESCENCE`) flags a mode within Δ ≈ 0.3–0.5 % of a
 coalescence: there a 1 % change of the parameter (the scatter of a robustness study) already
 crosses the branch point and the derivative does not describe λ(p); the number is then not

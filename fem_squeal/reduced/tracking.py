@@ -25,7 +25,7 @@ eigenvalue at p_a farther from the others than 4× its predicted movement, and a
 nearest each branch's linear prediction nearer than 0.2× the next one, no frequency order changed.
 The MAC references are then re-solved only before the next step that needs them (near
 coalescences and veerings).  On the brake sweep (201 values) this leaves 120 of 264 solves with
-eigenvectors and the same branches (tests/test_reduced.py: equal to MAC continuation at every step).
+eigenvectors and the same branches (tests/unit/reduced/test_reduced.py: equal to MAC continuation at every step).
 
 After tracking, every change of stability of a branch between two grid values (Re λ crossing
 ``growth_tol``·|λ|, see :func:`~fem_squeal.reduced.eigensolve.unstable`) is an event; its

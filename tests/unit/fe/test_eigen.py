@@ -1,0 +1,171 @@
+"""Solver checks: residuals, PEP against linear EPS, damping limits, clear errors."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fem_squeal.fe.eigen import EigenSolveError, solve_complex_modes, solve_real_modes
+
+TARGET = 2500.0
+
+
+BAND = (100.0, 5000.0)
+
+
+def in_band(cm):
+    f = cm.freqs_hz
+    return cm.eigenvalues[(f > BAND[0]) & (f < BAND[1])]
+
+
+@pytest.fixture(scope="module")
+def linear(ring_operators):
+    ops = ring_operators()
+    return solve_complex_modes(ops.K_total(), ops.M, None, 16, TARGET, band_hz=BAND, method="linear")
+
+
+def test_residuals_below_1e8(linear, ring_operators):
+    assert np.all(linear.residuals < 1e-8)
+    ops = ring_operators()
+    rm = solve_real_modes(ops.K, ops.M, 12, 2000.0)
+    assert np.all(rm.residuals < 1e-8)
+
+
+def test_pep_agrees_with_linear_eps(linear, ring_operators):
+    ops = ring_operators()
+    pep = solve_complex_modes(ops.K_total(), ops.M, None, 16, TARGET, band_hz=BAND, method="pep")
+    a, b = in_band(linear), in_band(pep)
+    assert len(a) == len(b) == 11
+    # both solve the same discrete problem to tol 1e-10; 1e-8 relative is the issue's bar
+    assert np.max(np.abs(a - b) / np.abs(a)) < 1e-8
+
+
+def test_undamped_frictionless_real_parts_vanish(ring_operators):
+    ops = ring_operators(mu=0.0)
+    cm = solve_complex_modes(ops.K_total(), ops.M, None, 16, TARGET, band_hz=BAND)
+    lam = in_band(cm)
+    # symmetric K, M: eigenvalues are exactly imaginary; |Re λ| is round-off (1e-12 |λ|)
+    assert np.max(np.abs(lam.real) / np.abs(lam)) < 1e-10
+
+
+def test_mass_proportional_damping_shifts_every_real_part_by_half_alpha(ring_operators):
+    """C = αM: λ² + αλ + ω²(1 ± ig) = 0 has λ = −α/2 + λ₀ + O(α²/ω): every real part moves left."""
+    alpha = 4.0
+    ops0, ops = ring_operators(), ring_operators(alpha=alpha)
+    lam0 = in_band(solve_complex_modes(ops0.K_total(), ops0.M, None, 16, TARGET, band_hz=BAND))
+    lam = in_band(solve_complex_modes(ops.K_total(), ops.M, ops.C, 16, TARGET, band_hz=BAND, method="pep"))
+    assert len(lam) == len(lam0)
+    shift = lam.real - lam0.real
+    # exact shift: λ = −α/2 ± sqrt(α²/4 − μ0²); the α²/(8ω²) correction on Re is ~1e-5 1/s here
+    assert np.allclose(shift, -alpha / 2, atol=1e-3)
+
+
+def test_stiffness_proportional_damping_moves_real_parts_left(ring_operators):
+    ops0, ops = ring_operators(), ring_operators(beta=2e-6)
+    lam0 = in_band(solve_complex_modes(ops0.K_total(), ops0.M, None, 16, TARGET, band_hz=BAND))
+    lam = in_band(solve_complex_modes(ops.K_total(), ops.M, ops.C, 16, TARGET, band_hz=BAND, method="pep"))
+    assert np.all(lam.real < lam0.real)
+
+
+def test_linear_method_refuses_damping(ring_operators):
+    ops = ring_operators(alpha=1.0)
+    with pytest.raises(ValueError, match="method"):
+        solve_complex_modes(ops.K_total(), ops.M, ops.C, 4, TARGET, method="linear")
+
+
+def test_residual_tolerance_violation_is_reported_with_residuals(ring_operators):
+    ops = ring_operators()
+    with pytest.raises(EigenSolveError, match=r"residual above 1e-30 for .*Hz: \d"):
+        solve_complex_modes(ops.K_total(), ops.M, None, 4, TARGET, max_residual=1e-30)
+
+
+def test_too_few_converged_pairs_is_an_error(ring_operators):
+    ops = ring_operators()
+    with pytest.raises(EigenSolveError, match="of 16 requested eigenpairs converged"):
+        solve_complex_modes(ops.K_total(), ops.M, None, 16, TARGET, band_hz=BAND,
+                            options={"starved_eps_max_it": 1, "starved_eps_ncv": 17}, prefix="starved_")
+
+
+def _expected_solver(ops) -> str:
+    from petsc4py import PETSc
+
+    serial = ops.K.getComm().getSize() == 1
+    return "cholmod" if serial and PETSc.Sys.hasExternalPackage("suitesparse") else "mumps"
+
+
+def test_real_mode_defaults_match_the_tight_mumps_solve(ring_operators):
+    """The defaults (CHOLMOD on one rank, tol 1e-7, no purification) against the settings before
+    issue #23 (MUMPS LDLᵀ, tol 1e-10, purified eigenvectors) on the clamped ring, σ = 0."""
+    ops = ring_operators(kn=0, clamped=("inner",))
+    new = solve_real_modes(ops.K, ops.M, 12, 0.0)
+    old = solve_real_modes(ops.K, ops.M, 12, 0.0, tol=1e-10, prefix="old_",
+                           options={"old_st_pc_factor_mat_solver_type": "mumps", "old_eps_purify": True})
+    assert new.solver == _expected_solver(ops) and old.solver == "mumps"
+    assert new.seconds["factor"] > 0 and new.seconds["solve"] > 0
+    # the Ritz values err by ~ residual² (1e-14 at tol 1e-7; 4e-14 measured on the 87k disc):
+    # 1e-10 is the issue's 1e-8 bar with a margin of 100
+    assert np.max(np.abs(new.freqs_hz / old.freqs_hz - 1)) < 1e-10
+    assert np.all(new.residuals < 1e-8)
+
+
+def test_real_modes_inside_the_spectrum_fall_back_to_mumps(ring_operators):
+    """A shift between two modes makes K − σM indefinite: CHOLMOD (LLᵀ) fails and MUMPS LDLᵀ
+    gives the modes nearest the target, the same as the lowest-modes solve."""
+    ops = ring_operators(kn=0, clamped=("inner",))
+    low = solve_real_modes(ops.K, ops.M, 12, 0.0).freqs_hz
+    target = 0.5 * (low[5] + low[6])
+    for known in (None, False):     # False: K − σM known to be indefinite, MUMPS directly
+        mid = solve_real_modes(ops.K, ops.M, 4, target, positive_definite=known)
+        assert mid.solver == "mumps"
+        near = np.sort(low[np.argsort(np.abs(low - target))[:4]])
+        assert np.max(np.abs(mid.freqs_hz / near - 1)) < 1e-10   # as above: both converged to ~1e-14
+
+
+@pytest.mark.parametrize("target", [0.0, "mid"])
+def test_block_lanczos_equals_krylov_schur(target, ring_operators):
+    """The default block Lanczos (the factor's block solves) and SLEPc's Krylov–Schur on the same
+    factorisation (``block_size`` 0) give the same modes of the clamped ring, whose sin/cos pairs
+    are double eigenvalues (a block of 8 holds both), at σ = 0 (CHOLMOD) and with the shift inside
+    the spectrum (MUMPS LDLᵀ, modes on both sides of σ); both converge to residuals ~1e-14 (tol
+    1e-7 on the shift-inverted operator, eigenvalue error ~ residual²): 1e-10 as above."""
+    ops = ring_operators(kn=0, clamped=("inner",))
+    low = solve_real_modes(ops.K, ops.M, 12, 0.0).freqs_hz
+    t = 0.0 if target == 0.0 else 0.5 * (low[5] + low[6])
+    block = solve_real_modes(ops.K, ops.M, 12, t, prefix="blk_")
+    ks = solve_real_modes(ops.K, ops.M, 12, t, prefix="ks_", options={"ks_block_size": 0})
+    assert block.method == "block Lanczos, 8 columns" and ks.method == "Krylov-Schur"
+    assert np.max(np.abs(block.freqs_hz / ks.freqs_hz - 1)) < 1e-10
+    assert np.all(block.residuals < 1e-8)
+    from petsc4py import PETSc
+    for a in block.vectors:        # M-normalised
+        Ma = a.duplicate()
+        ops.M.mult(a, Ma)
+        assert abs(a.dot(Ma) - 1.0) < 1e-10
+    assert isinstance(block.vectors[0], PETSc.Vec)
+
+
+def test_block_arnoldi_equals_krylov_schur(monkeypatch, ring_operators):
+    """The linear CEA's default block Arnoldi (the factor's block solves) and SLEPc's Krylov–Schur on
+    the same factorisation (``block_size`` 0) give the same eigenvalues of the frictional ring.
+    Both converge to a relative residual of 1e-10 on the shift-inverted operator; for a
+    non-symmetric pencil the eigenvalue error is that residual times the eigenvalue's condition
+    (O(1)–O(10) here: friction perturbs a symmetric problem), so 1e-9 (measured 8e-13).  With no
+    memory for its vectors the block path gives way to Krylov–Schur."""
+    from fem_squeal.fe import eigen
+
+    ops = ring_operators()
+    K = ops.K_total()
+    block = solve_complex_modes(K, ops.M, None, 16, TARGET, band_hz=BAND, method="linear", prefix="ba_")
+    ks = solve_complex_modes(K, ops.M, None, 16, TARGET, band_hz=BAND, method="linear", prefix="bk_",
+                             options={"bk_block_size": 0})
+    assert block.algorithm == "block Arnoldi, 8 columns" and ks.algorithm == "Krylov-Schur"
+    assert block.method == ks.method == "linear"
+    assert len(block.eigenvalues) == len(ks.eigenvalues) >= 8
+    assert np.max(np.abs(block.eigenvalues / ks.eigenvalues - 1)) < 1e-9
+    assert np.any(block.real_parts > 1.0)              # the ring's unstable pair is there
+    # ‖Q(λ)x‖/(‖K‖‖x‖): the solver's own bound is 1e-8; pairs converged to 1e-10 on the shift-inverted
+    # operator sit at round-off (measured 7.5e-17), so 1e-12 fails only a pair that did not converge
+    assert np.all(block.residuals < 1e-12)
+    monkeypatch.setattr(eigen.block_krylov, "ARNOLDI_MEMORY_SHARE", 0.0)   # where block Arnoldi reads it
+    low = solve_complex_modes(K, ops.M, None, 16, TARGET, band_hz=BAND, method="linear", prefix="bm_")
+    assert low.algorithm == "Krylov-Schur"
+    assert np.max(np.abs(low.eigenvalues / ks.eigenvalues - 1)) < 1e-9

@@ -21,8 +21,8 @@ contact interface c: ``mu.<c>`` (its own
 signed friction coefficient; it overrides ``mu`` for that interface), ``kn.<c>`` (its normal
 penalty: s_c = k_n,c/k_n,c⁰ scales its closed-contact stiffness K_c,c and its friction stiffness,
 which is μ k_n), ``kt.<c>`` (its tangential penalty, 0 allowed).  The interface matrices are
-formed from the interface's restricted operators (:class:`ContactRestriction`) at the preload's
-closed points: K_c,c = (G_nΦ)ᵀ diag(k_n w a) (G_nΦ), K_f,c¹ = (G_sΦ)ᵀ diag(k_n w a) (G_nΦ),
+formed from the interface's restricted rows (:class:`~fem_squeal.reduced.contact_rows.ContactRows`)
+at the preload's closed points: K_c,c = (G_nΦ)ᵀ diag(k_n w a) (G_nΦ), K_f,c¹ = (G_sΦ)ᵀ diag(k_n w a) (G_nΦ),
 K_t,c¹ = (G_t₂Φ)ᵀ diag(w a) (G_t₂Φ) (+ the same along t₁ for a contact that does not slide), w the
 quadrature weights and a the closed points: the contact state of the preload is kept (a change
 of k_n does not re-solve the preload; the full-order check of
@@ -53,6 +53,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fem_squeal.reduced.contact_rows import ContactRows, from_gap_rows
 from fem_squeal.util.atomic import write_npz_atomic
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
@@ -111,50 +112,8 @@ def format_point(point: Mapping[str, float]) -> str:
     return ", ".join(out)
 
 
-@dataclass
-class ContactRestriction:
-    """A contact interface's operator G restricted to the basis: rows are slave quadrature points,
-    in a rank-independent order (sorted by coordinates)."""
-
-    Gn: np.ndarray        # (n_points, m) normal gap rate per basis vector
-    Gt: np.ndarray        # (n_points, m) along the sliding direction
-    weight: np.ndarray    # (n_points,) quadrature weights [m²]
-    kn: float             # penalty [N/m³]
-    mu: float
-    sliding: float
-    gap: np.ndarray       # (n_points,) static gap at the preload (< 0: closed)
-    active: np.ndarray    # (n_points,) closed at the preload
-    gap0: np.ndarray | None = None   # (n_points,) gap of the undeformed geometry
-    x: np.ndarray | None = None      # (n_points, 3) slave point coordinates
-    pressure: np.ndarray | None = None  # (n_points,) contact pressure at the preload [Pa]
-    Gt2: np.ndarray | None = None    # (n_points, m) across the sliding direction (t₂ = n × t₁)
-    kt: float = 0.0                  # tangential penalty [N/m³]
-
-    def closed_weight(self) -> np.ndarray:
-        """w a: the quadrature weights of the points closed at the preload (0 at the open ones)."""
-        return self.weight * np.asarray(self.active, bool)
-
-    def normal_stiffness(self) -> np.ndarray:
-        """K_c = (G_nΦ)ᵀ diag(k_n w a) (G_nΦ): the closed-contact stiffness at the nominal k_n."""
-        return self.Gn.T @ ((self.kn * self.closed_weight())[:, None] * self.Gn)
-
-    def friction_stiffness(self) -> np.ndarray:
-        """K_f¹ = (G_sΦ)ᵀ diag(k_n w a) (G_nΦ): the friction stiffness for μ = 1 at the nominal k_n."""
-        return self.Gt.T @ ((self.kn * self.closed_weight())[:, None] * self.Gn)
-
-    def tangential_stiffness(self) -> np.ndarray | None:
-        """K_t¹ for k_t = 1: (G_t₂Φ)ᵀ diag(w a) (G_t₂Φ), + (G_t₁Φ)ᵀ diag(w a) (G_t₁Φ) without sliding
-        (None when G_t₂Φ was not stored: a model saved before k_t became a parameter)."""
-        if self.Gt2 is None:
-            return None
-        wa = self.closed_weight()[:, None]
-        T = self.Gt2.T @ (wa * self.Gt2)
-        return T if self.sliding != 0 else T + self.Gt.T @ (wa * self.Gt)
-
-    @property
-    def has_kt(self) -> bool:
-        """k_t is a parameter (G_t₂Φ stored)."""
-        return self.Gt2 is not None
+#: the old name of the reduction's contact rows (gap convention: G_nΦ, G_t₁Φ, G_t₂Φ, gap₀)
+ContactRestriction = from_gap_rows
 
 
 @dataclass
@@ -196,7 +155,7 @@ class ReducedModel:
     E0: dict[str, float] = field(default_factory=dict)        # nominal modulus of each part [Pa]
     beta: dict[str, float] = field(default_factory=dict)      # Rayleigh β of each part [s]
     mu0: float = 0.0                                          # the scene's (signed) μ
-    contacts: dict[str, ContactRestriction] = field(default_factory=dict)
+    contacts: dict[str, ContactRows] = field(default_factory=dict)
     info: dict = field(default_factory=dict)                  # basis description (sizes, timings)
     f: np.ndarray | None = None                               # Φᵀ f: the static load (preload)
     q_static: np.ndarray | None = None                        # ΦᵀM u_s: the preload displacement
@@ -279,7 +238,7 @@ class ReducedModel:
                                            c.tangential_stiffness())
         return self._interface_cache[name]
 
-    def _mu_share(self, c: ContactRestriction | PlateProjection) -> float:
+    def _mu_share(self, c: ContactRows | PlateProjection) -> float:
         """μ_c⁰/μ⁰: what a unit ``mu`` gives contact c (0 for a contact without friction at nominal)."""
         return c.mu / self.mu0 if self.mu0 != 0 and c.sliding != 0 and self.Kf1 is not None else 0.0
 
@@ -503,7 +462,7 @@ class ReducedModel:
                                                           "pressure", "Gt2")}
             s = {f: float(d[f"contact/{name}/{f}"]) for f in ("kn", "mu", "sliding")}
             s["kt"] = float(d.get(f"contact/{name}/kt", 0.0))
-            contacts[name] = ContactRestriction(**g, **s)
+            contacts[name] = from_gap_rows(**g, **s, name=name)
         plates = {}
         for name in sorted({k.split("/")[1] for k in d if k.startswith("plate/")}):
             plates[name] = PlateProjection(

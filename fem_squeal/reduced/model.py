@@ -53,41 +53,27 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fem_squeal.reduced.affine import (
+    INTERFACE_PREFIXES,  # noqa: F401  (re-exported: the old path)
+    MU,
+    PART_PREFIXES,
+    SPEED,
+    check_damping_speed,
+    check_names,
+    check_range,
+    e_param,
+    eta_param,
+    friction_damping_scale,
+    interface_coefficients,
+    loss_coefficient,
+    modulus_coefficient,
+    mu_share,
+    parameter_names,
+    split_param,
+)
 from fem_squeal.reduced.contact_rows import ContactRows, from_gap_rows
 from fem_squeal.util.atomic import write_npz_atomic
-from fem_squeal.util.errors import ModelError, UnknownNameError
-
-MU = "mu"
-#: the disc speed Ω [rad/s] (issue 20 item 6): G ∝ Ω, K_σc − S ∝ Ω², friction damping ∝ |μ|/Ω
-SPEED = "speed"
-#: prefixes of the per-part and per-interface parameters: ``<prefix>.<part or interface>``
-PART_PREFIXES = ("E", "eta")
-INTERFACE_PREFIXES = ("mu", "kn", "kt")
-
-
-def e_param(part: str) -> str:
-    """Name of the parameter that sets part ``part``'s Young's modulus [Pa]."""
-    return f"E.{part}"
-
-
-def eta_param(part: str) -> str:
-    """Name of the parameter that sets part ``part``'s loss factor η (structural damping K(1 + iη))."""
-    return f"eta.{part}"
-
-
-def friction_damping_scale(mu, mu0: float, speed, speed0: float):
-    """(|μ|/|μ⁰|)(Ω₀/Ω): the factor of the friction damping C_d = ∫ p |μ|/|V| t₂t₂ᵀ ds (V = Ω r) of the
-    nominal point at (μ, Ω), a constant friction law (with μ(V) the damping is not affine in Ω).  The
-    signed μ (sign(v)μ) turns the friction force, not this damping: a transverse velocity turns the
-    force towards −t₂ whichever way the counter-face slides.  Ω₀ = 0 (the nominal speed not known):
-    |μ|/|μ⁰|, the damping of the nominal speed."""
-    return (np.abs(mu) / abs(mu0)) * (speed0 / speed if speed0 else 1.0)
-
-
-def split_param(name: str) -> tuple[str, str | None]:
-    """('mu', None) for ``mu``, (prefix, target) for ``<prefix>.<part or interface>``."""
-    prefix, dot, target = name.partition(".")
-    return (prefix, target) if dot else (prefix, None)
+from fem_squeal.util.errors import ModelError
 
 
 def format_point(point: Mapping[str, float]) -> str:
@@ -202,12 +188,10 @@ class ReducedModel:
     def parameters(self) -> list[str]:
         """Names of the parameters this model can vary (module docstring): ``mu``, ``E.<part>``,
         ``mu.<c>`` (sliding contacts and named rigid plates c), ``kn.<c>``, ``kt.<c>``, ``eta.<part>``."""
-        out = ([MU] if self.Kf1 is not None else []) + [e_param(p) for p in self.K_parts]
-        out += [f"mu.{c}" for c, r in self.interfaces.items() if r.sliding != 0]
-        out += [f"kn.{c}" for c in self.interfaces]
-        out += [f"kt.{c}" for c, r in self.interfaces.items() if r.has_kt]
-        return out + [eta_param(p) for p in self.K_parts if p in self.eta0] + \
-            ([SPEED] if self.speed_varies else [])
+        return parameter_names(self.K_parts, self.interfaces, mu=self.Kf1 is not None,
+                               eta_parts=[p for p in self.K_parts if p in self.eta0],
+                               kt_interfaces=[c for c, r in self.interfaces.items() if r.has_kt],
+                               speed=self.speed_varies)
 
     def nominal(self) -> dict[str, float]:
         """The value of every parameter at the nominal point."""
@@ -240,7 +224,7 @@ class ReducedModel:
 
     def _mu_share(self, c: ContactRows | PlateProjection) -> float:
         """μ_c⁰/μ⁰: what a unit ``mu`` gives contact c (0 for a contact without friction at nominal)."""
-        return c.mu / self.mu0 if self.mu0 != 0 and c.sliding != 0 and self.Kf1 is not None else 0.0
+        return mu_share(c.mu, self.mu0, c.sliding != 0 and self.Kf1 is not None)
 
     @property
     def damped(self) -> bool:
@@ -248,14 +232,13 @@ class ReducedModel:
             any(self.beta.get(p, 0.0) > 0 for p in self.K_parts)
 
     def _check(self, names) -> None:
-        unknown = sorted(set(names) - set(self.parameters))
-        if unknown:
-            raise UnknownNameError(f"{unknown[0]}: not a parameter of this reduced model; "
-                                   f"parameters: {self.parameters}")
+        check_names(names, self.parameters, " of this reduced model")
 
     def coefficients(self, points: Mapping[str, np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
         """Affine coefficients of K and C for ``n`` points: arrays (n, 1 + n_terms)."""
         self._check(points)
+        for name, v in points.items():
+            check_range(name, v)
         parts = list(self.K_parts)
         ck = np.zeros((n, 2 + len(parts)))
         cc = np.zeros((n, len(parts)))
@@ -264,9 +247,7 @@ class ReducedModel:
         ck[:, 1] = mu
         for j, part in enumerate(parts):
             E = np.broadcast_to(np.asarray(points.get(e_param(part), self.E0[part]), float), (n,))
-            if np.any(~(E > 0)):
-                raise ModelError(f"{e_param(part)}: must be > 0 (got {E.min()})")
-            ck[:, 2 + j] = E / self.E0[part] - 1.0
+            ck[:, 2 + j] = modulus_coefficient(E, self.E0[part])
             cc[:, j] = self.beta.get(part, 0.0) * ck[:, 2 + j]
         return ck, cc
 
@@ -282,34 +263,19 @@ class ReducedModel:
         for part, Kp in self.K_parts.items():
             name = eta_param(part)
             if name in points or self.eta0.get(part, 0.0) != 0:
-                eta = vec(name, self.eta0.get(part, 0.0))
-                if np.any(~(eta >= 0)):
-                    raise ModelError(f"{name}: must be >= 0 (got {eta.min()})")
-                coefs.append(1j * eta * vec(e_param(part), self.E0[part]) / self.E0[part])
+                coefs.append(loss_coefficient(vec(name, self.eta0.get(part, 0.0)),
+                                              vec(e_param(part), self.E0[part]), self.E0[part], 1j))
                 mats.append(Kp)
         mu = vec(MU, self.mu0)
+        given = {k: vec(k, 0.0) for k in points}
         for cname, c in self.interfaces.items():
-            mu_key, kn_key, kt_key = f"mu.{cname}", f"kn.{cname}", f"kt.{cname}"
-            if not any(k in points for k in (mu_key, kn_key, kt_key)):
-                continue
-            Kc, Kf, Kt = self.interface_matrices(cname)
-            kn = vec(kn_key, c.kn)
-            if np.any(~(kn > 0)):
-                raise ModelError(f"{kn_key}: must be > 0 (got {kn.min()})")
-            s = kn / c.kn
-            if kn_key in points:
-                coefs.append(s - 1.0)
-                mats.append(Kc)
-            if Kf is not None and (kn_key in points or mu_key in points):
-                mu_default = mu * self._mu_share(c)
-                coefs.append(vec(mu_key, 0.0) * s - mu_default if mu_key in points else mu_default * (s - 1.0))
-                mats.append(Kf)
-            if kt_key in points:
-                kt = vec(kt_key, c.kt)
-                if np.any(~(kt >= 0)):
-                    raise ModelError(f"{kt_key}: must be >= 0 (got {kt.min()})")
-                coefs.append(kt - c.kt)
-                mats.append(Kt)
+            terms = interface_coefficients(given, cname, c.kn, c.kt, mu, self._mu_share(c))
+            if terms:
+                ifm = self.interface_matrices(cname)
+                for j, coef in terms:
+                    if ifm[j] is not None:
+                        coefs.append(coef)
+                        mats.append(ifm[j])
         if not coefs:
             return None
         return np.stack(coefs, axis=1), np.stack(mats)
@@ -403,10 +369,9 @@ class ReducedModel:
         damping (C_d ∝ 1/Ω)."""
         speed = np.broadcast_to(np.asarray(points.get(SPEED, self.speed0), float), (n,))
         if SPEED in points:
-            if np.any(~(speed >= 0)):
-                raise ModelError(f"{SPEED}: must be >= 0 (got {speed.min()})")
-            if self.Cd0 is not None and self.speed0 and np.any(~(speed > 0)):
-                raise ModelError(f"{SPEED}: must be > 0 with friction damping (C_d ∝ 1/Ω; got {speed.min()})")
+            check_range(SPEED, speed)
+            if self.Cd0 is not None and self.speed0:
+                check_damping_speed(speed)
         return speed
 
     def frictionless_frequencies(self) -> np.ndarray:

@@ -137,6 +137,13 @@ class ContactRows:
         return self.n_dir == 2
 
 
+def check_columns(sets, m: int, error: type[Exception]) -> None:
+    """Every set of rows in ``sets`` has ``m`` columns (the model's DOFs: its basis vectors), else ``error``."""
+    for cs in sets:
+        if cs.D.shape[1] != m:
+            raise error(f"{cs.name}: rows have {cs.D.shape[1]} columns, the model has {m} DOFs")
+
+
 def checked_rows(error: type[Exception], **fields) -> ContactRows:
     """ContactRows(**fields), a refused field raised as ``error`` (the caller's error class)."""
     try:

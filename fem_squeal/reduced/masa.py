@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fem_squeal.reduced.aft import NO_CONTACT, contact_status, first_harmonic
-from fem_squeal.reduced.contact_rows import ContactRows, checked_rows
+from fem_squeal.reduced.contact_rows import ContactRows, check_columns, checked_rows
 from fem_squeal.reduced.eigensolve import TWO_PI, quadratic_eigs, unstable
 from fem_squeal.reduced.laws.contact import UnilateralLaw, tune_cubic
 from fem_squeal.reduced.model import MU, ReducedModel
@@ -85,9 +85,8 @@ class MasaModel:
             raise MasaError(f"f: must have {m} entries (got {self.f.shape})")
         if not self.contacts:
             raise MasaError("contacts: MASA needs at least one nonlinear contact interface")
+        check_columns(self.contacts + (self.elements or []), m, MasaError)
         for cs in self.contacts + (self.elements or []):
-            if cs.D.shape[1] != m:
-                raise MasaError(f"{cs.name}: rows have {cs.D.shape[1]} columns, the basis has {m}")
             _check_masa_rows(cs)
 
     @property

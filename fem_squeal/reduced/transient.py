@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import scipy.linalg as sla
 
-from fem_squeal.reduced.contact_rows import ContactRows, checked_rows
+from fem_squeal.reduced.contact_rows import ContactRows, check_columns, checked_rows
 from fem_squeal.reduced.laws.contact import NORMAL_LAWS, ExponentialLaw
 from fem_squeal.reduced.laws.friction import ConstantFriction, CoulombState, ElasticCoulomb
 from fem_squeal.reduced.masa import MasaModel, aggregate, polar_patches
@@ -80,9 +80,7 @@ class DynamicModel:
                 raise TransientError(f"{name}: must be a finite {m}×{m} matrix (got shape {A.shape})")
         if self.f is not None and np.shape(self.f) != (m,):
             raise TransientError(f"f: must have {m} entries (got {np.shape(self.f)})")
-        for cs in self.contacts:
-            if cs.D.shape[1] != m:
-                raise TransientError(f"{cs.name}: rows have {cs.D.shape[1]} columns, the model has {m} DOFs")
+        check_columns(self.contacts, m, TransientError)
 
     @property
     def size(self) -> int:

@@ -16,22 +16,8 @@ from fem_squeal.fe.csr import sum_norms_inf
 from fem_squeal.fe.dense import apply, matmul_f
 from fem_squeal.fe.model import ModelSpec
 from fem_squeal.fe.projection.basis import project
-from fem_squeal.reduced.affine import (
-    MU,
-    SPEED,
-    check_damping_speed,
-    check_names,
-    check_range,
-    e_param,
-    eta_param,
-    friction_damping_scale,
-    interface_coefficients,
-    loss_coefficient,
-    modulus_coefficient,
-    mu_share,
-    parameter_names,
-    split_param,
-)
+from fem_squeal.reduced import affine
+from fem_squeal.reduced.affine import MU, SPEED, e_param, eta_param, friction_damping_scale, split_param
 from fem_squeal.reduced.model import PlateProjection
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
@@ -86,7 +72,7 @@ class ParametricOperators:
     def parameters(self) -> list[str]:
         """Every parameter name these operators accept (the reduced model's names)."""
         # μ = 0 is accepted by a frictionless model
-        return parameter_names(self.parts, self.interfaces, speed=self.speed_varies)
+        return affine.parameter_names(self.parts, self.interfaces, speed=self.speed_varies)
 
     def interface_matrices(self, name: str) -> tuple[PETSc.Mat, PETSc.Mat | None, PETSc.Mat]:
         """(K_c at the nominal k_n, K_f for μ = 1 at the nominal k_n or None without sliding, K_t for
@@ -113,12 +99,12 @@ class ParametricOperators:
         return self._interface[name]
 
     def _mu_share(self, it) -> float:
-        return mu_share(it.mu, self.mu0, it.has_friction and self.ops.Kf is not None)
+        return affine.mu_share(it.mu, self.mu0, it.has_friction and self.ops.Kf is not None)
 
     def _check(self, params: Mapping[str, float]) -> None:
-        check_names(params, self.parameters)
+        affine.check_names(params, self.parameters)
         for name, v in params.items():
-            check_range(name, v)
+            affine.check_range(name, v)
 
     def loss_stiffness(self, params: Mapping[str, float]) -> PETSc.Mat | None:
         """Σ_i η_i θ_i K_i: the imaginary part of K(p) (None when no part has a loss factor)."""
@@ -133,7 +119,7 @@ class ParametricOperators:
             eta = params.get(eta_param(p), self.eta0[p])
             if eta != 0:
                 E = params.get(e_param(p), self.E0[p])
-                out.append((self.K_parts[p], loss_coefficient(eta, E, self.E0[p])))
+                out.append((self.K_parts[p], affine.loss_coefficient(eta, E, self.E0[p])))
         return out
 
     def matrices(self, params: Mapping[str, float]) -> tuple[PETSc.Mat, PETSc.Mat | None]:
@@ -153,13 +139,13 @@ class ParametricOperators:
             K.append((self.ops.Kf, mu / self.mu0))
         self._operating(K, C, mu, params.get(SPEED, self.speed0))
         for p in self.parts:
-            d = modulus_coefficient(params.get(e_param(p), self.E0[p]), self.E0[p])
+            d = affine.modulus_coefficient(params.get(e_param(p), self.E0[p]), self.E0[p])
             if d != 0:
                 K.append((self.K_parts[p], d))
                 if self.beta[p] > 0:
                     C.append((self.K_parts[p], self.beta[p] * d))
         for name, it in self.interfaces.items():
-            coefs = interface_coefficients(params, name, it.kn, it.kt, mu, self._mu_share(it))
+            coefs = affine.interface_coefficients(params, name, it.kn, it.kt, mu, self._mu_share(it))
             if coefs:
                 mats = self.interface_matrices(name)
                 K += [(mats[j], c) for j, c in coefs if mats[j] is not None]
@@ -176,7 +162,7 @@ class ParametricOperators:
             C.append((op.G, speed))
         if Cd is not None and self.mu0 != 0:
             if self.speed0:
-                check_damping_speed(speed)
+                affine.check_damping_speed(speed)
             C.append((Cd, friction_damping_scale(mu, self.mu0, speed, self.speed0) - 1.0))
 
     def real_equivalent(self, params: Mapping[str, float]

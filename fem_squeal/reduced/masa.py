@@ -26,11 +26,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 
 from fem_squeal.reduced.aft import NO_CONTACT, contact_status, first_harmonic
+from fem_squeal.reduced.contact_rows import ContactRows, check_columns, checked_rows
 from fem_squeal.reduced.eigensolve import TWO_PI, quadratic_eigs, unstable
 from fem_squeal.reduced.laws.contact import UnilateralLaw, tune_cubic
 from fem_squeal.reduced.model import MU, ReducedModel
@@ -38,46 +38,31 @@ from fem_squeal.util.errors import MasaError
 from fem_squeal.util.progress import ProgressBar
 
 
-@dataclass
-class ContactSet:
-    """Contact points (or elements) of one frictional interface, on the basis (module docstring)."""
+def _check_masa_rows(cs: ContactRows) -> None:
+    """MASA's needs of a contact set: the closure at q = 0 and a normal law its AFT can take."""
+    n = cs.size
+    if cs.d0 is None:
+        raise MasaError(f"{cs.name}.d0: MASA needs the closure at q = 0")
+    law = cs.normal
+    if not getattr(law, "aft", False):     # the law declares it (fem_squeal.reduced.laws.contact)
+        raise MasaError(f"{cs.name}.law: MASA's AFT needs the cubic UnilateralLaw (its remainder and "
+                        f"k_l, k_nl, c_max; a law with aft = True); got {type(law).__name__}")
+    for a in ("k_l", "k_nl", "c_max"):
+        v = np.asarray(getattr(law, a))
+        if v.ndim and v.shape != (n,):
+            raise MasaError(f"{cs.name}.law.{a}: {v.shape[0]} values for {n} contact points")
 
-    D: np.ndarray                 # (n, m) closure per unit q  (= −G_nΦ)
-    T: np.ndarray                 # (n, m) slip along the sliding direction (= G_tΦ)
-    d0: np.ndarray                # (n,) closure at q = 0 (−initial gap) [m]
-    law: UnilateralLaw
-    mu: float = 0.0               # signed friction coefficient sign(v)μ along T
-    weight: np.ndarray | None = None   # (n,) area [m²] (aggregation weights)
-    x: np.ndarray | None = None        # (n, 3) coordinates (contact-status maps)
-    name: str = "contact"
 
-    def __post_init__(self):
-        n, m = self.D.shape
-        if self.T.shape != (n, m):
-            raise MasaError(f"{self.name}.T: shape {self.T.shape}, expected {(n, m)} like D")
-        if self.d0.shape != (n,):
-            raise MasaError(f"{self.name}.d0: shape {self.d0.shape}, expected ({n},)")
-        if not np.isfinite(self.mu):  # signed: sign(v)μ, < 0 for backward sliding
-            raise MasaError(f"{self.name}.mu: must be finite (got {self.mu})")
-        if not getattr(self.law, "aft", False):     # the law declares it (fem_squeal.reduced.laws.contact)
-            raise MasaError(f"{self.name}.law: MASA's AFT needs the cubic UnilateralLaw (its remainder and "
-                            f"k_l, k_nl, c_max; a law with aft = True); got {type(self.law).__name__}")
-        for a in ("k_l", "k_nl", "c_max"):
-            v = np.asarray(getattr(self.law, a))
-            if v.ndim and v.shape != (n,):
-                raise MasaError(f"{self.name}.law.{a}: {v.shape[0]} values for {n} contact points")
-
-    @property
-    def size(self) -> int:
-        return self.D.shape[0]
-
-    @cached_property
-    def B(self) -> np.ndarray:
-        """D − μT, formed once (the Newton residuals and every state matrix use it)."""
-        return self.D - self.mu * self.T
-
-    def closure(self, q: np.ndarray) -> np.ndarray:
-        return self.d0 + self.D @ q
+def ContactSet(D: np.ndarray, T: np.ndarray, d0: np.ndarray, law: UnilateralLaw, mu: float = 0.0,
+               weight: np.ndarray | None = None, x: np.ndarray | None = None, name: str = "contact"
+               ) -> ContactRows:
+    """Contact points (or elements) of one frictional interface, on the basis (module docstring; the
+    old name): :class:`~fem_squeal.reduced.contact_rows.ContactRows` with closure rows D (= −G_nΦ),
+    slip rows T (= G_tΦ), closure d0 at q = 0, the normal ``law`` and the signed μ along T."""
+    cs = checked_rows(MasaError, D=D, T=T, d0=np.asarray(d0, float), normal=law, mu=mu, weight=weight, x=x,
+                      name=name)
+    _check_masa_rows(cs)
+    return cs
 
 
 @dataclass
@@ -85,10 +70,10 @@ class MasaModel:
     """K (without the nonlinear contacts, eq. 2's K_nl), C, load f and the contact sets."""
 
     K: np.ndarray
-    contacts: list[ContactSet]
+    contacts: list[ContactRows]
     C: np.ndarray | None = None
     f: np.ndarray | None = None
-    elements: list[ContactSet] | None = None   # AFT elements (default: the points themselves)
+    elements: list[ContactRows] | None = None   # AFT elements (default: the points themselves)
 
     def __post_init__(self):
         m = self.K.shape[0]
@@ -100,16 +85,16 @@ class MasaModel:
             raise MasaError(f"f: must have {m} entries (got {self.f.shape})")
         if not self.contacts:
             raise MasaError("contacts: MASA needs at least one nonlinear contact interface")
+        check_columns(self.contacts + (self.elements or []), m, MasaError)
         for cs in self.contacts + (self.elements or []):
-            if cs.D.shape[1] != m:
-                raise MasaError(f"{cs.name}: rows have {cs.D.shape[1]} columns, the basis has {m}")
+            _check_masa_rows(cs)
 
     @property
     def size(self) -> int:
         return self.K.shape[0]
 
     @property
-    def aft_sets(self) -> list[ContactSet]:
+    def aft_sets(self) -> list[ContactRows]:
         return self.elements if self.elements is not None else self.contacts
 
 
@@ -131,17 +116,17 @@ class Equilibrium:
 def _residual(model: MasaModel, q: np.ndarray, f: np.ndarray) -> np.ndarray:
     r = model.K @ q - f
     for cs in model.contacts:
-        r += cs.B.T @ cs.law.force(cs.closure(q))
+        r += cs.B.T @ cs.normal.force(cs.closure(q))
     return r
 
 
-def _jacobian(model: MasaModel, closures: Sequence[np.ndarray], sets: Sequence[ContactSet] | None = None,
+def _jacobian(model: MasaModel, closures: Sequence[np.ndarray], sets: Sequence[ContactRows] | None = None,
               base: np.ndarray | None = None, what: str = "stiffness") -> np.ndarray:
     """base + Σ Bᵀ diag(∂F) D with ∂F the law's ``stiffness`` or ``viscosity`` at the closures."""
     sets = model.contacts if sets is None else sets
     J = np.zeros((model.size,) * 2) if base is None else base.copy()
     for cs, d in zip(sets, closures):
-        k = getattr(cs.law, what)(d)
+        k = getattr(cs.normal, what)(d)
         if np.any(k):
             J += cs.B.T @ (k[:, None] * cs.D)
     return J
@@ -189,7 +174,7 @@ def static_equilibrium(model: MasaModel, q0: np.ndarray | None = None, *, tol: f
 def linearise(model: MasaModel, eq: Equilibrium) -> tuple[np.ndarray, np.ndarray | None]:
     """K + J_nl and C + C_nl at the equilibrium (eq. 6); C is None when both are zero."""
     K = _jacobian(model, eq.closure, base=model.K)
-    damped = any(cs.law.damped for cs in model.contacts)
+    damped = any(cs.normal.damped for cs in model.contacts)
     if model.C is None and not damped:
         return K, None
     C = model.C.copy() if model.C is not None else np.zeros_like(K)
@@ -204,7 +189,7 @@ def element_closures(model: MasaModel, eq: Equilibrium) -> list[np.ndarray]:
 
 
 # ---------------------------------------------------------------- elements
-def aggregate(cs: ContactSet, labels: np.ndarray, name: str | None = None) -> ContactSet:
+def aggregate(cs: ContactRows, labels: np.ndarray, name: str | None = None) -> ContactRows:
     """Contact elements from groups of points (``labels``: group of each point, −1 = left out).
 
     Element rows are the area-weighted means of its points' rows; k_l, k_nl, c_max add up (a
@@ -222,11 +207,12 @@ def aggregate(cs: ContactSet, labels: np.ndarray, name: str | None = None) -> Co
     def total(v):
         return (P > 0) @ np.broadcast_to(np.asarray(v, float), (cs.size,))
 
-    depth = np.broadcast_to(np.asarray(cs.law.depth, float), (cs.size,))
+    depth = np.broadcast_to(np.asarray(cs.normal.depth, float), (cs.size,))
     depth = S @ depth if np.all(np.isfinite(depth)) else np.full(len(groups), np.inf)
-    law = UnilateralLaw(k_l=total(cs.law.k_l), k_nl=total(cs.law.k_nl), c_max=total(cs.law.c_max), depth=depth)
-    return ContactSet(D=S @ cs.D, T=S @ cs.T, d0=S @ cs.d0, law=law, mu=cs.mu, weight=area,
-                      x=S @ cs.x if cs.x is not None else None, name=name or cs.name)
+    law = UnilateralLaw(k_l=total(cs.normal.k_l), k_nl=total(cs.normal.k_nl), c_max=total(cs.normal.c_max),
+                        depth=depth)
+    return ContactRows(D=S @ cs.D, T=np.stack([S @ t for t in cs.T]), d0=S @ cs.d0, normal=law, mu=cs.mu,
+                       weight=area, x=S @ cs.x if cs.x is not None else None, name=name or cs.name)
 
 
 def polar_patches(x: np.ndarray, n_radial: int, n_angular: int, axis=(0.0, 0.0, 1.0)) -> np.ndarray:
@@ -330,7 +316,7 @@ class MasaProblem:
         self.n_samples, self.growth_tol = int(n_samples), float(growth_tol)
         self.K, self.C = linearise(model, eq)
         self.d_el = element_closures(model, eq)
-        self.damped_law = any(cs.law.damped for cs in model.aft_sets)
+        self.damped_law = any(cs.normal.damped for cs in model.aft_sets)
         self.n_elements = sum(cs.size for cs in model.aft_sets)
 
     def instabilities(self) -> list[Instability]:
@@ -363,10 +349,10 @@ class MasaProblem:
             amp = max(amp, float(a.max(initial=0.0)))
             if p == 0:
                 continue
-            h = first_harmonic(cs.law, d, 2.0 * z.real, -2.0 * z.imag, omega, self.n_samples)
+            h = first_harmonic(cs.normal, d, 2.0 * z.real, -2.0 * z.imag, omega, self.n_samples)
             B = cs.B
             K += B.T @ (h.k[:, None] * cs.D)
-            if cs.law.damped:  # an elastic law has c = 0 exactly (the remainder is even in time)
+            if cs.normal.damped:  # an elastic law has c = 0 exactly (the remainder is even in time)
                 C += B.T @ (h.c[:, None] * cs.D)
         out = quadratic_eigs(K, C, vectors=vectors)
         lam, Y = out if vectors else (out, None)
@@ -555,7 +541,7 @@ def from_reduced(model: ReducedModel, params: dict | None = None, *, cubic_share
         k_l, k_nl, _ = tune_cubic(cr.kn, p_mean, cubic_share)   # per area, one law per interface
         law = UnilateralLaw(k_l=float(k_l) * cr.weight, k_nl=float(k_nl) * cr.weight, c_max=c_max * cr.weight,
                             depth=np.full(len(kt), depth))
-        cs = ContactSet(D=-cr.Gn, T=cr.Gt, d0=-cr.gap0, law=law, mu=m_i, weight=cr.weight, x=cr.x, name=name)
+        cs = ContactSet(D=cr.D, T=cr.Gt, d0=cr.d0, law=law, mu=m_i, weight=cr.weight, x=cr.x, name=name)
         points.append(cs)
         if patches is not None:
             elements.append(aggregate(cs, polar_patches(cr.x, patches[0], patches[1], axis)))

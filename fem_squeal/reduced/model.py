@@ -21,8 +21,8 @@ contact interface c: ``mu.<c>`` (its own
 signed friction coefficient; it overrides ``mu`` for that interface), ``kn.<c>`` (its normal
 penalty: s_c = k_n,c/k_n,c⁰ scales its closed-contact stiffness K_c,c and its friction stiffness,
 which is μ k_n), ``kt.<c>`` (its tangential penalty, 0 allowed).  The interface matrices are
-formed from the interface's restricted operators (:class:`ContactRestriction`) at the preload's
-closed points: K_c,c = (G_nΦ)ᵀ diag(k_n w a) (G_nΦ), K_f,c¹ = (G_sΦ)ᵀ diag(k_n w a) (G_nΦ),
+formed from the interface's restricted rows (:class:`~fem_squeal.reduced.contact_rows.ContactRows`)
+at the preload's closed points: K_c,c = (G_nΦ)ᵀ diag(k_n w a) (G_nΦ), K_f,c¹ = (G_sΦ)ᵀ diag(k_n w a) (G_nΦ),
 K_t,c¹ = (G_t₂Φ)ᵀ diag(w a) (G_t₂Φ) (+ the same along t₁ for a contact that does not slide), w the
 quadrature weights and a the closed points: the contact state of the preload is kept (a change
 of k_n does not re-solve the preload; the full-order check of
@@ -53,40 +53,27 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fem_squeal.reduced.affine import (
+    INTERFACE_PREFIXES,  # noqa: F401  (re-exported: the old path)
+    MU,
+    PART_PREFIXES,
+    SPEED,
+    check_damping_speed,
+    check_names,
+    check_range,
+    e_param,
+    eta_param,
+    friction_damping_scale,
+    interface_coefficients,
+    loss_coefficient,
+    modulus_coefficient,
+    mu_share,
+    parameter_names,
+    split_param,
+)
+from fem_squeal.reduced.contact_rows import ContactRows, from_gap_rows
 from fem_squeal.util.atomic import write_npz_atomic
-from fem_squeal.util.errors import ModelError, UnknownNameError
-
-MU = "mu"
-#: the disc speed Ω [rad/s] (issue 20 item 6): G ∝ Ω, K_σc − S ∝ Ω², friction damping ∝ |μ|/Ω
-SPEED = "speed"
-#: prefixes of the per-part and per-interface parameters: ``<prefix>.<part or interface>``
-PART_PREFIXES = ("E", "eta")
-INTERFACE_PREFIXES = ("mu", "kn", "kt")
-
-
-def e_param(part: str) -> str:
-    """Name of the parameter that sets part ``part``'s Young's modulus [Pa]."""
-    return f"E.{part}"
-
-
-def eta_param(part: str) -> str:
-    """Name of the parameter that sets part ``part``'s loss factor η (structural damping K(1 + iη))."""
-    return f"eta.{part}"
-
-
-def friction_damping_scale(mu, mu0: float, speed, speed0: float):
-    """(|μ|/|μ⁰|)(Ω₀/Ω): the factor of the friction damping C_d = ∫ p |μ|/|V| t₂t₂ᵀ ds (V = Ω r) of the
-    nominal point at (μ, Ω), a constant friction law (with μ(V) the damping is not affine in Ω).  The
-    signed μ (sign(v)μ) turns the friction force, not this damping: a transverse velocity turns the
-    force towards −t₂ whichever way the counter-face slides.  Ω₀ = 0 (the nominal speed not known):
-    |μ|/|μ⁰|, the damping of the nominal speed."""
-    return (np.abs(mu) / abs(mu0)) * (speed0 / speed if speed0 else 1.0)
-
-
-def split_param(name: str) -> tuple[str, str | None]:
-    """('mu', None) for ``mu``, (prefix, target) for ``<prefix>.<part or interface>``."""
-    prefix, dot, target = name.partition(".")
-    return (prefix, target) if dot else (prefix, None)
+from fem_squeal.util.errors import ModelError
 
 
 def format_point(point: Mapping[str, float]) -> str:
@@ -111,50 +98,8 @@ def format_point(point: Mapping[str, float]) -> str:
     return ", ".join(out)
 
 
-@dataclass
-class ContactRestriction:
-    """A contact interface's operator G restricted to the basis: rows are slave quadrature points,
-    in a rank-independent order (sorted by coordinates)."""
-
-    Gn: np.ndarray        # (n_points, m) normal gap rate per basis vector
-    Gt: np.ndarray        # (n_points, m) along the sliding direction
-    weight: np.ndarray    # (n_points,) quadrature weights [m²]
-    kn: float             # penalty [N/m³]
-    mu: float
-    sliding: float
-    gap: np.ndarray       # (n_points,) static gap at the preload (< 0: closed)
-    active: np.ndarray    # (n_points,) closed at the preload
-    gap0: np.ndarray | None = None   # (n_points,) gap of the undeformed geometry
-    x: np.ndarray | None = None      # (n_points, 3) slave point coordinates
-    pressure: np.ndarray | None = None  # (n_points,) contact pressure at the preload [Pa]
-    Gt2: np.ndarray | None = None    # (n_points, m) across the sliding direction (t₂ = n × t₁)
-    kt: float = 0.0                  # tangential penalty [N/m³]
-
-    def closed_weight(self) -> np.ndarray:
-        """w a: the quadrature weights of the points closed at the preload (0 at the open ones)."""
-        return self.weight * np.asarray(self.active, bool)
-
-    def normal_stiffness(self) -> np.ndarray:
-        """K_c = (G_nΦ)ᵀ diag(k_n w a) (G_nΦ): the closed-contact stiffness at the nominal k_n."""
-        return self.Gn.T @ ((self.kn * self.closed_weight())[:, None] * self.Gn)
-
-    def friction_stiffness(self) -> np.ndarray:
-        """K_f¹ = (G_sΦ)ᵀ diag(k_n w a) (G_nΦ): the friction stiffness for μ = 1 at the nominal k_n."""
-        return self.Gt.T @ ((self.kn * self.closed_weight())[:, None] * self.Gn)
-
-    def tangential_stiffness(self) -> np.ndarray | None:
-        """K_t¹ for k_t = 1: (G_t₂Φ)ᵀ diag(w a) (G_t₂Φ), + (G_t₁Φ)ᵀ diag(w a) (G_t₁Φ) without sliding
-        (None when G_t₂Φ was not stored: a model saved before k_t became a parameter)."""
-        if self.Gt2 is None:
-            return None
-        wa = self.closed_weight()[:, None]
-        T = self.Gt2.T @ (wa * self.Gt2)
-        return T if self.sliding != 0 else T + self.Gt.T @ (wa * self.Gt)
-
-    @property
-    def has_kt(self) -> bool:
-        """k_t is a parameter (G_t₂Φ stored)."""
-        return self.Gt2 is not None
+#: the old name of the reduction's contact rows (gap convention: G_nΦ, G_t₁Φ, G_t₂Φ, gap₀)
+ContactRestriction = from_gap_rows
 
 
 @dataclass
@@ -196,7 +141,7 @@ class ReducedModel:
     E0: dict[str, float] = field(default_factory=dict)        # nominal modulus of each part [Pa]
     beta: dict[str, float] = field(default_factory=dict)      # Rayleigh β of each part [s]
     mu0: float = 0.0                                          # the scene's (signed) μ
-    contacts: dict[str, ContactRestriction] = field(default_factory=dict)
+    contacts: dict[str, ContactRows] = field(default_factory=dict)
     info: dict = field(default_factory=dict)                  # basis description (sizes, timings)
     f: np.ndarray | None = None                               # Φᵀ f: the static load (preload)
     q_static: np.ndarray | None = None                        # ΦᵀM u_s: the preload displacement
@@ -243,12 +188,10 @@ class ReducedModel:
     def parameters(self) -> list[str]:
         """Names of the parameters this model can vary (module docstring): ``mu``, ``E.<part>``,
         ``mu.<c>`` (sliding contacts and named rigid plates c), ``kn.<c>``, ``kt.<c>``, ``eta.<part>``."""
-        out = ([MU] if self.Kf1 is not None else []) + [e_param(p) for p in self.K_parts]
-        out += [f"mu.{c}" for c, r in self.interfaces.items() if r.sliding != 0]
-        out += [f"kn.{c}" for c in self.interfaces]
-        out += [f"kt.{c}" for c, r in self.interfaces.items() if r.has_kt]
-        return out + [eta_param(p) for p in self.K_parts if p in self.eta0] + \
-            ([SPEED] if self.speed_varies else [])
+        return parameter_names(self.K_parts, self.interfaces, mu=self.Kf1 is not None,
+                               eta_parts=[p for p in self.K_parts if p in self.eta0],
+                               kt_interfaces=[c for c, r in self.interfaces.items() if r.has_kt],
+                               speed=self.speed_varies)
 
     def nominal(self) -> dict[str, float]:
         """The value of every parameter at the nominal point."""
@@ -279,9 +222,9 @@ class ReducedModel:
                                            c.tangential_stiffness())
         return self._interface_cache[name]
 
-    def _mu_share(self, c: ContactRestriction | PlateProjection) -> float:
+    def _mu_share(self, c: ContactRows | PlateProjection) -> float:
         """μ_c⁰/μ⁰: what a unit ``mu`` gives contact c (0 for a contact without friction at nominal)."""
-        return c.mu / self.mu0 if self.mu0 != 0 and c.sliding != 0 and self.Kf1 is not None else 0.0
+        return mu_share(c.mu, self.mu0, c.sliding != 0 and self.Kf1 is not None)
 
     @property
     def damped(self) -> bool:
@@ -289,14 +232,13 @@ class ReducedModel:
             any(self.beta.get(p, 0.0) > 0 for p in self.K_parts)
 
     def _check(self, names) -> None:
-        unknown = sorted(set(names) - set(self.parameters))
-        if unknown:
-            raise UnknownNameError(f"{unknown[0]}: not a parameter of this reduced model; "
-                                   f"parameters: {self.parameters}")
+        check_names(names, self.parameters, " of this reduced model")
 
     def coefficients(self, points: Mapping[str, np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
         """Affine coefficients of K and C for ``n`` points: arrays (n, 1 + n_terms)."""
         self._check(points)
+        for name, v in points.items():
+            check_range(name, v)
         parts = list(self.K_parts)
         ck = np.zeros((n, 2 + len(parts)))
         cc = np.zeros((n, len(parts)))
@@ -305,9 +247,7 @@ class ReducedModel:
         ck[:, 1] = mu
         for j, part in enumerate(parts):
             E = np.broadcast_to(np.asarray(points.get(e_param(part), self.E0[part]), float), (n,))
-            if np.any(~(E > 0)):
-                raise ModelError(f"{e_param(part)}: must be > 0 (got {E.min()})")
-            ck[:, 2 + j] = E / self.E0[part] - 1.0
+            ck[:, 2 + j] = modulus_coefficient(E, self.E0[part])
             cc[:, j] = self.beta.get(part, 0.0) * ck[:, 2 + j]
         return ck, cc
 
@@ -323,34 +263,19 @@ class ReducedModel:
         for part, Kp in self.K_parts.items():
             name = eta_param(part)
             if name in points or self.eta0.get(part, 0.0) != 0:
-                eta = vec(name, self.eta0.get(part, 0.0))
-                if np.any(~(eta >= 0)):
-                    raise ModelError(f"{name}: must be >= 0 (got {eta.min()})")
-                coefs.append(1j * eta * vec(e_param(part), self.E0[part]) / self.E0[part])
+                coefs.append(loss_coefficient(vec(name, self.eta0.get(part, 0.0)),
+                                              vec(e_param(part), self.E0[part]), self.E0[part], 1j))
                 mats.append(Kp)
         mu = vec(MU, self.mu0)
+        given = {k: vec(k, 0.0) for k in points}
         for cname, c in self.interfaces.items():
-            mu_key, kn_key, kt_key = f"mu.{cname}", f"kn.{cname}", f"kt.{cname}"
-            if not any(k in points for k in (mu_key, kn_key, kt_key)):
-                continue
-            Kc, Kf, Kt = self.interface_matrices(cname)
-            kn = vec(kn_key, c.kn)
-            if np.any(~(kn > 0)):
-                raise ModelError(f"{kn_key}: must be > 0 (got {kn.min()})")
-            s = kn / c.kn
-            if kn_key in points:
-                coefs.append(s - 1.0)
-                mats.append(Kc)
-            if Kf is not None and (kn_key in points or mu_key in points):
-                mu_default = mu * self._mu_share(c)
-                coefs.append(vec(mu_key, 0.0) * s - mu_default if mu_key in points else mu_default * (s - 1.0))
-                mats.append(Kf)
-            if kt_key in points:
-                kt = vec(kt_key, c.kt)
-                if np.any(~(kt >= 0)):
-                    raise ModelError(f"{kt_key}: must be >= 0 (got {kt.min()})")
-                coefs.append(kt - c.kt)
-                mats.append(Kt)
+            terms = interface_coefficients(given, cname, c.kn, c.kt, mu, self._mu_share(c))
+            if terms:
+                ifm = self.interface_matrices(cname)
+                for j, coef in terms:
+                    if ifm[j] is not None:
+                        coefs.append(coef)
+                        mats.append(ifm[j])
         if not coefs:
             return None
         return np.stack(coefs, axis=1), np.stack(mats)
@@ -444,10 +369,9 @@ class ReducedModel:
         damping (C_d ∝ 1/Ω)."""
         speed = np.broadcast_to(np.asarray(points.get(SPEED, self.speed0), float), (n,))
         if SPEED in points:
-            if np.any(~(speed >= 0)):
-                raise ModelError(f"{SPEED}: must be >= 0 (got {speed.min()})")
-            if self.Cd0 is not None and self.speed0 and np.any(~(speed > 0)):
-                raise ModelError(f"{SPEED}: must be > 0 with friction damping (C_d ∝ 1/Ω; got {speed.min()})")
+            check_range(SPEED, speed)
+            if self.Cd0 is not None and self.speed0:
+                check_damping_speed(speed)
         return speed
 
     def frictionless_frequencies(self) -> np.ndarray:
@@ -503,7 +427,7 @@ class ReducedModel:
                                                           "pressure", "Gt2")}
             s = {f: float(d[f"contact/{name}/{f}"]) for f in ("kn", "mu", "sliding")}
             s["kt"] = float(d.get(f"contact/{name}/kt", 0.0))
-            contacts[name] = ContactRestriction(**g, **s)
+            contacts[name] = from_gap_rows(**g, **s, name=name)
         plates = {}
         for name in sorted({k.split("/")[1] for k in d if k.startswith("plate/")}):
             plates[name] = PlateProjection(

@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 import scipy.linalg as sla
 
+from fem_squeal.reduced.contact_rows import ContactRows, check_columns, checked_rows
 from fem_squeal.reduced.laws.contact import NORMAL_LAWS, ExponentialLaw
 from fem_squeal.reduced.laws.friction import ConstantFriction, CoulombState, ElasticCoulomb
 from fem_squeal.reduced.masa import MasaModel, aggregate, polar_patches
@@ -49,46 +50,16 @@ ENERGY_KEYS = ("kinetic", "strain", "W_ext", "W_friction", "W_normal", "D_dampin
 
 
 
-@dataclass
-class FrictionContact:
-    """One contact interface: closure rows D (n, m), tangential rows T (d, n, m) (or (n, m) for
-    one direction), initial closure d0, normal law, friction law (None: frictionless), the
-    counter-face velocity V (n, d) [m/s], and optionally the lever arm ``radius`` (n,) about the
-    disc axis (for the braking torque Σ r f) and the element coordinates ``x``."""
-
-    D: np.ndarray
-    T: np.ndarray
-    d0: np.ndarray
-    normal: object
-    friction: object | None = None
-    V: np.ndarray | None = None
-    radius: np.ndarray | None = None
-    x: np.ndarray | None = None
-    name: str = "contact"
-
-    def __post_init__(self):
-        self.D = np.asarray(self.D, float)
-        n, m = self.D.shape
-        T = np.asarray(self.T, float)
-        self.T = T[None] if T.ndim == 2 else T
-        if self.T.shape[1:] != (n, m) or self.T.shape[0] not in (1, 2):
-            raise TransientError(f"{self.name}.T: shape {T.shape}, expected ({n}, {m}) or (d, {n}, {m}), d = 1, 2")
-        if np.shape(self.d0) != (n,):
-            raise TransientError(f"{self.name}.d0: shape {np.shape(self.d0)}, expected ({n},)")
-        d = self.T.shape[0]
-        self.V = np.zeros((n, d)) if self.V is None else np.broadcast_to(np.asarray(self.V, float), (n, d)).copy()
-        if not np.all(np.isfinite(self.V)):
-            raise TransientError(f"{self.name}.V: counter-face velocities must be finite")
-        if self.radius is not None and np.shape(self.radius) != (n,):
-            raise TransientError(f"{self.name}.radius: shape {np.shape(self.radius)}, expected ({n},)")
-
-    @property
-    def size(self) -> int:
-        return self.D.shape[0]
-
-    @property
-    def n_dir(self) -> int:
-        return self.T.shape[0]
+def FrictionContact(D: np.ndarray, T: np.ndarray, d0: np.ndarray, normal: object, friction: object | None = None,
+                    V: np.ndarray | None = None, radius: np.ndarray | None = None, x: np.ndarray | None = None,
+                    name: str = "contact") -> ContactRows:
+    """One contact interface (the old name): :class:`~fem_squeal.reduced.contact_rows.ContactRows` with
+    closure rows D (n, m), tangential rows T (d, n, m) (or (n, m) for one direction), initial closure
+    d0, normal law, friction law (None: frictionless), the counter-face velocity V (n, d) [m/s], and
+    optionally the lever arm ``radius`` (n,) about the disc axis (for the braking torque Σ r f) and the
+    element coordinates ``x``."""
+    return checked_rows(TransientError, D=D, T=T, d0=np.asarray(d0, float), normal=normal, friction=friction,
+                        V=V, radius=radius, x=x, name=name)
 
 
 @dataclass
@@ -96,7 +67,7 @@ class DynamicModel:
     """M (None: identity, a mass-orthonormal basis), C, K, constant load f and the interfaces."""
 
     K: np.ndarray
-    contacts: list[FrictionContact]
+    contacts: list[ContactRows]
     M: np.ndarray | None = None
     C: np.ndarray | None = None
     f: np.ndarray | None = None
@@ -109,9 +80,7 @@ class DynamicModel:
                 raise TransientError(f"{name}: must be a finite {m}×{m} matrix (got shape {A.shape})")
         if self.f is not None and np.shape(self.f) != (m,):
             raise TransientError(f"f: must have {m} entries (got {np.shape(self.f)})")
-        for cs in self.contacts:
-            if cs.D.shape[1] != m:
-                raise TransientError(f"{cs.name}: rows have {cs.D.shape[1]} columns, the model has {m} DOFs")
+        check_columns(self.contacts, m, TransientError)
 
     @property
     def size(self) -> int:
@@ -667,7 +636,7 @@ def from_masa(model, speed: float | np.ndarray = 1.0, friction=None, radius=None
         if law is None and cs.mu != 0:
             law = ConstantFriction(abs(cs.mu))
         r = radius(cs) if callable(radius) else radius
-        contacts.append(FrictionContact(D=cs.D, T=cs.T, d0=cs.d0, normal=cs.law, friction=law, V=V,
+        contacts.append(FrictionContact(D=cs.D, T=cs.T, d0=cs.d0, normal=cs.normal, friction=law, V=V,
                                         radius=r, x=cs.x, name=cs.name))
     return DynamicModel(K=model.K, contacts=contacts, C=model.C, f=model.f)
 

@@ -16,20 +16,14 @@ from fem_squeal.fe.csr import sum_norms_inf
 from fem_squeal.fe.dense import apply, matmul_f
 from fem_squeal.fe.model import ModelSpec
 from fem_squeal.fe.projection.basis import project
-from fem_squeal.reduced.model import (
-    MU,
-    SPEED,
-    PlateProjection,
-    e_param,
-    eta_param,
-    friction_damping_scale,
-    split_param,
-)
+from fem_squeal.reduced import affine
+from fem_squeal.reduced.affine import MU, SPEED, e_param, eta_param, friction_damping_scale, split_param
+from fem_squeal.reduced.model import PlateProjection
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
 
 class ParametricOperators:
-    """Full-order K(p), C(p) of the affine form (module docstring of :mod:`fem_squeal.reduced.model`):
+    """Full-order K(p), C(p) of the affine form (:mod:`fem_squeal.reduced.affine`), term by term:
     used to verify the reduced model and to sample modes at parameter values.
 
     The parameters are those of :class:`~fem_squeal.reduced.model.ReducedModel`: ``mu``, ``E.<part>``
@@ -77,10 +71,8 @@ class ParametricOperators:
     @property
     def parameters(self) -> list[str]:
         """Every parameter name these operators accept (the reduced model's names)."""
-        out = [MU] + [e_param(p) for p in self.parts]   # μ = 0 is accepted by a frictionless model
-        out += [f"mu.{c}" for c, it in self.interfaces.items() if it.sliding != 0]
-        out += [f"{k}.{c}" for k in ("kn", "kt") for c in self.interfaces]
-        return out + [eta_param(p) for p in self.parts] + ([SPEED] if self.speed_varies else [])
+        # μ = 0 is accepted by a frictionless model
+        return affine.parameter_names(self.parts, self.interfaces, speed=self.speed_varies)
 
     def interface_matrices(self, name: str) -> tuple[PETSc.Mat, PETSc.Mat | None, PETSc.Mat]:
         """(K_c at the nominal k_n, K_f for μ = 1 at the nominal k_n or None without sliding, K_t for
@@ -107,17 +99,12 @@ class ParametricOperators:
         return self._interface[name]
 
     def _mu_share(self, it) -> float:
-        return it.mu / self.mu0 if self.mu0 != 0 and it.has_friction and self.ops.Kf is not None else 0.0
+        return affine.mu_share(it.mu, self.mu0, it.has_friction and self.ops.Kf is not None)
 
     def _check(self, params: Mapping[str, float]) -> None:
-        known = self.parameters
-        unknown = sorted(set(params) - set(known))
-        if unknown:
-            raise UnknownNameError(f"{unknown[0]}: not a parameter; parameters: {known}")
+        affine.check_names(params, self.parameters)
         for name, v in params.items():
-            prefix = split_param(name)[0]
-            if (prefix in ("E", "kn") and not v > 0) or (prefix in ("eta", "kt", SPEED) and not v >= 0):
-                raise ModelError(f"{name}: must be {'>' if prefix in ('E', 'kn') else '>='} 0 (got {v})")
+            affine.check_range(name, v)
 
     def loss_stiffness(self, params: Mapping[str, float]) -> PETSc.Mat | None:
         """Σ_i η_i θ_i K_i: the imaginary part of K(p) (None when no part has a loss factor)."""
@@ -131,7 +118,8 @@ class ParametricOperators:
         for p in self.parts:
             eta = params.get(eta_param(p), self.eta0[p])
             if eta != 0:
-                out.append((self.K_parts[p], eta * params.get(e_param(p), self.E0[p]) / self.E0[p]))
+                E = params.get(e_param(p), self.E0[p])
+                out.append((self.K_parts[p], affine.loss_coefficient(eta, E, self.E0[p])))
         return out
 
     def matrices(self, params: Mapping[str, float]) -> tuple[PETSc.Mat, PETSc.Mat | None]:
@@ -151,24 +139,16 @@ class ParametricOperators:
             K.append((self.ops.Kf, mu / self.mu0))
         self._operating(K, C, mu, params.get(SPEED, self.speed0))
         for p in self.parts:
-            d = params.get(e_param(p), self.E0[p]) / self.E0[p] - 1.0
+            d = affine.modulus_coefficient(params.get(e_param(p), self.E0[p]), self.E0[p])
             if d != 0:
                 K.append((self.K_parts[p], d))
                 if self.beta[p] > 0:
                     C.append((self.K_parts[p], self.beta[p] * d))
         for name, it in self.interfaces.items():
-            keys = (f"mu.{name}", f"kn.{name}", f"kt.{name}")
-            if not any(k in params for k in keys):
-                continue
-            Kc, Kf, Kt = self.interface_matrices(name)
-            s = params.get(keys[1], it.kn) / it.kn
-            if keys[1] in params:
-                K.append((Kc, s - 1.0))
-            if Kf is not None and (keys[0] in params or keys[1] in params):
-                mu_default = params.get(MU, self.mu0) * self._mu_share(it)
-                K.append((Kf, params[keys[0]] * s - mu_default if keys[0] in params else mu_default * (s - 1.0)))
-            if keys[2] in params:
-                K.append((Kt, params[keys[2]] - it.kt))
+            coefs = affine.interface_coefficients(params, name, it.kn, it.kt, mu, self._mu_share(it))
+            if coefs:
+                mats = self.interface_matrices(name)
+                K += [(mats[j], c) for j, c in coefs if mats[j] is not None]
         return K, C
 
     def _operating(self, K: list, C: list, mu: float, speed: float) -> None:
@@ -181,8 +161,8 @@ class ParametricOperators:
             K.append((self.K2, speed ** 2))
             C.append((op.G, speed))
         if Cd is not None and self.mu0 != 0:
-            if self.speed0 and not speed > 0:
-                raise ModelError(f"speed: must be > 0 with friction damping (got {speed})")
+            if self.speed0:
+                affine.check_damping_speed(speed)
             C.append((Cd, friction_damping_scale(mu, self.mu0, speed, self.speed0) - 1.0))
 
     def real_equivalent(self, params: Mapping[str, float]

@@ -22,15 +22,13 @@ from fem_squeal.fe.projection.basis import (
 )
 from fem_squeal.fe.projection.parametric import ParametricOperators, project_plates
 from fem_squeal.fe.projection.shifted import ShiftedSolver, modes_below, static_correction
+from fem_squeal.reduced.contact_rows import ContactRows, from_gap_rows
 from fem_squeal.reduced.masa import polar_patches
-from fem_squeal.reduced.model import (
-    ContactRestriction,
-    ReducedModel,
-)
+from fem_squeal.reduced.model import ReducedModel
 from fem_squeal.util.errors import ModelError, ReductionError
 
 
-def restrict_contacts(ops: Operators, Phi: np.ndarray, preload=None) -> dict[str, ContactRestriction]:
+def restrict_contacts(ops: Operators, Phi: np.ndarray, preload=None) -> dict[str, ContactRows]:
     """G_n Φ and G_t Φ of every contact interface (all points on every rank, canonical order)."""
     out = {}
     for it, op in ops.contacts:
@@ -41,11 +39,11 @@ def restrict_contacts(ops: Operators, Phi: np.ndarray, preload=None) -> dict[str
         g = _gather_rows(comm, preload.gap[it.name])[o] if preload is not None else g0
         act = _gather_rows(comm, preload.active[it.name])[o] if preload is not None else np.ones(op.n_global, bool)
         pres = _gather_rows(comm, preload.pressure[it.name])[o] if preload is not None else None
-        out[it.name] = ContactRestriction(
+        out[it.name] = from_gap_rows(
             Gn=_gather_rows(comm, apply(op.Gn, Phi))[o], Gt=_gather_rows(comm, apply(op.Gt1, Phi))[o],
             weight=_gather_rows(comm, op.weight)[o], kn=it.kn, mu=it.mu, sliding=float(it.sliding),
             gap=g, active=act.astype(bool), gap0=g0, x=x[o], pressure=pres,
-            Gt2=_gather_rows(comm, apply(op.Gt2, Phi))[o], kt=float(it.kt))
+            Gt2=_gather_rows(comm, apply(op.Gt2, Phi))[o], kt=float(it.kt), name=it.name)
     return out
 
 

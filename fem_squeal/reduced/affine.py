@@ -1,0 +1,129 @@
+"""The affine parameter form of the operators, defined once:
+
+K(p) = K₀ + μ K_f¹ + Σᵢ (θᵢ − 1) Kᵢ + i Σᵢ ηᵢ θᵢ Kᵢ                 θᵢ = Eᵢ/Eᵢ⁰, ηᵢ part i's loss factor
+       + Σ_c [(s_c − 1) K_c,c + (μ_c s_c − μ_c^μ) K_f,c¹ + (k_t,c − k_t,c⁰) K_t,c¹]     s_c = k_n,c/k_n,c⁰
+       + Ω² K₂
+C(p) = C₀ + Σᵢ βᵢ (θᵢ − 1) Kᵢ + Ω G₁ + (|μ|/|μ⁰|)(Ω₀/Ω) C_d
+
+μ_c^μ = μ·μ_c⁰/μ⁰ is what ``mu`` gives interface c, μ_c = ``mu.<c>`` where given (else μ_c^μ): the
+interface terms vanish at the nominal point and where an interface's parameters are not given.  The
+meaning of every matrix is in :mod:`fem_squeal.reduced.model`.  Here: the parameter names, their
+ranges and the coefficient of every term as a function of the parameter values (numbers, or arrays of
+points).  The reduced model (:class:`fem_squeal.reduced.model.ReducedModel`) applies them to its
+projected matrices, :class:`fem_squeal.fe.projection.ParametricOperators` to the full ones, term by
+term (there K_f = μ⁰K_f¹ and C₀ holds C_d: coefficients μ/μ⁰ and the damping scale − 1).
+"""
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+
+from fem_squeal.util.errors import ModelError, UnknownNameError
+
+MU = "mu"
+#: the disc speed Ω [rad/s] (issue 20 item 6): G ∝ Ω, K_σc − S ∝ Ω², friction damping ∝ |μ|/Ω
+SPEED = "speed"
+#: prefixes of the per-part and per-interface parameters: ``<prefix>.<part or interface>``
+PART_PREFIXES = ("E", "eta")
+INTERFACE_PREFIXES = ("mu", "kn", "kt")
+#: parameters that must be > 0 (the others of a range: >= 0)
+_POSITIVE = ("E", "kn")
+_NON_NEGATIVE = ("eta", "kt", SPEED)
+
+
+def e_param(part: str) -> str:
+    """Name of the parameter that sets part ``part``'s Young's modulus [Pa]."""
+    return f"E.{part}"
+
+
+def eta_param(part: str) -> str:
+    """Name of the parameter that sets part ``part``'s loss factor η (structural damping K(1 + iη))."""
+    return f"eta.{part}"
+
+
+def split_param(name: str) -> tuple[str, str | None]:
+    """('mu', None) for ``mu``, (prefix, target) for ``<prefix>.<part or interface>``."""
+    prefix, dot, target = name.partition(".")
+    return (prefix, target) if dot else (prefix, None)
+
+
+def parameter_names(parts: Iterable[str], interfaces: Mapping[str, object], *, mu: bool = True,
+                    eta_parts: Iterable[str] | None = None, kt_interfaces: Iterable[str] | None = None,
+                    speed: bool = False) -> list[str]:
+    """``mu`` (with friction), ``E.<part>``, ``mu.<c>`` (the sliding interfaces), ``kn.<c>``, ``kt.<c>``
+    (``kt_interfaces``, default all), ``eta.<part>`` (``eta_parts``, default all), ``speed``."""
+    parts = list(parts)
+    out = ([MU] if mu else []) + [e_param(p) for p in parts]
+    out += [f"mu.{c}" for c, it in interfaces.items() if it.sliding != 0]
+    out += [f"kn.{c}" for c in interfaces]
+    out += [f"kt.{c}" for c in (interfaces if kt_interfaces is None else kt_interfaces)]
+    return out + [eta_param(p) for p in (parts if eta_parts is None else eta_parts)] + ([SPEED] if speed else [])
+
+
+def check_names(names: Iterable[str], known: list[str], what: str = "") -> None:
+    """Refuse a name that is not in ``known`` (the message lists them)."""
+    unknown = sorted(set(names) - set(known))
+    if unknown:
+        raise UnknownNameError(f"{unknown[0]}: not a parameter{what}; parameters: {known}")
+
+
+def check_range(name: str, value) -> None:
+    """``E.<part>``, ``kn.<c>`` > 0; ``eta.<part>``, ``kt.<c>``, ``speed`` >= 0 (a number or an array
+    of points; other parameters take any value)."""
+    prefix = split_param(name)[0]
+    v = np.asarray(value, float)
+    if prefix in _POSITIVE and np.any(~(v > 0)):
+        raise ModelError(f"{name}: must be > 0 (got {np.min(v)})")
+    if prefix in _NON_NEGATIVE and np.any(~(v >= 0)):
+        raise ModelError(f"{name}: must be >= 0 (got {np.min(v)})")
+
+
+def check_damping_speed(speed) -> None:
+    """Ω > 0 where there is friction damping (C_d ∝ 1/Ω)."""
+    if np.any(~(np.asarray(speed, float) > 0)):
+        raise ModelError(f"{SPEED}: must be > 0 with friction damping (C_d ∝ 1/Ω; got {np.min(speed)})")
+
+
+def friction_damping_scale(mu, mu0: float, speed, speed0: float):
+    """(|μ|/|μ⁰|)(Ω₀/Ω): the factor of the friction damping C_d = ∫ p |μ|/|V| t₂t₂ᵀ ds (V = Ω r) of the
+    nominal point at (μ, Ω), a constant friction law (with μ(V) the damping is not affine in Ω).  The
+    signed μ (sign(v)μ) turns the friction force, not this damping: a transverse velocity turns the
+    force towards −t₂ whichever way the counter-face slides.  Ω₀ = 0 (the nominal speed not known):
+    |μ|/|μ⁰|, the damping of the nominal speed."""
+    return (np.abs(mu) / abs(mu0)) * (speed0 / speed if speed0 else 1.0)
+
+
+def modulus_coefficient(E, E0: float):
+    """θ − 1 = E/E⁰ − 1: the coefficient of K_i (and, times β_i, of K_i in C)."""
+    return E / E0 - 1.0
+
+
+def loss_coefficient(eta, E, E0: float, unit: complex = 1.0):
+    """unit·η θ: the coefficient of K_i in the loss stiffness (unit = i in the complex K(p); 1 for its
+    imaginary part alone)."""
+    return unit * eta * E / E0
+
+
+def mu_share(mu_c: float, mu0: float, friction: bool) -> float:
+    """μ_c⁰/μ⁰: what a unit ``mu`` gives interface c (0 without friction at the nominal point)."""
+    return mu_c / mu0 if mu0 != 0 and friction else 0.0
+
+
+def interface_coefficients(point: Mapping[str, object], name: str, kn0: float, kt0: float, mu, share: float
+                           ) -> list[tuple[int, object]]:
+    """[(j, coefficient)] of interface ``name``'s terms j = 0: K_c (s − 1), 1: K_f¹ (μ_c s − μ_c^μ, or
+    μ_c^μ(s − 1) where ``mu.<name>`` is not given), 2: K_t¹ (k_t − k_t⁰): only the terms that its given
+    parameters (``point``'s ``mu.<name>``, ``kn.<name>``, ``kt.<name>``) change; μ_c^μ = ``mu``·share,
+    k_n⁰, k_t⁰ its nominal penalties."""
+    mu_key, kn_key, kt_key = f"mu.{name}", f"kn.{name}", f"kt.{name}"
+    out = []
+    s = point.get(kn_key, kn0) / kn0
+    if kn_key in point:
+        out.append((0, s - 1.0))
+    if kn_key in point or mu_key in point:
+        mu_default = mu * share
+        out.append((1, point[mu_key] * s - mu_default if mu_key in point else mu_default * (s - 1.0)))
+    if kt_key in point:
+        out.append((2, point[kt_key] - kt0))
+    return out

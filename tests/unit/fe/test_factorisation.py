@@ -69,3 +69,27 @@ def test_factor_solver_solves_and_leaves_nothing_behind():
         assert np.allclose(x.array_r, exact, rtol=1e-12)
         ksp.destroy()
     assert _database() == before
+
+
+def test_eigensolvers_apply_the_scenes_options_for_their_solve_only(ring_operators):
+    """The scene's options reach the solver (``x_block_size = 0``: SLEPc's Krylov–Schur; MUMPS
+    named for its factorisation) and the complex-mode solve's defaults reach its EPS; PETSc's
+    options database is the same before and after (defaults and scene options alike: nothing
+    keyed to a prefix stays to change a later solve)."""
+    from fem_squeal.fe.eigen import solve_complex_modes, solve_real_modes
+
+    ops = ring_operators(kn=0, clamped=("inner",))
+    before = _database()
+    rm = solve_real_modes(ops.K, ops.M, 6, 0.0, prefix="x_",
+                          options={"x_block_size": 0, "x_st_pc_factor_mat_solver_type": "mumps"})
+    assert rm.method == "Krylov-Schur" and rm.solver == "mumps"
+    assert _database() == before
+    default = solve_real_modes(ops.K, ops.M, 6, 0.0, prefix="x_")      # the scene's options are gone
+    assert default.method.startswith("block Lanczos") and default.solver != "mumps" or \
+        ops.K.getComm().getSize() > 1
+    assert _database() == before
+    cm = solve_complex_modes(ops.K, ops.M, None, 4, 0.5 * float(rm.freqs_hz[2]), prefix="y_")
+    assert cm.method == "linear" and len(cm.eigenvalues) >= 4
+    assert _database() == before
+    for v in (*rm.vectors, *default.vectors, *cm.vectors_re, *cm.vectors_im):
+        v.destroy()

@@ -9,7 +9,7 @@ from petsc4py import PETSc
 from slepc4py import SLEPc
 
 from fem_squeal.fe import kernels
-from fem_squeal.fe.dense import apply, block_solve
+from fem_squeal.fe.dense import block_solve, product_of
 from fem_squeal.fe.eigen.block_krylov import _block_arnoldi, _block_columns
 from fem_squeal.fe.eigen.options import PEP_OPTIONS, _progress, _shift_invert_eps, _zero_like, eps_defaults
 from fem_squeal.fe.eigen.results import TWO_PI, ComplexModes, _check, _m_normalise, _sort_key, quadratic_residual
@@ -138,6 +138,6 @@ def _cea_block(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: floa
         return None
     comm = K.getComm().tompi4py()
     with ProgressBar(nev, "CEA", unit=" pairs", enabled=progress and comm.rank == 0) as bar:
-        return _block_arnoldi(block_solve(ksp.getPC().getFactorMatrix()), lambda W: apply(M, W), comm,
+        return _block_arnoldi(block_solve(ksp.getPC().getFactorMatrix()), product_of(M), comm,
                               K.getOwnershipRange(), K.getSize()[0], nev, sigma, tol, b,
                               lambda done, k: bar.update(min(done, nev), extra=f"{k} vectors"))

@@ -14,7 +14,7 @@ from slepc4py import SLEPc
 
 from fem_squeal.fe import cholmod, kernels
 from fem_squeal.fe.csr import block_product, csr_view
-from fem_squeal.fe.dense import apply, block_solve
+from fem_squeal.fe.dense import apply, block_solve, product_of
 from fem_squeal.fe.eigen.block_krylov import _block_columns, _block_lanczos, block_size
 from fem_squeal.fe.eigen.options import (
     REAL_MODE_EPS,
@@ -91,7 +91,7 @@ def _solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: f
         t0 = time.perf_counter()
         comm = K.getComm().tompi4py()
         got = _block_lanczos(block_solve(eps.getST().getKSP().getPC().getFactorMatrix()),
-                             lambda W: apply(Mw, W), comm, Kw.getOwnershipRange(), Kw.getSize()[0], nev,
+                             product_of(Mw), comm, Kw.getOwnershipRange(), Kw.getSize()[0], nev,
                              sigma, tol, b, lam_max) if b > 0 else None
         rm = _checked_modes(K, Ms, got[0], _caller_rows(got[1], perm), max_residual, solver, t_factor, t0,
                             0.0, b) if got is not None else None
@@ -157,7 +157,7 @@ def modes_on_factor(solve: Callable[[np.ndarray], np.ndarray], K: PETSc.Mat, M: 
     try:
         t0 = time.perf_counter()
         b = block_size(nev_guess)
-        got = _block_lanczos(solve, lambda W: apply(Ms, W), K.getComm().tompi4py(), K.getOwnershipRange(),
+        got = _block_lanczos(solve, product_of(Ms), K.getComm().tompi4py(), K.getOwnershipRange(),
                              K.getSize()[0], nev_guess, sigma, tol, b, lam_max)
         if got is None:
             return None

@@ -63,8 +63,9 @@ def distributed_product(A: PETSc.Mat) -> Callable[[np.ndarray], np.ndarray] | No
         send = np.ascontiguousarray(X[send_rows])                          # row-major: whole rows
         recv = np.empty((len(ghosts), k))
         comm.Alltoallv([send, give * k], [recv, want * k])
-        Y = diag(X)
-        Y += off(np.asfortranarray(recv))
+        Y = diag(X) if hi > lo else np.zeros((0, k), order="F")
+        if len(ghosts):         # a rank whose rows meet no other rank's columns has no ghost block
+            Y += off(np.asfortranarray(recv))
         kernels.note("block_product", "compiled, rank-local rows")
         return Y
     return product

@@ -59,12 +59,10 @@ def _text(value: object) -> str:
     return ("true" if value else "false") if isinstance(value, bool) else str(value)
 
 
-def user_option(name: str, options: Options | None = None) -> str | None:
-    """The user's value of the PETSc option ``name`` (full name with its prefix, no dash): the
-    scene's ``options`` first, then PETSc's options database (the command line); None if not given."""
-    for key, value in (options or {}).items():
-        if key.lstrip("-") == name:
-            return _text(value)
+def user_option(name: str) -> str | None:
+    """The value of the PETSc option ``name`` (full name with its prefix, no dash) in PETSc's
+    options database: the command line's, and inside :func:`scoped_options` the scene's; None if
+    not given."""
     db = PETSc.Options()
     return db.getString(name) if db.hasName(name) else None
 
@@ -78,7 +76,7 @@ def scoped_options(defaults: Mapping[str, str], options: Options | None = None) 
     saved: dict[str, str | None] = {}
     for name, value in (options or {}).items():
         name = name.lstrip("-")
-        saved.setdefault(name, db.getString(name) if db.hasName(name) else None)
+        saved.setdefault(name, user_option(name))
         db[name] = _text(value)
     for name, value in defaults.items():
         if not db.hasName(name):

@@ -13,7 +13,7 @@ from fem_squeal.fe.dense import block_solve, product_of
 from fem_squeal.fe.eigen.block_krylov import _block_arnoldi, _block_columns
 from fem_squeal.fe.eigen.options import PEP_OPTIONS, _progress, _shift_invert_eps, _zero_like, eps_defaults
 from fem_squeal.fe.eigen.results import TWO_PI, ComplexModes, _check, _m_normalise, _sort_key, quadratic_residual
-from fem_squeal.fe.factorisation import LU, scoped_options
+from fem_squeal.fe.factorisation import LU, scoped_options, user_option
 from fem_squeal.util.errors import ModelError
 from fem_squeal.util.progress import ProgressBar
 
@@ -132,9 +132,8 @@ def _cea_block(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: floa
     Measured on the brake corner (163k DOFs, 1 rank, 60 modes, tol 1e-10): see docs/validation.md."""
     b = _block_columns(nev, prefix)
     ksp = eps.getST().getKSP()
-    db = PETSc.Options()
     if (b <= 0 or ksp.getType() != "preonly" or ksp.getPC().getType() not in ("lu", "cholesky")
-            or any(db.hasName(f"{prefix}eps_{o}") for o in SLEPC_SOLVER_OPTIONS)):
+            or any(user_option(f"{prefix}eps_{o}") is not None for o in SLEPC_SOLVER_OPTIONS)):
         return None
     comm = K.getComm().tompi4py()
     with ProgressBar(nev, "CEA", unit=" pairs", enabled=progress and comm.rank == 0) as bar:

@@ -216,7 +216,7 @@ def _fill_reducing_order(K: PETSc.Mat, prefix: str, definite: bool,
     how = user_option(f"{prefix}ordering") or "auto"
     if how not in (*ORDERINGS, "solver"):
         raise ModelError(f"{prefix}ordering: must be one of {', '.join((*ORDERINGS, 'solver'))} (got {how!r})")
-    if how == "solver" or _real_solvers(K, prefix, definite)[0][0] != "cholmod":
+    if how == "solver" or _real_solvers(K, prefix, definite)[0] != "cholmod":
         return None
     return fill_reducing_order(K, pattern, how)
 
@@ -273,16 +273,16 @@ def _real_pairs(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, perm: np.n
     return (nconv, *_pairs_from_rows(K, M, np.array(lam), _caller_rows(np.column_stack(rows), perm)))
 
 
-def _real_solvers(K: PETSc.Mat, prefix: str, definite: bool) -> tuple[list[str], bool]:
-    """The factorisations to try for K − σM, in order, and whether the user chose one
-    (``<prefix>st_pc_factor_mat_solver_type``): else CHOLMOD on one rank (MUMPS LDLᵀ after it, for
+def _real_solvers(K: PETSc.Mat, prefix: str, definite: bool) -> list[str]:
+    """The factorisations to try for K − σM, in order: the user's choice
+    (``<prefix>st_pc_factor_mat_solver_type``), else CHOLMOD on one rank (MUMPS LDLᵀ after it, for
     K − σM not positive definite; MUMPS alone where ``definite`` is False) and MUMPS on more ranks."""
     chosen = user_option(f"{prefix}st_pc_factor_mat_solver_type")
     if chosen:
-        return [chosen], True
+        return [chosen]
     if K.getComm().getSize() == 1 and PETSc.Sys.hasExternalPackage("suitesparse") and definite:
-        return ["cholmod", "mumps"], False
-    return ["mumps"], False
+        return ["cholmod", "mumps"]
+    return ["mumps"]
 
 
 def _factorised_eps(K: PETSc.Mat, M: PETSc.Mat, nev: int, shift: float, tol: float, prefix: str,
@@ -292,7 +292,7 @@ def _factorised_eps(K: PETSc.Mat, M: PETSc.Mat, nev: int, shift: float, tol: flo
     (:func:`fem_squeal.fe.ordering.fill_reducing_order`), which CHOLMOD then keeps (natural ordering,
     one method) instead of running its own analysis.  Returns the EPS, the solver's name and the
     factorisation's wall time."""
-    solvers, _ = _real_solvers(K, prefix, definite)
+    solvers = _real_solvers(K, prefix, definite)
     t0 = time.perf_counter()       # a failed CHOLMOD attempt counts in the factorisation time
     for k, solver in enumerate(solvers):
         eps = _shift_invert_eps(K, M, SLEPc.EPS.ProblemType.GHEP, nev, shift, tol, prefix)

@@ -20,6 +20,7 @@ stiffness of the "partial nonlinear perturbed" CEA (``linearise`` with the activ
 """
 from __future__ import annotations
 
+import time
 from typing import NamedTuple
 
 import numpy as np
@@ -40,6 +41,7 @@ from fem_squeal.fe.assembly import (
     plate_friction_fields,
 )
 from fem_squeal.fe.assembly import static_displacement as assembly_static_displacement
+from fem_squeal.fe.kept_factorisation import KeptFactorisation, RankOneFamily
 from fem_squeal.fe.model import ModelSpec, sliding_speed, speed_friction
 from fem_squeal.reduced.laws.contact import UnilateralLaw
 from fem_squeal.util.errors import ModelError, PreloadError
@@ -55,6 +57,8 @@ class PreloadResult(NamedTuple):
     contact_area: dict[str, float]    # closed area per interface (global)
     iterations: int
     history: list[tuple[int, float]]  # (closed points, ‖R‖/‖f‖) per iteration
+    factorisations: int = 0           # LU factorisations of the Jacobian (the first included)
+    update_columns: int = 0           # columns J_f⁻¹ a_q of the low-rank updates (fe.kept_factorisation)
 
 
 def _traction(g: np.ndarray, kn: float, k3: float) -> tuple[np.ndarray, np.ndarray]:
@@ -66,11 +70,20 @@ def _traction(g: np.ndarray, kn: float, k3: float) -> tuple[np.ndarray, np.ndarr
 
 def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol: float = 1e-9,
                   max_iterations: int = 25, options: dict | None = None,
-                  prefix: str = "preload_") -> PreloadResult:
+                  prefix: str = "preload_", jacobian: str = "update",
+                  max_factorisations: int = 2) -> PreloadResult:
     """Static equilibrium under ``ops.f`` with unilateral contact on ``ops.contacts`` (module doc).
 
     Starts from u = 0 with the touching points (g₀ ≤ 0) closed.  Raises :class:`PreloadError`
-    with the per-iteration history if it does not converge in ``max_iterations``."""
+    with the per-iteration history if it does not converge in ``max_iterations``.
+
+    ``jacobian``: "refactorise" factorises J at every Newton step; "update" keeps a factorisation
+    and solves the later steps by low-rank updates of it (the points whose stiffness changed;
+    :mod:`fem_squeal.fe.kept_factorisation`), refactorising when the measured cost says it is cheaper,
+    at most ``max_factorisations`` times (unless an update fails its residual check or its memory
+    budget).  Both are exact Newton: the same iterates to round-off."""
+    if jacobian not in ("update", "refactorise"):
+        raise ModelError(f"preload.jacobian: must be 'update' or 'refactorise' (got {jacobian!r})")
     if ops.f is None:
         raise ModelError("loads: the preload needs a load (e.g. loads.pressure on the piston)")
     comm = ops.K.getComm().tompi4py()
@@ -89,6 +102,8 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     gaps: dict[str, np.ndarray] = {}
     J: PETSc.Mat | None = None
     ksp: PETSc.KSP | None = None
+    kept: KeptFactorisation | None = None
+    factorisations = 0
     for k in range(max_iterations + 1):
         # gaps, tractions and residual at u
         ops.K.mult(u, R)
@@ -136,6 +151,11 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
             raise PreloadError(f"preload: no convergence in {max_iterations} Newton iterations; "
                                f"(closed points, ‖R‖/‖f‖) per iteration: {history}")
         prev = closed
+        R.scale(-1.0)
+        values = _family_values(ops, tangents, friction) if jacobian == "update" else {}
+        if kept is not None and kept.prepare(values) and kept.solve(R, du):
+            u.axpy(1.0, du)
+            continue
         # Jacobian and Newton step.  The contact matrices keep their sparsity whatever the closed
         # points (open ones carry explicit zeros), so J is built once and refilled: the LU then
         # reuses its symbolic analysis (ordering) and only refactorises numerically.
@@ -150,15 +170,24 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
             if A is not None:
                 J.axpy(1.0, A, structure=pattern)
                 A.destroy()
-        if ksp is None:                    # later steps: PETSc sees J's new values and refactorises
+        t0 = time.perf_counter()
+        if ksp is None:
             ksp = direct_solver(J, options, prefix)
-        R.scale(-1.0)
+        else:                              # PETSc sees J's new values and refactorises (numerically)
+            ksp.setUp()
+        factorisations += 1
+        if jacobian == "update":
+            if kept is None:
+                kept = KeptFactorisation(ksp, J, bc_rows, _families(ops, friction),
+                                         max_factorisations=max_factorisations)
+            kept.reset(values, comm.allreduce(time.perf_counter() - t0, op=MPI.MAX))
         ksp.solve(R, du)
         if ksp.getConvergedReason() < 0:
             raise PreloadError(f"preload: linear solve failed (reason {ksp.getConvergedReason()}) "
                                f"at Newton iteration {k}")
         u.axpy(1.0, du)
-    for obj in (R, du, t, ksp, J):
+    columns = kept.columns_computed if kept is not None else 0
+    for obj in (kept, R, du, t, ksp, J):
         if obj is not None:
             obj.destroy()
     pressure, normal, fric, area = {}, {}, {}, {}
@@ -173,7 +202,36 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
             fric[it.name] = comm.allreduce(float(op.weight @ (it.friction_coefficient(op.x) * p)), op=MPI.SUM)
         area[it.name] = comm.allreduce(float(op.weight @ (gaps[it.name] < 0)), op=MPI.SUM)
     active = {n: g < 0.0 for n, g in gaps.items()}
-    return PreloadResult(u, active, gaps, pressure, normal, fric, area, len(history) - 1, history)
+    return PreloadResult(u, active, gaps, pressure, normal, fric, area, len(history) - 1, history,
+                         factorisations, columns)
+
+
+def _families(ops: Operators, friction: bool) -> list[RankOneFamily]:
+    """The Jacobian's per-point stiffness terms (module doc) as rank-one families for the low-rank
+    updates (:mod:`fem_squeal.fe.kept_factorisation`): the normal penalty with its friction row
+    (G_n + μ G_t₁)ᵀ diag(w σ') G_n, and the tangential penalty G_tᵀ diag(w k_t χ) G_t per tangent."""
+    out = []
+    for it, op in ops.contacts:
+        left: list = [(op.Gn, 1.0)]
+        if friction and it.has_friction:
+            left.append((op.Gt1, it.mu if it.law is None else it.friction_coefficient(op.x)))
+        out.append(RankOneFamily(f"{it.name}/normal", tuple(left), op.Gn))
+        if it.kt > 0:
+            for name, Gt in ((("t2", op.Gt2),) if it.sliding != 0 else (("t2", op.Gt2), ("t1", op.Gt1))):
+                out.append(RankOneFamily(f"{it.name}/{name}", ((Gt, 1.0),), Gt))
+    return out
+
+
+def _family_values(ops: Operators, tangents: dict[str, np.ndarray], friction: bool) -> dict[str, np.ndarray]:
+    """The families' d per point at this step: w σ' (normal) and w k_t χ (tangential, χ = closed)."""
+    out = {}
+    for it, op in ops.contacts:
+        dsig = tangents[it.name]
+        out[f"{it.name}/normal"] = op.weight * dsig
+        if it.kt > 0:
+            for name in ("t2",) if it.sliding != 0 else ("t2", "t1"):
+                out[f"{it.name}/{name}"] = op.weight * it.kt * (dsig > 0)
+    return out
 
 
 def static_displacement(ops: Operators, options: dict | None = None, prefix: str = "preload_") -> PETSc.Vec:

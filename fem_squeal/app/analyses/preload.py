@@ -114,13 +114,17 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
             from fem_squeal.fe.preload import solve_preload  # heavy: FE stack
 
             pre = solve_preload(ops, friction=pl["friction"], tol=pl["tol"], max_iterations=pl["max_iterations"],
-                                options=ctx.scene.solver.petsc_options)
+                                options=ctx.scene.solver.petsc_options, jacobian=pl["jacobian"],
+                                max_factorisations=pl["max_factorisations"])
             lin = linearise(ops, pre.active)
             timings["preload"] = time.perf_counter() - t
             out["preload"] = {"mode": "nonlinear", "iterations": pre.iterations, "history": pre.history,
+                              "jacobian": pl["jacobian"], "factorisations": pre.factorisations,
+                              "update_columns": pre.update_columns,
                               "interfaces": _preload_outputs(ctx.comm, work, ops, pre,
                                                              ctx.scene.title, ctx.keep_files)}
-            ctx.say(f"[fem_squeal] preload: {pre.iterations} Newton iterations, "
+            ctx.say(f"[fem_squeal] preload: {pre.iterations} Newton iterations "
+                    f"({pre.factorisations} factorisations, {pre.update_columns} update columns), "
                     + ", ".join(f"{k} N = {v['normal_force']:.4g} N, closed {100 * v['closed_share']:.1f} %"
                                 for k, v in out["preload"]["interfaces"].items())
                     + f"; {timings['preload']:.2f} s")

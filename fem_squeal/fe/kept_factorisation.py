@@ -1,0 +1,271 @@
+"""A kept factorisation updated by low-rank terms (the Sherman–Morrison–Woodbury identity).
+
+The preload's Newton steps (:mod:`fem_squeal.fe.preload`) solve J_k δ = −R with a Jacobian that
+differs from the one last factorised, J_f, only at the contact points whose stiffness changed since
+(a point that closed or opened, seed 000 eq. 4): one rank-one term per point and stiffness family,
+
+    J_k = J_f + Σ_i a_i d_i b_iᵀ = J_f + A D Bᵀ,
+
+with, for the normal penalty of point q, a = (G_n + μ_q G_t₁)ᵀ e_q, b = G_nᵀ e_q and
+d = w_q (σ'_k − σ'_f) (±w_q k_n for the linear penalty), and for a tangential penalty a = b = G_tᵀ e_q.
+Then (Woodbury)
+
+    J_k⁻¹ r = y − Z (D⁻¹ + Bᵀ Z)⁻¹ Bᵀ y,   y = J_f⁻¹ r,   Z = J_f⁻¹ A,
+
+which is exact: the Newton iterates are those of a fresh factorisation, to round-off.  Z's columns
+depend only on J_f and the point, so they are kept across steps and only new points cost a solve;
+they are computed in blocks (one multiple right-hand-side solve of the factor each).  Every solve is
+checked by its residual ‖J_k x − r‖ (J_f x by a product with the kept matrix, A D Bᵀ x by products
+with the point matrices), so a poorly conditioned update is caught and refactorised instead.
+
+When to refactorise is decided by measured cost: the new columns a step needs times the measured
+seconds per column, against the seconds of the last factorisation; the columns must also fit the
+memory budget.  ``max_factorisations`` bounds the factorisations of one solve (the first included).
+"""
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+#: Columns of the first block of a factor (their time is the first measurement of a column's cost).
+PROBE_COLUMNS = 16
+#: Columns per multiple right-hand-side solve afterwards (MUMPS's BLAS-3 solve; 16-256 measured on
+#: the brake corner at 163k DOFs: 0.033, 0.028, 0.038 s per column for blocks of 16, 64, 256).
+BLOCK_COLUMNS = 64
+#: Relative residual ‖J_k x − r‖/‖r‖ above which an updated solve is refused (and refactorised).
+UPDATE_RESIDUAL = 1e-8
+
+
+@dataclass(frozen=True)
+class RankOneFamily:
+    """Terms a_q d_q b_qᵀ, one per row q of the point matrices (rank-local rows):
+    a_q = Σ_m c_m[q] L_mᵀ e_q (``left`` = ((L_m, c_m), ...), c_m per row or one number) and
+    b_q = Rᵀ e_q (``right`` = R).  ``key`` names the family (interface and stiffness)."""
+
+    key: str
+    left: tuple[tuple[PETSc.Mat, np.ndarray | float], ...]
+    right: PETSc.Mat
+
+
+def default_memory_budget(comm: MPI.Comm) -> float:
+    """Bytes per rank the kept columns may take: a quarter of the machine's memory shared by the ranks
+    (every rank counted as on this machine, which errs on the safe side)."""
+    try:
+        phys = float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        phys = 8e9
+    return 0.25 * phys / comm.size
+
+
+class KeptFactorisation:
+    """The factorisation of J_f (``ksp``, ``J`` holding J_f's values) and the low-rank updates of it.
+
+    Lifecycle: :meth:`reset` after each (re)factorisation with the families' stiffness values of J_f;
+    :meth:`prepare` with a step's values computes the update (or returns False: refactorise);
+    :meth:`solve` applies it (or returns False when its residual check fails)."""
+
+    def __init__(self, ksp: PETSc.KSP, J: PETSc.Mat, bc_rows: np.ndarray, families: list[RankOneFamily], *,
+                 max_factorisations: int = 2, memory_bytes: float | None = None):
+        self.ksp, self.J = ksp, J
+        self.comm = J.getComm().tompi4py()
+        self.families = {f.key: f for f in families}
+        lo, hi = J.getOwnershipRange()
+        self.n_local = hi - lo
+        self.bc_local = np.asarray(bc_rows, dtype=np.int64) - lo
+        self.max_factorisations = max_factorisations
+        self.memory_bytes = default_memory_budget(self.comm) if memory_bytes is None else memory_bytes
+        self.factorisations = 0
+        self.factor_seconds = 0.0
+        self.column_seconds: float | None = None
+        self.columns_computed = 0
+        self.updated_solves = 0
+        self._reference: dict[str, np.ndarray] = {}
+        self._clear()
+
+    # ------------------------------------------------------------------ state
+    def _clear(self) -> None:
+        self._index: dict[tuple[str, int], int] = {}    # (family, global point row) -> column
+        self._n = 0                                       # columns computed (Z[:, :n], Y[k][:, :n])
+        self._Z = np.zeros((self.n_local, 0), order="F")
+        self._Y = {k: np.zeros((f.right.getLocalSize()[0], 0)) for k, f in self.families.items()}
+        self._step: tuple | None = None
+
+    def reset(self, values: dict[str, np.ndarray], seconds: float) -> None:
+        """J_f was (re)factorised in ``seconds`` with the families' values ``values``: forget the columns."""
+        self.factorisations += 1
+        self.factor_seconds = seconds
+        self._reference = {k: np.array(v, dtype=float) for k, v in values.items()}
+        self._clear()
+
+    def may_refactorise(self) -> bool:
+        return self.factorisations < self.max_factorisations
+
+    # ------------------------------------------------------------------ the update of a step
+    def _changes(self, values: dict[str, np.ndarray]) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """(family, global point rows, d) of the changed points, in the same order on every rank."""
+        out = []
+        for key, f in self.families.items():
+            lo = f.right.getOwnershipRange()[0]
+            d = np.asarray(values[key], float) - self._reference[key]
+            q = np.flatnonzero(d != 0.0)
+            rows = self.comm.allgather(q + lo)
+            ds = self.comm.allgather(d[q])
+            out.append((key, np.concatenate(rows).astype(np.int64), np.concatenate(ds)))
+        return out
+
+    def prepare(self, values: dict[str, np.ndarray]) -> bool:
+        """Set up the update J_k − J_f for the families' ``values`` at this step: True when the step
+        can use it, False when a refactorisation is cheaper (measured cost, as long as
+        ``max_factorisations`` allows one) or the new columns would exceed the memory budget."""
+        changes = self._changes(values)
+        new = [(key, int(r)) for key, rows, _ in changes for r in rows if (key, int(r)) not in self._index]
+        total = len(self._index) + len(new)
+        if new and self.comm.allreduce(8.0 * self.n_local * (total + 2 * BLOCK_COLUMNS), op=MPI.MAX) > \
+                self.memory_bytes:
+            return False            # the columns would not fit: refactorise, whatever the limit
+        while new:
+            cheaper = (self.column_seconds is not None
+                       and len(new) * self.column_seconds > self.factor_seconds)
+            if cheaper and self.may_refactorise():
+                return False
+            m = PROBE_COLUMNS if self.column_seconds is None else BLOCK_COLUMNS
+            block, new = new[:m], new[m:]
+            t = time.perf_counter()
+            self._compute_columns(block)
+            self.column_seconds = self.comm.allreduce(time.perf_counter() - t, op=MPI.MAX) / len(block)
+        order = np.array([self._index[(key, int(r))] for key, rows, _ in changes for r in rows], dtype=np.int64)
+        d = np.concatenate([ds for _, _, ds in changes]) if changes else np.zeros(0)
+        r = len(order)
+        S = np.zeros((r, r))
+        i0 = 0
+        for key, rows, _ in changes:
+            lo, hi = self.families[key].right.getOwnershipRange()
+            mine = np.flatnonzero((rows >= lo) & (rows < hi))
+            S[i0 + mine] = self._Y[key][rows[mine] - lo][:, order]
+            i0 += len(rows)
+        S = self.comm.allreduce(S, op=MPI.SUM)
+        S[np.diag_indices(r)] += 1.0 / d
+        self._step = (changes, order, d, S)
+        return True
+
+    def _compute_columns(self, block: list[tuple[str, int]]) -> None:
+        """Z = J_f⁻¹ A for the points of ``block`` (one multiple right-hand-side solve), and the rows
+        R_f Z of every family (for Bᵀ Z)."""
+        m = len(block)
+        A = None
+        for key, f in self.families.items():
+            lo, hi = f.right.getOwnershipRange()
+            cols = [(j, r - lo) for j, (k, r) in enumerate(block) if k == key and lo <= r < hi]
+            if self.comm.allreduce(len(cols), op=MPI.SUM) == 0:
+                continue
+            for L, c in f.left:
+                E = PETSc.Mat().createAIJ(((hi - lo, None), (None, m)), nnz=(1, 1), comm=self.comm)
+                E.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+                for j, q in cols:
+                    E.setValue(q + lo, j, float(c if np.isscalar(c) else c[q]))
+                E.assemble()
+                P = L.transposeMatMult(E)
+                E.destroy()
+                if A is None:
+                    A = P
+                else:
+                    A.axpy(1.0, P, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+                    P.destroy()
+        Ad = PETSc.Mat().createDense(((self.n_local, None), (None, m)), comm=self.comm)
+        Ad.setUp()
+        a = Ad.getDenseArray()
+        a[:] = 0.0
+        ai, aj, av = A.getValuesCSR()                 # local rows, global (= block) columns
+        a[np.repeat(np.arange(self.n_local), np.diff(ai)), aj] = av
+        a[self.bc_local, :] = 0.0                      # J_f's clamped rows are identity rows
+        Ad.assemble()
+        A.destroy()
+        X = Ad.duplicate()
+        self.ksp.getPC().getFactorMatrix().matSolve(Ad, X)
+        n0 = self._n
+        if n0 + m > self._Z.shape[1]:                 # grow the stores by doubling (amortised copies)
+            cap = max(2 * self._Z.shape[1], n0 + m)
+            self._Z = _grown(self._Z, cap)
+            self._Y = {k: _grown(Y, cap) for k, Y in self._Y.items()}
+        self._Z[:, n0:n0 + m] = X.getDenseArray()
+        for key, f in self.families.items():
+            Yb = f.right.matMult(X)
+            self._Y[key][:, n0:n0 + m] = Yb.getDenseArray()
+            Yb.destroy()
+        for j, k in enumerate(block):
+            self._index[k] = n0 + j
+        self._n = n0 + m
+        self.columns_computed += m
+        Ad.destroy()
+        X.destroy()
+
+    # ------------------------------------------------------------------ the solve
+    def solve(self, b: PETSc.Vec, x: PETSc.Vec) -> bool:
+        """x = J_k⁻¹ b with the prepared update (Woodbury); False when its residual exceeds
+        UPDATE_RESIDUAL ‖b‖ (x is then not to be used)."""
+        changes, order, d, S = self._step
+        self.ksp.solve(b, x)
+        if len(order):
+            t = np.zeros(len(order))
+            i0 = 0
+            for key, rows, _ in changes:
+                R = self.families[key].right
+                lo, hi = R.getOwnershipRange()
+                v = R.createVecLeft()
+                R.mult(x, v)
+                mine = np.flatnonzero((rows >= lo) & (rows < hi))
+                t[i0 + mine] = v.array_r[rows[mine] - lo]
+                v.destroy()
+                i0 += len(rows)
+            t = self.comm.allreduce(t, op=MPI.SUM)
+            try:
+                s = np.linalg.solve(S, t)
+            except np.linalg.LinAlgError:
+                return False
+            x.array[:] -= self._Z[:, order] @ s
+        self.updated_solves += 1
+        return self._residual(changes, x, b) <= UPDATE_RESIDUAL
+
+    def _residual(self, changes, x: PETSc.Vec, b: PETSc.Vec) -> float:
+        """‖J_f x + A D Bᵀ x − b‖ / ‖b‖, A D Bᵀ x by products with the point matrices."""
+        r = b.duplicate()
+        self.J.mult(x, r)
+        acc = b.duplicate()
+        acc.set(0.0)
+        i0 = 0
+        d = self._step[2]
+        for key, rows, _ in changes:
+            f = self.families[key]
+            lo, hi = f.right.getOwnershipRange()
+            v = f.right.createVecLeft()
+            f.right.mult(x, v)
+            w = np.zeros(hi - lo)
+            mine = np.flatnonzero((rows >= lo) & (rows < hi))
+            w[rows[mine] - lo] = d[i0 + mine] * v.array_r[rows[mine] - lo]
+            for L, c in f.left:
+                v.array[:] = w * c
+                L.multTransposeAdd(v, acc, acc)
+            v.destroy()
+            i0 += len(rows)
+        acc.array[self.bc_local] = 0.0
+        r.axpy(1.0, acc)
+        r.axpy(-1.0, b)
+        bn = b.norm()
+        rel = r.norm() / bn if bn > 0 else r.norm()
+        r.destroy()
+        acc.destroy()
+        return rel
+
+    def destroy(self) -> None:
+        self._clear()
+
+
+def _grown(a: np.ndarray, columns: int) -> np.ndarray:
+    out = np.zeros((a.shape[0], columns), order="F")
+    out[:, :a.shape[1]] = a
+    return out

@@ -21,6 +21,7 @@ stiffness of the "partial nonlinear perturbed" CEA (``linearise`` with the activ
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -71,7 +72,8 @@ def _traction(g: np.ndarray, kn: float, k3: float) -> tuple[np.ndarray, np.ndarr
 def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol: float = 1e-9,
                   max_iterations: int = 25, options: dict | None = None,
                   prefix: str = "preload_", jacobian: str = "update",
-                  max_factorisations: int = 2) -> PreloadResult:
+                  max_factorisations: int = 2,
+                  progress: Callable[[str], None] | None = None) -> PreloadResult:
     """Static equilibrium under ``ops.f`` with unilateral contact on ``ops.contacts`` (module doc).
 
     Starts from u = 0 with the touching points (g₀ ≤ 0) closed.  Raises :class:`PreloadError`
@@ -81,7 +83,8 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     and solves the later steps by low-rank updates of it (the points whose stiffness changed;
     :mod:`fem_squeal.fe.kept_factorisation`), refactorising when the measured cost says it is cheaper,
     at most ``max_factorisations`` times (unless an update fails its residual check or its memory
-    budget).  Both are exact Newton: the same iterates to round-off."""
+    budget).  Both are exact Newton: the same iterates to round-off.  ``progress`` (if given) receives
+    one line per Newton iteration: closed points, ‖R‖/‖f‖, how the step was solved and its seconds."""
     if jacobian not in ("update", "refactorise"):
         raise ModelError(f"preload.jacobian: must be 'update' or 'refactorise' (got {jacobian!r})")
     if ops.f is None:
@@ -104,6 +107,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     ksp: PETSc.KSP | None = None
     kept: KeptFactorisation | None = None
     factorisations = 0
+    how, t_step = "", time.perf_counter()         # the last Newton step: how it was solved, when it began
     for k in range(max_iterations + 1):
         # gaps, tractions and residual at u
         ops.K.mult(u, R)
@@ -143,6 +147,9 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         rel = R.norm() / fnorm
         n_closed = comm.allreduce(int(sum(int(c.sum()) for c in closed.values())), op=MPI.SUM)
         history.append((n_closed, rel))
+        if progress is not None:
+            progress(f"preload: iteration {k}, {n_closed} closed points, ‖R‖/‖f‖ = {rel:.2e}"
+                     + (f"; step {k - 1} by {how} in {time.perf_counter() - t_step:.1f} s" if k else ""))
         same = prev is not None and comm.allreduce(
             int(all(np.array_equal(prev[n], closed[n]) for n in closed)), op=MPI.MIN) == 1
         if k > 0 and same and rel <= tol:
@@ -153,8 +160,10 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         prev = closed
         R.scale(-1.0)
         values = _family_values(ops, tangents, friction) if jacobian == "update" else {}
+        t_step = time.perf_counter()
         if kept is not None and kept.prepare(values) and kept.solve(R, du):
             u.axpy(1.0, du)
+            how = f"update ({kept.columns_computed} columns)"
             continue
         # Jacobian and Newton step.  The contact matrices keep their sparsity whatever the closed
         # points (open ones carry explicit zeros), so J is built once and refilled: the LU then
@@ -182,6 +191,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
                                          max_factorisations=max_factorisations)
             kept.reset(values, comm.allreduce(time.perf_counter() - t0, op=MPI.MAX))
         ksp.solve(R, du)
+        how = f"factorisation {factorisations}"
         if ksp.getConvergedReason() < 0:
             raise PreloadError(f"preload: linear solve failed (reason {ksp.getConvergedReason()}) "
                                f"at Newton iteration {k}")

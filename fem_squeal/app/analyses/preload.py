@@ -115,7 +115,8 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
 
             pre = solve_preload(ops, friction=pl["friction"], tol=pl["tol"], max_iterations=pl["max_iterations"],
                                 options=ctx.scene.solver.petsc_options, jacobian=pl["jacobian"],
-                                max_factorisations=pl["max_factorisations"])
+                                max_factorisations=pl["max_factorisations"],
+                                progress=lambda line: ctx.say(f"[fem_squeal] {line}"))
             lin = linearise(ops, pre.active)
             timings["preload"] = time.perf_counter() - t
             out["preload"] = {"mode": "nonlinear", "iterations": pre.iterations, "history": pre.history,

@@ -331,7 +331,11 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
 
     t0 = time.perf_counter()
     mesh, cell_tags, facet_tags = mesh_data.mesh, mesh_data.cell_tags, mesh_data.facet_tags
-    if spec.degree == 1:
+    if spec.degree == 1 and hexahedra.is_hexahedral(mesh):
+        warnings.warn("degree 1 on hexahedra: Q1 with 2x2x2 Gauss points (CalculiX C3D8) locks in bending "
+                      "(benchmarks/hex_native.py: the thin plate's frequencies 2.4x C3D20R's); use degree 2",
+                      stacklevel=2)
+    elif spec.degree == 1:
         warnings.warn("degree 1: P1 tetrahedra lock in bending (ring frequencies +2 % at 158k DOFs, "
                       "degenerate pairs split by as much as the friction effect); use degree 2",
                       stacklevel=2)

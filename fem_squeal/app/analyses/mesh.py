@@ -15,9 +15,11 @@ from geometry import BUILDERS
 
 def hexahedra_options(scene: dict) -> dict:
     """``hexahedra`` (discretisation.hexahedra) and ``blockers`` (the scene's features that need the
-    split: interfaces, written for triangle facets) for a mesh file (:func:`geometry.hexahedra.choose_path`)."""
-    disc = scene.get("discretisation", {}) if hasattr(scene, "get") else {}
-    blockers = [f"interfaces.{name} ({t['type']})" for name, t in scene.get("interfaces", {}).items()]
+    split: contact, spring and bonded interfaces, whose operators are written for triangle facets; rigid
+    plates are facet forms and run on quadrilaterals) for a mesh file (:func:`geometry.hexahedra.choose_path`)."""
+    disc = scene.get("discretisation", {})
+    blockers = [f"interfaces.{name} ({t['type']})" for name, t in scene.get("interfaces", {}).items()
+                if t["type"] != "rigid_plate"]
     return {"hexahedra": disc.get("hexahedra", "auto"), "blockers": blockers}
 
 

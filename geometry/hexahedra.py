@@ -58,7 +58,7 @@ def choose_path(mode: str, types: list[str], blockers: list[str] = ()) -> tuple[
     elif len({HEXAHEDRA[t] for t in hexes}) > 1:
         why = f"hexahedra of both orders {hexes}: the conforming split into tetrahedra"
     elif blockers:
-        why = "; ".join(blockers) + " (written for triangle facets): the split into tetrahedra"
+        why = "; ".join(blockers) + " (not supported on hexahedra): the split into tetrahedra"
     if why:
         if mode == "native":
             raise HexPathError(f"discretisation.hexahedra = 'native' is not possible: {why}; "

@@ -12,14 +12,18 @@ from fem_squeal.app.stage import Context, Stage
 from fem_squeal.util.errors import PipelineError
 from geometry import BUILDERS
 
+#: interface types that run on native hexahedra (quadrilateral facets): all of them since the
+#: interface operator takes quadrilaterals (fe/interface.py, RefCell)
+NATIVE_INTERFACES = ("rigid_plate", "contact", "spring", "bonded")
+
 
 def hexahedra_options(scene: dict) -> dict:
     """``hexahedra`` (discretisation.hexahedra) and ``blockers`` (the scene's features that need the
-    split: contact, spring and bonded interfaces, whose operators are written for triangle facets; rigid
-    plates are facet forms and run on quadrilaterals) for a mesh file (:func:`geometry.hexahedra.choose_path`)."""
+    split: interface types not in :data:`NATIVE_INTERFACES`, none today) for a mesh file
+    (:func:`geometry.hexahedra.choose_path`)."""
     disc = scene.get("discretisation", {})
     blockers = [f"interfaces.{name} ({t['type']})" for name, t in scene.get("interfaces", {}).items()
-                if t["type"] != "rigid_plate"]
+                if t["type"] not in NATIVE_INTERFACES]
     return {"hexahedra": disc.get("hexahedra", "auto"), "blockers": blockers}
 
 

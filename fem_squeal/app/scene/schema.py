@@ -150,8 +150,7 @@ SECTIONS = {
                            "hexahedral mesh files: 'native' runs hexahedra as they are (degree 2: serendipity S2 "
                            "with 2x2x2 Gauss points = C3D20R; degree 1: Q1 2x2x2 = C3D8), 'split' cuts them into "
                            "curved tetrahedra; 'auto' (default): native when every element is a hexahedron of one "
-                           "order and the scene has no contact, spring or bonded interfaces (written for triangle "
-                           "facets; rigid plates run on both), else split; "
+                           "order (interfaces of every type run on both), else split; "
                            "results.json mesh.import.hexahedra says which ran and why"),
     },
     "operating": {

@@ -68,7 +68,7 @@ def test_path_choice_and_its_reasons():
     route, why = choose_path("auto", ["hexahedron20", "tetra10"])
     assert route == "split" and why.startswith("mixed elements ['hexahedron20', 'tetra10']")
     route, why = choose_path("auto", ["hexahedron"], ["interfaces.pad (contact)"])
-    assert route == "split" and why.startswith("interfaces.pad (contact) (written for triangle facets)")
+    assert route == "split" and why.startswith("interfaces.pad (contact) (not supported on hexahedra)")
     assert choose_path("auto", ["hexahedron", "hexahedron20"])[0] == "split"
     assert choose_path("split", ["hexahedron20"]) == ("split", "discretisation.hexahedra = 'split'")
     assert choose_path("auto", ["tetra10"]) == ("split", "no hexahedra in the file")

@@ -79,6 +79,8 @@ SUITE: tuple[Bench, ...] = (
           "hex_plate.py", ((),), (("--quick",),)),
     Bench("hex_brake", "mixed hex/tet brake deck vs its all-tet twins (structured, gmsh): CEA, refinement",
           "hex_brake.py", ((),), (("--quick",),)),
+    Bench("hex_native", "native hexahedra (S2 2x2x2 = C3D20R, Q1 = C3D8) vs CalculiX on the issue-37 plate",
+          "hex_native.py", ((),), (("--quick",),), needs=("ccx",)),
     Bench("cea_calculix", "frictional CEA with tangential slip stiffness kt vs CalculiX 2.20 on the same mesh",
           "cea_calculix.py", ((),), (("--quick",),), needs=("ccx",)),
 )

@@ -31,10 +31,11 @@ _QUADRATIC = {"tetra": "tetra10", "hexahedron": "hexahedron20", "wedge": "wedge1
 def write_inp(path: str | Path, points: np.ndarray, blocks: list[tuple[str, np.ndarray]], *,
               elsets: dict[str, np.ndarray] | None = None, nsets: dict[str, np.ndarray] | None = None,
               surfaces: dict[str, list[tuple[int, str]]] | None = None, node_ids: np.ndarray | None = None,
-              elem_ids: np.ndarray | None = None) -> None:
+              elem_ids: np.ndarray | None = None, types: dict[str, str] | None = None) -> None:
     """An Abaqus deck: nodes (numbers ``node_ids``, default 1..n), one ``*ELEMENT`` block per entry
     of ``blocks`` (numbers ``elem_ids`` over the concatenated blocks, default 1..m), element sets as
-    0-based element indices, node sets as node indices, surfaces as (element index, "S1".."S6")."""
+    0-based element indices, node sets as node indices, surfaces as (element index, "S1".."S6");
+    ``types`` overrides :data:`ABAQUS` (e.g. ``{"hexahedron20": "C3D20"}``)."""
     node_ids = np.arange(1, len(points) + 1) if node_ids is None else np.asarray(node_ids)
     total = sum(len(c) for _, c in blocks)
     elem_ids = np.arange(1, total + 1) if elem_ids is None else np.asarray(elem_ids)
@@ -42,7 +43,7 @@ def write_inp(path: str | Path, points: np.ndarray, blocks: list[tuple[str, np.n
     out += [f"{i}, {x!r}, {y!r}, {z!r}" for i, (x, y, z) in zip(node_ids.tolist(), np.asarray(points).tolist())]
     k = 0
     for mtype, conn in blocks:
-        out.append(f"*ELEMENT, TYPE={ABAQUS[mtype]}")
+        out.append(f"*ELEMENT, TYPE={(types or {}).get(mtype, ABAQUS[mtype])}")
         for row in np.asarray(conn):
             vals = [str(elem_ids[k])] + [str(node_ids[v]) for v in row]
             k += 1
@@ -190,6 +191,32 @@ def annular_plate_hex20(inner_radius: float, outer_radius: float, thickness: flo
     renum = np.full(len(pts), -1)
     renum[used] = np.arange(len(used))            # drop the unused face and body centres of the grid
     return pts[used], [("hexahedron20", renum[np.asarray(conn)])], np.asarray(inner), np.asarray(outer)
+
+
+def annular_plate_hex8(inner_radius: float, outer_radius: float, thickness: float, n_r: int, n_theta: int,
+                       n_z: int = 1):
+    """C3D8 ring of n_r x n_theta x n_z cells (corners on the circles): points, [("hexahedron", conn)],
+    the element indices on the inner radius (face S6) and on the outer one (S4), as
+    :func:`annular_plate_hex20`."""
+    r = np.linspace(inner_radius, outer_radius, n_r + 1)
+    t = np.linspace(0, 2 * np.pi, n_theta + 1)[:-1]
+    z = np.linspace(-thickness / 2, thickness / 2, n_z + 1)
+    R, T, Z = np.meshgrid(r, t, z, indexing="ij")
+    pts = np.column_stack([(R * np.cos(T)).ravel(), (R * np.sin(T)).ravel(), Z.ravel()])
+
+    def nid(i, j, k):
+        return (i * n_theta + j % n_theta) * len(z) + k
+
+    conn, inner, outer = [], [], []
+    for i in range(n_r):
+        for j in range(n_theta):
+            for k in range(n_z):
+                conn.append([nid(i + a, j + b, k + c) for a, b, c in _CUBE])
+                if i == 0:
+                    inner.append(len(conn) - 1)
+                if i == n_r - 1:
+                    outer.append(len(conn) - 1)
+    return pts, [("hexahedron", np.asarray(conn))], np.asarray(inner), np.asarray(outer)
 
 
 # ------------------------------------------------------------------------------ polar blocks, brake deck

@@ -28,6 +28,18 @@ from mpi4py import MPI
 
 from geometry.abaqus import AbaqusError, AbaqusSyntaxError, read_deck
 from geometry.gmsh_io import MeshData
+from geometry.hexahedra import (
+    DEGENERATE,
+    HEXAHEDRA,
+    HexFaceIndex,
+    HexPathError,
+    choose_path,
+    complete_hex27,
+    face_label,
+    facet_nodes,
+    hex_quality,
+)
+from geometry.hexahedra import distribute as distribute_hexahedra
 from geometry.quality import tet_quality
 from geometry.split import ELEMENTS, FACES, SplitError, split_mesh
 from geometry.tags import mesh_file_tags
@@ -72,9 +84,16 @@ class MeshFile:
     def degree(self) -> int:
         return 2 if self.cells.shape[1] == 10 else 1
 
+    @property
+    def hexahedral(self) -> bool:
+        """Hexahedra (8 or 27 nodes) read as they are (the native path, :mod:`geometry.hexahedra`)."""
+        return self.cells.shape[1] in (8, 27)
+
     @functools.cached_property
     def face_index(self) -> _FaceIndex:
         """The boundary faces of ``cells`` (built once: reading, mapping and writing all need it)."""
+        if self.hexahedral:
+            return HexFaceIndex(self.cells)
         return _FaceIndex(self.cells)
 
 
@@ -119,12 +138,17 @@ def read_mesh_file(path: str | Path, fmt: str = "", id_field: str = "") -> MeshF
     """Read a mesh and its sets, its hexahedra, wedges and pyramids split into tetrahedra
     (:mod:`geometry.split`); ``id_field`` names the integer cell data that holds set numbers
     (default: ``nastran:ref`` or ``gmsh:physical``, else the only integer cell data)."""
+    path, fmt, raw = _read_raw(path, fmt, id_field)
+    return _split(path, fmt, raw)
+
+
+def _read_raw(path: str | Path, fmt: str = "", id_field: str = "") -> tuple[Path, str, _Raw]:
+    """The file's elements and sets as they are (before any split)."""
     path = Path(path)
     if not path.is_file():
         raise MeshImportError(f"geometry.file: {path} does not exist")
     fmt = file_format(path, fmt)
-    raw = _read_abaqus(path) if fmt == "abaqus" else _read_meshio(path, fmt, id_field)
-    return _split(path, fmt, raw)
+    return path, fmt, _read_abaqus(path) if fmt == "abaqus" else _read_meshio(path, fmt, id_field)
 
 
 def _read_meshio(path: Path, fmt: str, id_field: str) -> _Raw:
@@ -536,13 +560,16 @@ def map_sets(mf: MeshFile, parts: dict[str, list], faces: dict[str, list]) -> Ma
             facet_owner[cf] = face
             facets.append(_facet_nodes(mf.cells[cf[0]], cf[1]))
             values.append(face_tags[face])
-    width = 6 if mf.degree == 2 else 3
+    width = {4: 3, 10: 6, 8: 4, 27: 9}[mf.cells.shape[1]]
     return MappedMesh(mf.points, mf.cells, cell_values, np.asarray(facets, dtype=np.int64).reshape(-1, width),
                       np.asarray(values, dtype=np.int32), volumes, face_tags)
 
 
 def _facet_nodes(cell: np.ndarray, face: int) -> np.ndarray:
-    """VTK triangle (3 nodes) or triangle6 (corners, then mid-edges 01, 12, 20) of a tetrahedron face."""
+    """VTK triangle (3 nodes) or triangle6 (corners, then mid-edges 01, 12, 20) of a tetrahedron face;
+    quad or quad9 of a hexahedron's (:func:`geometry.hexahedra.facet_nodes`)."""
+    if len(cell) in (8, 27):
+        return facet_nodes(cell, face)
     a, b, c = TET_FACES[face]
     if len(cell) == 4:
         return cell[[a, b, c]]
@@ -603,11 +630,29 @@ MM_SUSPECT_EXTENT = 5.0
 
 def prepare(path: str | Path, *, parts: dict[str, list], faces: dict[str, list], fmt: str = "", scale: float = 1.0,
             center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), id_field: str = "",
-            max_aspect_ratio: float = 10.0) -> tuple[MappedMesh, dict]:
+            max_aspect_ratio: float = 10.0, hexahedra: str = "split", blockers=()) -> tuple[MappedMesh, dict]:
     """Read, scale and turn, check the elements and map the sets (one process).  Returns the mapped
-    mesh and a summary (sizes, bounding box, quality, warnings) for the results."""
+    mesh and a summary (sizes, bounding box, quality, warnings) for the results.  ``hexahedra``
+    ("auto", "native", "split") and the scene features that need tetrahedra (``blockers``) choose
+    the path of hexahedral files (:func:`geometry.hexahedra.choose_path`); the summary records it."""
+    file, fmt, raw = _read_raw(path, fmt, id_field)
+    types = [t for t, _ in raw.blocks]
+    try:
+        route, reason = choose_path(hexahedra, types, list(blockers))
+    except HexPathError as e:
+        raise MeshImportError(str(e)) from None
+    if route == "native":
+        mapped, info = _prepare_native(str(path), file, fmt, raw, parts, faces, scale, center, axis,
+                                       max_aspect_ratio)
+    else:
+        mapped, info = _prepare_split(str(path), _split(file, fmt, raw), parts, faces, scale, center, axis,
+                                      max_aspect_ratio)
+    if any(t in HEXAHEDRA for t in types):
+        info["hexahedra"] = {"path": route, "reason": reason}
+    return mapped, info
 
-    mf = read_mesh_file(path, fmt, id_field)
+
+def _prepare_split(path: str, mf: MeshFile, parts, faces, scale, center, axis, max_aspect_ratio):
     mf.points = transform_points(mf.points, scale, center, axis)
     info: dict = {"file": str(path), "format": mf.format, "nodes": len(mf.points), "elements": len(mf.cells),
                   "element": "tetra10" if mf.degree == 2 else "tetra", "scale": scale, "warnings": []}
@@ -647,16 +692,79 @@ def prepare(path: str | Path, *, parts: dict[str, list], faces: dict[str, list],
     return mapped, info
 
 
+def _prepare_native(path: str, file: Path, fmt: str, raw: _Raw, parts, faces, scale, center, axis,
+                    max_aspect_ratio):
+    """The native path: hexahedra as they are (20-node ones completed to 27 nodes), checked and mapped."""
+    mtype = raw.blocks[0][0]
+    conn = np.vstack([c for _, c in raw.blocks]).astype(np.int64)
+    points = raw.points
+    if mtype == "hexahedron20":
+        points, conn = complete_hex27(points, conn)
+    points = transform_points(points, scale, center, axis)
+    mf = MeshFile(points, conn, raw.ids, cell_sets=dict(raw.cell_sets), node_sets=dict(raw.node_sets), format=fmt)
+    index: HexFaceIndex = mf.face_index
+    try:
+        for name, skins in raw.skins.items():
+            quads = [q for q in skins if q.shape[1] == 4]
+            if len(quads) != len(skins):
+                raise MeshImportError(f"geometry.file: {file.name}: surface {name!r} has triangles; a mesh of "
+                                      "hexahedra has quadrilateral faces")
+            if quads:
+                mf.surfaces[name] = index.locate(np.concatenate(quads), name)
+        for name, rows in raw.faces.items():
+            mf.surfaces[name] = np.asarray([(e, face_label(label, name, where)) for e, label, where in rows],
+                                           dtype=np.int64).reshape(-1, 2)
+    except MeshImportError:
+        raise
+    except ValueError as e:
+        raise MeshImportError(f"geometry.file: {e}") from None
+    info: dict = {"file": path, "format": fmt, "nodes": len(np.unique(conn)), "elements": len(conn),
+                  "element": "hexahedron27" if conn.shape[1] == 27 else "hexahedron", "scale": scale,
+                  "warnings": [], "file_elements": {mtype: len(conn)}}
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    info["bounding_box"] = [lo.tolist(), hi.tolist()]
+    extent = float(np.max(hi - lo))
+    if extent > MM_SUSPECT_EXTENT:
+        info["warnings"].append(
+            f"geometry.scale: the mesh spans {extent:.4g} m after scaling by {scale:g}; a brake is well under "
+            f"{MM_SUSPECT_EXTENT:g} m, so the file is probably in millimetres: set geometry.scale = 0.001")
+    ratio, aspect = hex_quality(points, conn)
+    info["quality"] = {"worst_aspect_ratio": float(np.max(aspect)),
+                       "worst_aspect_element": int(raw.ids[np.argmax(aspect)]),
+                       "min_jacobian_ratio": float(np.min(ratio)),
+                       "poor_elements": int(np.count_nonzero(aspect > max_aspect_ratio)),
+                       "max_aspect_ratio": max_aspect_ratio}
+    for what, bad in (("inverted (det J <= 0)", ratio <= 0),
+                      ("degenerate (aspect ratio > 1e4)", aspect > DEGENERATE)):
+        ids = raw.ids[bad].tolist()
+        if ids:
+            raise MeshImportError(f"geometry.file: {len(ids)} {what} elements: {ids[:20]}"
+                                  + (" ..." if len(ids) > 20 else ""))
+    poor = np.flatnonzero(aspect > max_aspect_ratio)
+    if len(poor):
+        worst = poor[np.argsort(aspect[poor])[::-1]]
+        info["warnings"].append(
+            f"geometry.max_aspect_ratio: {len(poor)} elements have an aspect ratio above {max_aspect_ratio:g} "
+            f"(worst {aspect[worst[0]]:.3g}; elements {raw.ids[worst[:10]].tolist()})")
+    mapped = map_sets(mf, parts, faces)
+    info["parts"] = {p: int(np.count_nonzero(mapped.cell_values == t)) for p, t in mapped.volumes.items()}
+    info["faces"] = {f: int(np.count_nonzero(mapped.facet_values == t)) for f, t in mapped.faces.items()}
+    return mapped, info
+
+
 def mesh_file_mesh(comm: MPI.Comm, *, file: str, parts: dict[str, list], faces: dict[str, list],
                    format: str = "", scale: float = 1.0, center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0),
-                   id_field: str = "", max_aspect_ratio: float = 10.0) -> MeshData:
+                   id_field: str = "", max_aspect_ratio: float = 10.0, hexahedra: str = "split",
+                   blockers=()) -> MeshData:
     """Distributed mesh of a mesh file (scene ``geometry.builder = "mesh_file"``); rank 0 reads it.
-    Warnings (units, poorly shaped elements) are issued with :func:`warnings.warn` and kept in ``info``."""
+    Warnings (units, poorly shaped elements) are issued with :func:`warnings.warn` and kept in ``info``.
+    ``hexahedra``, ``blockers``: the path of hexahedral files (:func:`prepare`)."""
     mapped, info, error = None, None, None
     if comm.rank == 0:
         try:
             mapped, info = prepare(file, parts=parts, faces=faces, fmt=format, scale=scale, center=center,
-                                   axis=axis, id_field=id_field, max_aspect_ratio=max_aspect_ratio)
+                                   axis=axis, id_field=id_field, max_aspect_ratio=max_aspect_ratio,
+                                   hexahedra=hexahedra, blockers=blockers)
         except MeshImportError as e:
             error = str(e)
     error = comm.bcast(error, root=0)
@@ -666,5 +774,8 @@ def mesh_file_mesh(comm: MPI.Comm, *, file: str, parts: dict[str, list], faces: 
     if comm.rank == 0:
         for w in info["warnings"]:
             warnings.warn(w, stacklevel=2)
-    md = distribute(comm, mapped)
+    if info.get("hexahedra", {}).get("path") == "native":
+        md = distribute_hexahedra(comm, mapped)
+    else:
+        md = distribute(comm, mapped)
     return md._replace(info=info)

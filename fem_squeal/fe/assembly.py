@@ -25,7 +25,7 @@ from petsc4py import PETSc
 from ufl.algorithms.map_integrands import map_integrand_dags
 from ufl.corealg.multifunction import MultiFunction
 
-from fem_squeal.fe import cell_assembly, forms, kernels
+from fem_squeal.fe import cell_assembly, forms, hexahedra, kernels
 from fem_squeal.fe import interface as itf
 from fem_squeal.fe.factorisation import LU, factor_solver
 from fem_squeal.fe.model import Interface, ModelSpec, RigidPlate, sliding_speed, speed_friction
@@ -94,10 +94,14 @@ class _LiftFloats(MultiFunction):
 def _compile(a, quadrature_degree):
     """JIT-compile ``a``; ``quadrature_degree`` (``discretisation.quadrature_degree``) goes into each
     integral's metadata: FFCx 0.5 ignores it as a form-compiler parameter (it was silently unused).
-    Real literals are lifted into constants (:class:`_LiftFloats`): compiled once per form structure."""
+    Real literals are lifted into constants (:class:`_LiftFloats`): compiled once per form structure.
+    Not set, on a hexahedral mesh: the 2 × 2 × 2 Gauss rule on the cell integrals
+    (:mod:`~fem_squeal.fe.hexahedra`)."""
     if quadrature_degree is not None:
         a = ufl.Form([itg.reconstruct(metadata={"quadrature_degree": quadrature_degree, **itg.metadata()})
                       for itg in a.integrals()])
+    else:
+        a = hexahedra.with_cell_rule(a)
     a = map_integrand_dags(_LiftFloats(a.ufl_domain()), a)
     return fem.form(a, form_compiler_params={}, jit_params=JIT_PARAMS)
 
@@ -298,22 +302,28 @@ def dirichlet_conditions(V, mesh_data, spec: ModelSpec) -> tuple[list, np.ndarra
     if spec.clamped:
         facets = np.unique(np.concatenate([facets_of(f, "boundary.clamped") for f in spec.clamped]))
         dofs = fem.locate_dofs_topological(V, fdim, facets)
-        bcs.append(fem.dirichletbc(np.zeros(3, dtype=PETSc.ScalarType), dofs, V))
+        bcs.append(hexahedra.zero_condition(V, dofs))
         dofs_all.append((dofs[:, None] * bs + np.arange(bs)[None, :]).ravel())
     for i in range(bs):   # one condition per component over every face that fixes it
         faces = [fx.face for fx in spec.fixed if i in fx.indices]
         if not faces:
             continue
         facets = np.unique(np.concatenate([facets_of(f, "boundary.fixed") for f in faces]))
-        dofs = fem.locate_dofs_topological(V.sub(i), fdim, facets)   # unrolled: block × bs + i
-        bcs.append(fem.dirichletbc(PETSc.ScalarType(0), dofs, V.sub(i)))
+        if hexahedra.point_evaluation(V):
+            dofs = fem.locate_dofs_topological(V.sub(i), fdim, facets)   # unrolled: block × bs + i
+            bcs.append(hexahedra.zero_condition(V, dofs, i))
+        else:   # (dofs in V, dofs in the collapsed component space)
+            pair = fem.locate_dofs_topological((V.sub(i), V.sub(i).collapse()[0]), fdim, facets)
+            bcs.append(hexahedra.zero_condition(V, pair, i))
+            dofs = pair[0]
         dofs_all.append(np.asarray(dofs))
     return bcs, np.unique(np.concatenate(dofs_all)).astype(np.int32)
 
 
 def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
                        describe_part: str | None = None, timings: dict | None = None) -> Operators:
-    """Build V = [P_degree]³ on the mesh and assemble K, K_f, M, C, M_axial, loads and interfaces.
+    """Build V = [P_degree]³ on the mesh (on hexahedra: :func:`fem_squeal.fe.hexahedra.displacement_space`)
+    and assemble K, K_f, M, C, M_axial, loads and interfaces.
 
     ``parts``: also assemble each part's elastic stiffness (strain-energy shares, parametric
     stiffness); ``describe_part``: also that part's M and M_axial (its nodal diameters);
@@ -321,7 +331,11 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
 
     t0 = time.perf_counter()
     mesh, cell_tags, facet_tags = mesh_data.mesh, mesh_data.cell_tags, mesh_data.facet_tags
-    if spec.degree == 1:
+    if spec.degree == 1 and hexahedra.is_hexahedral(mesh):
+        warnings.warn("degree 1 on hexahedra: Q1 with 2x2x2 Gauss points (CalculiX C3D8) locks in bending "
+                      "(benchmarks/hex_native.py: the thin plate's frequencies 2.4x C3D20R's); use degree 2",
+                      stacklevel=2)
+    elif spec.degree == 1:
         warnings.warn("degree 1: P1 tetrahedra lock in bending (ring frequencies +2 % at 158k DOFs, "
                       "degenerate pairs split by as much as the friction effect); use degree 2",
                       stacklevel=2)
@@ -329,7 +343,7 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
         raise ModelError(f"discretisation.degree: must be 1 or 2 (got {spec.degree})")
     for w in locking_warnings(spec):
         warnings.warn(w, stacklevel=2)
-    V = fem.VectorFunctionSpace(mesh, ("Lagrange", spec.degree))
+    V = hexahedra.displacement_space(mesh, spec.degree)
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     dx = ufl.Measure("dx", domain=mesh, subdomain_data=cell_tags)
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags)

@@ -24,6 +24,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fem_squeal.fe.hexahedra import dof_coordinates
+
 
 class ModeDescriptors(NamedTuple):
     in_plane_share: float
@@ -38,7 +40,7 @@ class CircumferentialBasis:
 
     def __init__(self, V, M: PETSc.Mat, M_axial: PETSc.Mat, kmax: int = 24):
         n_owned = V.dofmap.index_map.size_local
-        x = V.tabulate_dof_coordinates()[:n_owned]
+        x = dof_coordinates(V)[:n_owned]
         self.theta = np.arctan2(x[:, 1], x[:, 0])
         self.cos, self.sin = np.cos(self.theta), np.sin(self.theta)
         self.M, self.Mz, self.kmax = M, M_axial, kmax

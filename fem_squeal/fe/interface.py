@@ -34,6 +34,7 @@ from typing import NamedTuple
 import basix
 import numpy as np
 import scipy.sparse as sp
+from ffcx.element_interface import create_element
 from mpi4py import MPI
 from petsc4py import PETSc
 from scipy.sparse.linalg import spsolve
@@ -45,6 +46,29 @@ from fem_squeal.util.errors import ModelError
 _REF_VERTICES = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
 _REF_FACETS = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])
 _REF_NORMALS = np.array([[1.0, 1, 1], [-1, 0, 0], [0, -1, 0], [0, 0, -1]]) / np.array([[3 ** 0.5], [1], [1], [1]])
+
+
+class RefCell(NamedTuple):
+    """A reference cell's vertices, facets (basix order), outward facet normals and facet type.  A
+    facet point is v₀ + ξ₁(v₁ − v₀) + ξ₂(v₂ − v₀): ξ in the triangle ξ ≥ 0, ξ₁ + ξ₂ ≤ 1, or, for the
+    quadrilaterals of the hexahedron (v₃ = v₁ + v₂ − v₀ in basix's order), in the square [0, 1]²."""
+
+    vertices: np.ndarray
+    facets: np.ndarray
+    normals: np.ndarray
+    facet: basix.CellType
+
+
+TETRAHEDRON = RefCell(_REF_VERTICES, _REF_FACETS, _REF_NORMALS, basix.CellType.triangle)
+HEXAHEDRON = RefCell(np.array(basix.geometry(basix.CellType.hexahedron), dtype=float),
+                     np.array(basix.topology(basix.CellType.hexahedron)[2]),
+                     np.array([[0.0, 0, -1], [0, -1, 0], [-1, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]),
+                     basix.CellType.quadrilateral)
+
+
+def reference_cell(mesh) -> RefCell:
+    """The :class:`RefCell` of a tetrahedral or (native path) hexahedral mesh."""
+    return HEXAHEDRON if mesh.ufl_cell().cellname() == "hexahedron" else TETRAHEDRON
 
 
 class SurfacePoints(NamedTuple):
@@ -82,15 +106,32 @@ class InterfaceOperator(NamedTuple):
             m.destroy()
 
 
-def lagrange_element(degree: int) -> basix.finite_element.FiniteElement:
-    """The scalar Lagrange element dolfinx 0.5.2 uses on tetrahedra (gll_warped variant)."""
-    return basix.create_element(basix.ElementFamily.P, basix.CellType.tetrahedron, degree,
-                                basix.LagrangeVariant.gll_warped)
+def lagrange_element(degree: int, cell: basix.CellType = basix.CellType.tetrahedron
+                     ) -> basix.finite_element.FiniteElement:
+    """The scalar Lagrange element dolfinx 0.5.2 uses on tetrahedra (gll_warped variant), or on ``cell``."""
+    return basix.create_element(basix.ElementFamily.P, cell, degree, basix.LagrangeVariant.gll_warped)
 
 
-def _facet_map(lf: np.ndarray, xi: np.ndarray) -> np.ndarray:
+def coordinate_element(mesh) -> basix.finite_element.FiniteElement:
+    """The mesh's scalar coordinate element (Lagrange of the geometry's degree on its cell)."""
+    cell = basix.CellType.hexahedron if reference_cell(mesh) is HEXAHEDRON else basix.CellType.tetrahedron
+    return lagrange_element(mesh.geometry.cmap.degree, cell)
+
+
+def _basis_values(V, X: np.ndarray) -> np.ndarray:
+    """(len(X), ndofs) values of V's scalar basis at reference points X: P_k on tetrahedra (as
+    always); on hexahedra the element FFCx compiles (serendipity S2 or Q_k; at degree <= 2 one DOF
+    per edge and face, so no DOF transformation)."""
+    if reference_cell(V.mesh) is TETRAHEDRON:
+        el = lagrange_element(V.ufl_element().degree())
+        return el.tabulate(0, X)[0, :, :, 0] if len(X) else np.zeros((0, el.dim))
+    el = create_element(V.ufl_element().sub_elements()[0])
+    return np.asarray(el.tabulate(0, X))[0] if len(X) else np.zeros((0, el.dim))
+
+
+def _facet_map(lf: np.ndarray, xi: np.ndarray, ref: RefCell = TETRAHEDRON) -> np.ndarray:
     """Reference-cell coordinates of the point ξ of reference facet ``lf`` (vectorised)."""
-    v = _REF_VERTICES[_REF_FACETS[lf]]                  # (n, 3 vertices, 3)
+    v = ref.vertices[ref.facets[lf]]                    # (n, 3 or 4 vertices, 3)
     return v[:, 0] + xi[:, :1] * (v[:, 1] - v[:, 0]) + xi[:, 1:2] * (v[:, 2] - v[:, 0])
 
 
@@ -102,8 +143,8 @@ def _geometry(cmap_el, X: np.ndarray, gx: np.ndarray) -> tuple[np.ndarray, np.nd
     return x, J
 
 
-def _outward_normal(J: np.ndarray, lf: np.ndarray) -> np.ndarray:
-    n = np.linalg.solve(np.transpose(J, (0, 2, 1)), _REF_NORMALS[lf][:, :, None])[:, :, 0]
+def _outward_normal(J: np.ndarray, lf: np.ndarray, ref: RefCell = TETRAHEDRON) -> np.ndarray:
+    n = np.linalg.solve(np.transpose(J, (0, 2, 1)), ref.normals[lf][:, :, None])[:, :, 0]
     return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
@@ -125,23 +166,25 @@ def _local_facets(mesh, facets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def surface_points(mesh, facets: np.ndarray, degree: int = 4) -> SurfacePoints:
-    """Quadrature points of degree ``degree`` on boundary ``facets`` of a (curved) tetrahedral mesh.
+    """Quadrature points of degree ``degree`` on boundary ``facets`` of a (curved) tetrahedral mesh
+    (or hexahedral: quadrilateral facets).
 
     w_q = ŵ_q |J t_a × J t_b| with t_a, t_b the edge vectors of the reference facet, so Σ w_q
     is the (curved) area exactly for the geometry's polynomial degree."""
-    cmap_el = lagrange_element(mesh.geometry.cmap.degree)
-    qp, qw = basix.make_quadrature(basix.QuadratureType.Default, basix.CellType.triangle, degree)
+    ref = reference_cell(mesh)
+    cmap_el = coordinate_element(mesh)
+    qp, qw = basix.make_quadrature(basix.QuadratureType.Default, ref.facet, degree)
     cells, lf = _local_facets(mesh, np.asarray(facets, dtype=np.int32))
     nq = len(qw)
     cells_q, lf_q = np.repeat(cells, nq), np.repeat(lf, nq)
-    X = _facet_map(lf_q, np.tile(qp, (len(cells), 1)))
+    X = _facet_map(lf_q, np.tile(qp, (len(cells), 1)), ref)
     gx = mesh.geometry.x[_cell_geometry(mesh)[cells_q]]
     x, J = _geometry(cmap_el, X, gx)
-    v = _REF_VERTICES[_REF_FACETS[lf_q]]
+    v = ref.vertices[ref.facets[lf_q]]
     ta = np.einsum("ncd,nd->nc", J, v[:, 1] - v[:, 0])
     tb = np.einsum("ncd,nd->nc", J, v[:, 2] - v[:, 0])
     w = np.tile(qw, len(cells)) * np.linalg.norm(np.cross(ta, tb), axis=1)
-    return SurfacePoints(cells_q, X, x, w, _outward_normal(J, lf_q))
+    return SurfacePoints(cells_q, X, x, w, _outward_normal(J, lf_q, ref))
 
 
 class MasterSurface(NamedTuple):
@@ -163,7 +206,8 @@ def _gather_master(V, facets: np.ndarray, bbox: tuple[np.ndarray, np.ndarray] | 
     dofs = V.dofmap.index_map.local_to_global(local.ravel()).reshape(-1, nd) if len(cells) else \
         np.zeros((0, nd), dtype=np.int64)
     if len(cells):
-        vx = gx[:, :4][np.arange(len(cells))[:, None], _REF_FACETS[lf]]     # facet vertices
+        ref = reference_cell(mesh)
+        vx = gx[:, :len(ref.vertices)][np.arange(len(cells))[:, None], ref.facets[lf]]     # facet vertices
         centroid = vx.mean(axis=1)
         if bbox is not None:
             lo, hi = bbox
@@ -182,11 +226,13 @@ def _gather_master(V, facets: np.ndarray, bbox: tuple[np.ndarray, np.ndarray] | 
 
 
 def project(points: np.ndarray, master: MasterSurface, cmap_el, *, candidates: int = 8,
-            iterations: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+            iterations: int = 12, ref: RefCell = TETRAHEDRON
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Closest-point projection of ``points`` onto the curved master facets.
 
     Projected Gauss–Newton on each of the nearest ``candidates`` facets (by centroid), in the
-    facet's reference coordinates ξ ∈ {ξ ≥ 0, ξ₁ + ξ₂ ≤ 1}; the nearest result wins.  Returns
+    facet's reference coordinates ξ ∈ {ξ ≥ 0, ξ₁ + ξ₂ ≤ 1} (quadrilaterals: [0, 1]²); the nearest
+    result wins.  Returns
     (facet index, reference coordinates in the master cell, projected point, outward normal)."""
     n = len(points)
     F = len(master.lf)
@@ -200,29 +246,33 @@ def project(points: np.ndarray, master: MasterSurface, cmap_el, *, candidates: i
     pts = np.repeat(points, k, axis=0)
     fac = idx.ravel()
     lf, gx = master.lf[fac], master.gx[fac]
-    v = _REF_VERTICES[_REF_FACETS[lf]]
+    v = ref.vertices[ref.facets[lf]]
     T = np.stack([v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]], axis=2)     # (m, 3, 2) dX/dξ
-    xi = np.full((len(fac), 2), 1.0 / 3.0)
+    square = ref.facet == basix.CellType.quadrilateral
+    xi = np.full((len(fac), 2), 0.5 if square else 1.0 / 3.0)
     for _ in range(iterations):
-        X = _facet_map(lf, xi)
+        X = _facet_map(lf, xi, ref)
         x, J = _geometry(cmap_el, X, gx)
         Jx = J @ T                                                    # (m, 3, 2)
         r = x - pts
         H = np.transpose(Jx, (0, 2, 1)) @ Jx
         g = np.einsum("mcd,mc->md", Jx, r)
         dxi = -np.linalg.solve(H, g[:, :, None])[:, :, 0]
-        xi = np.clip(xi + dxi, 0.0, None)
-        s = xi.sum(axis=1)
-        over = s > 1.0
-        xi[over] /= s[over, None]
+        if square:
+            xi = np.clip(xi + dxi, 0.0, 1.0)
+        else:
+            xi = np.clip(xi + dxi, 0.0, None)
+            s = xi.sum(axis=1)
+            over = s > 1.0
+            xi[over] /= s[over, None]
         if np.max(np.abs(dxi)) < 1e-13:
             break
-    X = _facet_map(lf, xi)
+    X = _facet_map(lf, xi, ref)
     x, J = _geometry(cmap_el, X, gx)
     d = np.linalg.norm(x - pts, axis=1).reshape(n, k)
     best = np.argmin(d, axis=1)
     sel = np.arange(n) * k + best
-    return fac[sel], X[sel], x[sel], _outward_normal(J[sel], lf[sel])
+    return fac[sel], X[sel], x[sel], _outward_normal(J[sel], lf[sel], ref)
 
 
 def tangent_frame(x: np.ndarray, n: np.ndarray, sliding: float,
@@ -282,15 +332,14 @@ def interface_operator(V, facet_tags, slave_tag: int, master_tag: int, *, slidin
     margin = search_margin if search_margin is not None else 0.05 * float(np.max(hi - lo)) + 1e-9
     master = _gather_master(V, master_facets, (lo - margin, hi + margin))
 
-    cmap_el = lagrange_element(mesh.geometry.cmap.degree)
-    fac, Xm, xm, n = project(sp_.x, master, cmap_el)
+    cmap_el = coordinate_element(mesh)
+    fac, Xm, xm, n = project(sp_.x, master, cmap_el, ref=reference_cell(mesh))
     gap0 = np.einsum("nc,nc->n", sp_.x - xm, n)
     t1, t2 = tangent_frame(sp_.x, n, sliding, axis)
 
-    el = lagrange_element(V.ufl_element().degree())
-    nd = el.dim
-    phi = el.tabulate(0, sp_.ref)[0, :, :, 0] if nq else np.zeros((0, nd))
-    psi = el.tabulate(0, Xm)[0, :, :, 0] if nq else np.zeros((0, nd))
+    phi = _basis_values(V, sp_.ref)
+    psi = _basis_values(V, Xm)
+    nd = phi.shape[1]
     # the basis functions of nodes off the facet vanish on it: drop their round-off values
     phi[np.abs(phi) < 1e-12] = 0.0
     psi[np.abs(psi) < 1e-12] = 0.0

@@ -159,7 +159,8 @@ def vtu_mesh(comm, W) -> tuple[np.ndarray, np.ndarray, str] | None:
     cells = comm.gather(vtk, root=0)
     if comm.rank:
         return None
-    return points, np.concatenate(cells), {4: "tetra", 10: "tetra10"}[per_cell]
+    kinds = {4: "tetra", 10: "tetra10", 8: "hexahedron", 27: "hexahedron27"}
+    return points, np.concatenate(cells), kinds[per_cell]
 
 
 def field_rows(V, vectors, scalar: bool = False):

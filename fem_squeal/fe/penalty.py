@@ -29,6 +29,8 @@ from petsc4py import PETSc
 from geometry.quality import longest_edge
 
 WARN_RATIO = 1e3
+#: the edges of a dolfinx hexahedron (vertices (0,0,0), (1,0,0), (0,1,0), (1,1,0), then z = 1 likewise)
+_HEX_EDGES = [(0, 1), (0, 2), (1, 3), (2, 3), (4, 5), (4, 6), (5, 7), (6, 7), (0, 4), (1, 5), (2, 6), (3, 7)]
 
 
 class PenaltyRatio(NamedTuple):
@@ -55,9 +57,15 @@ def _face_cells(mesh_data, face: str) -> np.ndarray:
 
 def cell_size(mesh, cells: np.ndarray) -> np.ndarray:
     """Longest edge of each tetrahedron (its corner nodes: the first four geometry nodes, also
-    for a curved P2 geometry).  ``dolfinx.cpp.mesh.h`` does not accept the Python mesh in 0.5.2."""
+    for a curved P2 geometry), or of each hexahedron (its first eight, dolfinx's vertex order).
+    ``dolfinx.cpp.mesh.h`` does not accept the Python mesh in 0.5.2."""
 
     dm = mesh.geometry.dofmap
+    if mesh.ufl_cell().cellname() == "hexahedron":   # the native path: the 12 edges of the 8 corners
+        corners = np.array([dm.links(c)[:8] for c in cells], dtype=np.int64).reshape(-1, 8)
+        x = mesh.geometry.x[corners]
+        return np.max([np.linalg.norm(x[:, a] - x[:, b], axis=1) for a, b in _HEX_EDGES], axis=0,
+                      initial=0.0) if len(cells) else np.zeros(0)
     corners = np.array([dm.links(c)[:4] for c in cells], dtype=np.int64).reshape(-1, 4)
     return longest_edge(mesh.geometry.x[corners])
 

@@ -12,11 +12,27 @@ from fem_squeal.app.stage import Context, Stage
 from fem_squeal.util.errors import PipelineError
 from geometry import BUILDERS
 
+#: interface types that run on native hexahedra (quadrilateral facets): all of them since the
+#: interface operator takes quadrilaterals (fe/interface.py, RefCell)
+NATIVE_INTERFACES = ("rigid_plate", "contact", "spring", "bonded")
+
+
+def hexahedra_options(scene: dict) -> dict:
+    """``hexahedra`` (discretisation.hexahedra) and ``blockers`` (the scene's features that need the
+    split: interface types not in :data:`NATIVE_INTERFACES`, none today) for a mesh file
+    (:func:`geometry.hexahedra.choose_path`)."""
+    disc = scene.get("discretisation", {})
+    blockers = [f"interfaces.{name} ({t['type']})" for name, t in scene.get("interfaces", {}).items()
+                if t["type"] not in NATIVE_INTERFACES]
+    return {"hexahedra": disc.get("hexahedra", "auto"), "blockers": blockers}
+
 
 def build_mesh(comm: MPI.Comm, scene: dict):
     """Mesh stage: call the geometry builder named in the scene."""
     g = dict(scene.geometry)
     builder = BUILDERS[g.pop("builder")]
+    if builder is BUILDERS["mesh_file"]:
+        g.update(hexahedra_options(scene))
     with mesh_errors():
         return builder(comm, **g)
 
@@ -35,6 +51,9 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
                 f"{md.info['elements']} "
                 f"{md.info['element']}, worst aspect ratio {q['worst_aspect_ratio']:.3g}, min Jacobian ratio "
                 f"{q['min_jacobian_ratio']:.3g}")
+        if "hexahedra" in md.info:
+            hx = md.info["hexahedra"]
+            ctx.say(f"[fem_squeal] hexahedra: {hx['path']} path ({hx['reason']})")
         for w in md.info["warnings"]:
             ctx.say(f"[fem_squeal] warning: {w}")
     return {"mesh": out}
@@ -52,6 +71,7 @@ def inputs(scene: dict, spec) -> dict:
         except OSError as e:
             raise PipelineError(f"geometry.file: cannot read {geo['file']} ({e.strerror})") from None
         geo["file"] = h.hexdigest()
+        geo.update(hexahedra_options(scene))
     return geo
 
 

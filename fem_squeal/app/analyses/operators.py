@@ -23,6 +23,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     """Function space, forms, K, M, C and the interface operators; penalty diagnostics."""
     from fem_squeal.fe.assembly import assemble_operators  # heavy: FE stack
     from fem_squeal.fe.descriptors import CircumferentialBasis  # heavy: FE stack
+    from fem_squeal.fe.hexahedra import element_description, is_hexahedral  # heavy: FE stack
     from fem_squeal.fe.penalty import penalty_ratios, penalty_warnings  # heavy: FE stack
 
     scene, spec, md = ctx.scene, ctx.spec, ctx.products["mesh"]
@@ -38,7 +39,10 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
         timings["interface_operators"] = sub["interfaces"]
     ndofs = ops.V.dofmap.index_map.size_global * ops.V.dofmap.index_map_bs
     ncells = md.mesh.topology.index_map(3).size_global
-    ctx.say(f"[fem_squeal] {ncells} cells, {ndofs} DOFs (P{spec.degree}) on {ctx.comm.size} rank(s); "
+    element = f"P{spec.degree}"
+    if is_hexahedral(md.mesh):
+        element = element_description(ops.V, spec.quadrature_degree)
+    ctx.say(f"[fem_squeal] {ncells} cells, {ndofs} DOFs ({element}) on {ctx.comm.size} rank(s); "
             f"assembly {timings['assembly']:.2f} s")
     ratios = penalty_ratios(md, spec)
     for w in penalty_warnings(ratios):
@@ -47,8 +51,11 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     Md, Mzd = ops.M_parts[part] if part else (ops.M, ops.M_axial)
     ctx.products["operators"] = ops
     ctx.products["basis"] = CircumferentialBasis(ops.V, Md, Mzd)
-    return {"model": {"dofs": ndofs, "cells": ncells, "ranks": ctx.comm.size, "degree": spec.degree,
-                      "penalty": [r.as_dict() for r in ratios]}}
+    model = {"dofs": ndofs, "cells": ncells, "ranks": ctx.comm.size, "degree": spec.degree,
+             "penalty": [r.as_dict() for r in ratios]}
+    if is_hexahedral(md.mesh):
+        model["element"] = element       # the native hexahedral path (tetrahedra: P<degree>, as always)
+    return {"model": model}
 
 
 def report(res: dict) -> str:

@@ -18,6 +18,7 @@ def _preload_outputs(comm, outdir: Path, ops, pre, title: str, keep_files: bool 
     XDMF and VTU, kept in the cache and published unless --no-fields."""
     from dolfinx import fem  # heavy: FE stack
 
+    from fem_squeal.fe.hexahedra import point_evaluation  # heavy: FE stack
     from fem_squeal.fe.interface import project_to_nodes  # heavy: FE stack
     from fem_squeal.fe.output import write_fields_xdmf, write_vtu  # heavy: FE stack
 
@@ -40,7 +41,10 @@ def _preload_outputs(comm, outdir: Path, ops, pre, title: str, keep_files: bool 
     if not keep_files:
         return summary
     V = ops.V
-    S = fem.FunctionSpace(V.mesh, ("Lagrange", V.ufl_element().degree()))
+    if point_evaluation(V):
+        S = fem.FunctionSpace(V.mesh, ("Lagrange", V.ufl_element().degree()))
+    else:   # native hexahedra, serendipity: the scalar space of V's element (the pressure's L² projection)
+        S = fem.FunctionSpace(V.mesh, V.ufl_element().sub_elements()[0])
     if S.dofmap.index_map.size_local != V.dofmap.index_map.size_local:
         raise RuntimeError("contact pressure output: scalar and vector spaces number their nodes differently")
     p_h = fem.Function(S, name="contact_pressure")

@@ -71,7 +71,8 @@ operating        speed [rad/s] (default 0: the disc speed Ω; V = Ω r at each c
                  "speed" (analyses.sweep.parameter = "speed", analyses.map.second = "speed") when
                  speed > 0, gyroscopic or a friction_damping uses it and no μ(V) law is set:
                  Ω G₁ in C, Ω² (K_σc − K_L) in K, the friction damping as (|μ|/|μ⁰|)(Ω₀/Ω)
-discretisation   degree (1 or 2), quadrature_degree (not set: automatic), interface_quadrature_degree
+discretisation   degree (1 or 2), quadrature_degree (not set: automatic), interface_quadrature_degree,
+                 hexahedra ("auto", "native", "split": how a hexahedral mesh file runs)
 analyses.<name>  one section per analysis, declared by its module in fem_squeal.app.analyses (the
                  registry): fields, defaults and cross-checks.  The full reference of every key, model
                  and analyses alike, is generated from these tables:

@@ -153,6 +153,12 @@ SECTIONS = {
         "degree": Field(int, 2, one_of(1, 2), "Lagrange degree (P1 locks in bending)"),
         "quadrature_degree": Field(int, None, positive, "not set: estimated by the form compiler", unset=0),
         "interface_quadrature_degree": Field(int, 4, positive, "slave-surface quadrature of interfaces"),
+        "hexahedra": Field(str, "auto", one_of("auto", "native", "split"),
+                           "hexahedral mesh files: 'native' runs hexahedra as they are (degree 2: serendipity S2 "
+                           "with 2x2x2 Gauss points = C3D20R; degree 1: Q1 2x2x2 = C3D8), 'split' cuts them into "
+                           "curved tetrahedra; 'auto' (default): native when every element is a hexahedron of one "
+                           "order (interfaces of every type run on both), else split; "
+                           "results.json mesh.import.hexahedra says which ran and why"),
     },
     "operating": {
         "speed": Field(REAL, 0.0, non_negative, "disc speed Ω [rad/s] (sliding speed V = Ω r at each contact "

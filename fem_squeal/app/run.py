@@ -213,6 +213,8 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
                 say(f"[fem_squeal] warning: {w}")
         ctx = Context(scene, spec, comm, say, write_fields, store, {p.stage: p.key for p in plan})
         functions = _stage_functions()
+        if "matrices" in scene:     # a model given as matrices: the analyses' functions for it
+            functions.update({n: st.on_matrices for n, st in STAGES.items() if st.on_matrices is not None})
         timings: dict[str, float] = {}
         paths: dict[str, dict] = {}
         for i, item in enumerate(plan):

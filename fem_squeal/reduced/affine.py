@@ -187,4 +187,9 @@ class AffineOperator:
         return total
 
     def __str__(self) -> str:
-        return " + ".join(t.matrix if t.text == "1" else f"({t.text})*{t.matrix}" for t in self.terms)
+        def factor(t: AffineTerm) -> str:
+            if t.text == "1":
+                return t.matrix
+            simple = t.text.isidentifier() or t.text.replace(".", "", 1).isdigit()
+            return f"{t.text}*{t.matrix}" if simple else f"({t.text})*{t.matrix}"
+        return " + ".join(factor(t) for t in self.terms)

@@ -34,9 +34,13 @@ from fem_squeal.app.pipeline import scratch
 from fem_squeal.app.scene import model_spec
 from fem_squeal.app.schema_reference import toml_value
 from fem_squeal.app.stage import Context
+from fem_squeal.reduced.expressions import compile_operator
 from fem_squeal.util.atomic import write_atomic
-from fem_squeal.util.errors import SceneError
+from fem_squeal.util.errors import SceneError, SolveError
 from fem_squeal.util.matrix_files import write_matrix_market
+
+#: the largest relative difference (Frobenius) between the written terms' sum and the CEA's operators
+SUM_TOL = 1e-13
 
 
 def _terms(ctx: Context) -> tuple[list, list, dict[str, float]]:
@@ -84,13 +88,13 @@ def _expression(terms: list) -> str:
     return " + ".join(name if coef == "1" else f"{coef}*{name}" for name, _, coef in terms)
 
 
-def _scene_text(source: str, title: str, K: list, C: list, params: dict, n: int, analyses: dict) -> str:
+def _scene_text(source: str, title: str, K: list, C: list, params: dict, n: int, bs: int, analyses: dict) -> str:
     lines = [f"# Written by fem-squeal export from {source}: fem_squeal's operators as Matrix Market files",
              "# (fem_squeal.app.export); run it with fem-squeal run.", f"title = {toml_value(title)}", "",
              "[matrices]", 'M = "M"']
     if C:
         lines.append(f"C = {toml_value(_expression(C))}")
-    lines += [f"K = {toml_value(_expression(K))}", f"dofs = {n}", "", "[matrices.files]"]
+    lines += [f"K = {toml_value(_expression(K))}", f"dofs = {n}", f"block_size = {bs}", "", "[matrices.files]"]
     names = ["M"] + list(dict.fromkeys(name for name, _, _ in K + C))
     lines += [f"{name} = {toml_value(name + '.mtx')}" for name in names]
     if params:
@@ -101,10 +105,42 @@ def _scene_text(source: str, title: str, K: list, C: list, params: dict, n: int,
     return "\n".join(lines) + "\n"
 
 
+def _check_sums(ctx: Context, K: list, C: list, params: dict) -> float:
+    """The largest ‖Σ c_k(p⁰) A_k − A_CEA‖_F/‖A_CEA‖_F of K and C: the written terms, with the coefficients
+    of the written expressions (compiled as the import compiles them) at the nominal point, against the
+    CEA's own operators (:func:`fem_squeal.fe.assembly.operating_operators`); raises where it is above
+    :data:`SUM_TOL`."""
+    from petsc4py import PETSc  # heavy: FE stack
+
+    from fem_squeal.fe.assembly import combination, operating_operators  # heavy: FE stack
+
+    ops, scene = ctx.products["linear"], ctx.scene
+    K_cea, C_cea, _ = operating_operators(ops, ctx.products["mesh"], ctx.spec, speed=scene.operating.speed,
+                                          terms=operating(ctx))
+    worst = 0.0
+    for label, terms, ref in (("K", K, K_cea), ("C", C, C_cea)):
+        if not terms and ref is None:
+            continue
+        op = compile_operator(label, _expression(terms), [t[0] for t in terms], list(params))
+        coef = dict(zip(op.matrices, (float(c) for c in op.coefficients(params))))
+        mats = dict((name, A) for name, A, _ in terms)
+        total = combination([(mats[name], coef[name]) for name in op.matrices])
+        total.axpy(-1.0, ref, structure=total.Structure.DIFFERENT_NONZERO_PATTERN)
+        worst = max(worst, total.norm(PETSc.NormType.FROBENIUS) / ref.norm(PETSc.NormType.FROBENIUS))
+        total.destroy()
+        if ref is not ops.K and ref is not ops.C:
+            ref.destroy()
+    if not worst <= SUM_TOL:
+        raise SolveError(f"export: the written terms do not sum to the CEA's operators at the nominal point "
+                         f"(relative difference {worst:.1e} > {SUM_TOL:.0e})")
+    return worst
+
+
 def export_scene(scene, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, say=print,
                  source: str = "a scene") -> list[str]:
     """Write the operators of ``scene`` (a finite-element scene) and ``outdir/scene.toml`` (module
-    docstring); the names of the files written."""
+    docstring), after checking that the written terms sum to the CEA's operators at the nominal point
+    (:func:`_check_sums`); the names of the files written."""
     from fem_squeal.fe.assembly import assemble_operators  # heavy: FE stack
     from fem_squeal.fe.matrix_operators import gather_csr  # heavy: FE stack
 
@@ -120,6 +156,7 @@ def export_scene(scene, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, say
     with scratch(comm) as work:
         PRELOAD.run(ctx, work, {})
     K, C, params = _terms(ctx)
+    difference = _check_sums(ctx, K, C, params)
     n = ctx.products["linear"].M.getSize()[0]
     written: dict[str, object] = {"M": ctx.products["linear"].M}
     for name, A, _ in K + C:
@@ -134,11 +171,13 @@ def export_scene(scene, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, say
                 for k, v in scene.analyses.items() if k in ANALYSES and ANALYSES[k].on_matrices is not None}
     if not analyses:
         analyses = {"cea": {}}
-    text = _scene_text(source, f"{scene.title or 'fem_squeal model'} (exported operators)", K, C, params, n,
+    bs = max(1, ctx.products["linear"].M.getBlockSize())
+    text = _scene_text(source, f"{scene.title or 'fem_squeal model'} (exported operators)", K, C, params, n, bs,
                        analyses)
     if comm.rank == 0:
         write_atomic(outdir / "scene.toml", lambda f: f.write(text.encode()), "wb")
     ctx.products["export_par"].destroy()
     comm.barrier()
-    say(f"[fem_squeal] exported {len(files)} matrices of {n} DOFs and scene.toml to {outdir}")
+    say(f"[fem_squeal] exported {len(files)} matrices of {n} DOFs and scene.toml to {outdir} (the terms sum to "
+        f"the CEA's K and C within {difference:.1e} relative at the nominal point)")
     return [*files, "scene.toml"]

@@ -16,35 +16,37 @@ from petsc4py import PETSc
 from fem_squeal.reduced.matrix_model import MatrixModel
 
 
-def row_range(n: int, rank: int, size: int) -> tuple[int, int]:
-    """The rows [lo, hi) of rank ``rank`` of ``size`` (PETSc's default split)."""
-    base, extra = divmod(n, size)
+def row_range(n: int, rank: int, size: int, bs: int = 1) -> tuple[int, int]:
+    """The rows [lo, hi) of rank ``rank`` of ``size`` (PETSc's default split of the n/bs blocks of
+    ``bs`` rows)."""
+    base, extra = divmod(n // bs, size)
     lo = rank * base + min(rank, extra)
-    return lo, lo + base + (1 if rank < extra else 0)
+    return bs * lo, bs * (lo + base + (1 if rank < extra else 0))
 
 
-def scatter_rows(A: sp.spmatrix | None, n: int, comm: MPI.Comm) -> sp.csr_matrix:
+def scatter_rows(A: sp.spmatrix | None, n: int, comm: MPI.Comm, bs: int = 1) -> sp.csr_matrix:
     """This rank's rows of the n×n matrix ``A`` held by rank 0 (None elsewhere), as CSR (rows × n)."""
     if comm.size == 1:
         return sp.csr_matrix(A)
     pieces = None
     if comm.rank == 0:
         A = sp.csr_matrix(A)
-        pieces = [A[slice(*row_range(n, r, comm.size))] for r in range(comm.size)]
+        pieces = [A[slice(*row_range(n, r, comm.size, bs))] for r in range(comm.size)]
     return comm.scatter(pieces, root=0)
 
 
-def petsc_matrix(rows: sp.csr_matrix, comm: MPI.Comm) -> PETSc.Mat:
+def petsc_matrix(rows: sp.csr_matrix, comm: MPI.Comm, bs: int = 1) -> PETSc.Mat:
     """The AIJ matrix whose rows on this rank are ``rows`` (global column indices; the rows of
-    :func:`row_range`), assembled."""
+    :func:`row_range`), of block size ``bs`` (the degrees of freedom of a node: the fill-reducing
+    ordering keeps a node's rows together, :mod:`fem_squeal.fe.ordering`), assembled."""
     n = rows.shape[1]
     rows = sp.csr_matrix(rows, dtype=np.float64)
     rows.sum_duplicates()
     rows.sort_indices()
-    lo, hi = row_range(n, comm.rank, comm.size)
+    lo, hi = row_range(n, comm.rank, comm.size, bs)
     if rows.shape[0] != hi - lo:
         raise ValueError(f"petsc_matrix: {rows.shape[0]} rows on rank {comm.rank}, expected {hi - lo}")
-    A = PETSc.Mat().createAIJ(((hi - lo, n), (hi - lo, n)),
+    A = PETSc.Mat().createAIJ(((hi - lo, n), (hi - lo, n)), bsize=bs,
                               csr=(rows.indptr.astype(PETSc.IntType), rows.indices.astype(PETSc.IntType),
                                    rows.data), comm=comm)
     A.assemble()
@@ -52,10 +54,10 @@ def petsc_matrix(rows: sp.csr_matrix, comm: MPI.Comm) -> PETSc.Mat:
 
 
 def operators(model: MatrixModel, rows: Mapping[str, sp.csr_matrix], comm: MPI.Comm,
-              given: Mapping[str, Any] | None = None) -> dict[str, PETSc.Mat]:
+              given: Mapping[str, Any] | None = None, bs: int = 1) -> dict[str, PETSc.Mat]:
     """{"M", "C" (damped models), "K"}: the operators at the point ``given`` (nominal where not given)
-    as distributed PETSc matrices, from each rank's ``rows`` of the named matrices."""
-    return {name: petsc_matrix(A, comm) for name, A in model.assemble(rows, given).items()}
+    as distributed PETSc matrices of block size ``bs``, from each rank's ``rows`` of the named matrices."""
+    return {name: petsc_matrix(A, comm, bs) for name, A in model.assemble(rows, given).items()}
 
 
 def gather_csr(A: PETSc.Mat) -> sp.csr_matrix | None:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
@@ -179,9 +180,19 @@ class AffineOperator:
 
     def evaluate(self, values: Mapping[str, Any], matrices: Mapping[str, Any]):
         """Σ_k c_k(values) A_k of the named ``matrices`` (SciPy sparse, NumPy arrays: anything with
-        ``*`` by a number and ``+``) at one point."""
+        ``*`` by a number and ``+``) at one point.  Sparse matrices are summed on the union of their
+        stored patterns, explicit zeros kept (SciPy's ``+`` drops them), each entry in the order of the
+        terms: the sum of an exported model's terms is then its operator entry for entry, pattern and all
+        (``fem-squeal export``)."""
+        coefs = self.coefficients(values)
+        mats = [matrices[t.matrix] for t in self.terms]
+        if all(sp.issparse(A) for A in mats):
+            parts = [sp.coo_matrix(A) for A in mats]
+            data = np.concatenate([float(c) * A.data for c, A in zip(coefs, parts)])
+            ij = (np.concatenate([A.row for A in parts]), np.concatenate([A.col for A in parts]))
+            return sp.csr_matrix((data, ij), shape=parts[0].shape)
         total = None
-        for c, t in zip(self.coefficients(values), self.terms):
+        for c, t in zip(coefs, self.terms):
             term = float(c) * matrices[t.matrix]
             total = term if total is None else total + term
         return total

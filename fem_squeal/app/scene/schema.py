@@ -192,4 +192,7 @@ MATRICES = {
     "K": Field(str, check=nonempty_str, doc="stiffness operator, e.g. \"K1 + KR + (W**2 - 1)*KGEO\""),
     "parameters": Field(dict, {}, None, "name -> {value, range}, or name -> value"),
     "dofs": Field(int, None, positive, "the size n every matrix must have (not set: not checked)"),
+    "block_size": Field(int, 1, positive, "degrees of freedom per node, numbered node by node (3 for a solid "
+                        "model): the factorisations order nodes, and the ranks get whole nodes; n must be a "
+                        "multiple"),
 }

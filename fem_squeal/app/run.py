@@ -12,6 +12,10 @@ stages           [{stage, key, status ("run" | "cached" | "memory" | "forced"), 
                  run that computed it)}]
 files            output files of the stages (relative to outdir)
 mesh             cells, volumes (part names)
+matrices         (a model given as matrices) dofs, files {name: {file, format, sha256, nonzeros}}, operators
+                 {M, C, K: the affine form}, parameters {name: nominal value}, ranges, asymmetry {M, C, K:
+                 ‖A − Aᵀ‖_F/‖A‖_F at the nominal point}; its real_modes rows hold freq_hz and residual, its
+                 complex_modes rows no mesh descriptors
 model            dofs, cells, ranks, degree
 timings_s        wall time per stage
 solver           kernels {name: built} (fem_squeal.fe.kernels: the compiled kernels this installation

@@ -170,6 +170,11 @@ def _range(v: list) -> str | None:
     return None if v[0] < v[1] else f"must be increasing (got {v!r})"
 
 
+def _some_matrix(v: dict) -> str | None:
+    """At least one named matrix."""
+    return None if v else "must name at least one matrix"
+
+
 #: ``matrices.files.<name>``: one named matrix (a string is the file alone)
 MATRIX_FILE = {
     "file": Field(str, check=nonempty_str, doc="the file, relative to the scene: Matrix Market (.mtx, .mm), "
@@ -185,7 +190,7 @@ MATRIX_PARAMETER = {
 }
 #: ``[matrices]``: a model given as matrices (no geometry, materials or interfaces then)
 MATRICES = {
-    "files": Field(dict, check=lambda v: None if v else "must name at least one matrix",
+    "files": Field(dict, check=_some_matrix,
                    doc="name -> file, or {file, format, variable}: the named matrices (square, all of one size)"),
     "M": Field(str, check=nonempty_str, doc="mass operator: an expression of the named matrices and parameters"),
     "C": Field(str, None, nonempty_str, "damping operator (not set: undamped)"),

@@ -7,6 +7,9 @@
                                                            file and remove the bad entries only
     fem-squeal convert IN OUT [--scale S]                  convert a mesh (.msh .inp .bdf .vtu), keeping its sets
     fem-squeal mesh SCENE.toml OUT [--set ...] [--scale S] write a scene's mesh (e.g. the gmsh brake as .inp)
+    fem-squeal export SCENE.toml DIR [--set ...]           write the scene's operators (M, C, K and their
+                                                           parametric terms, Matrix Market) and a
+                                                           [matrices] scene DIR/scene.toml that reads them
 
 The cache is ``--cache-dir`` (default ``$FEM_SQUEAL_CACHE``, else ``$XDG_CACHE_HOME/fem_squeal``, i.e.
 ``~/.cache/fem_squeal``); ``--cache-dir`` and ``--log-level`` go before or after the subcommand.  Exit
@@ -113,6 +116,10 @@ def _parser() -> argparse.ArgumentParser:
     _scene_args(m)
     m.add_argument("output", type=Path)
     m.add_argument("--scale", type=float, default=1.0, help="multiply the coordinates (1000: m -> mm)")
+    e = sub.add_parser("export", help="write the scene's operators as Matrix Market files and a [matrices] scene "
+                       "that reads them back", parents=[common])
+    _scene_args(e)
+    e.add_argument("output", type=Path, help="folder for the matrices and scene.toml")
     sub.add_parser("bench", add_help=False,
                    help="run the benchmark suite (benchmarks/suite.py: --quick, --only NAME ..., --list, --help)")
     return p
@@ -211,6 +218,11 @@ def main(argv: list[str] | None = None) -> int:
             for w in write_geometry(comm, scene.geometry, args.output, args.scale):
                 say(f"[fem_squeal] warning: {w}")
             say(f"[fem_squeal] wrote {args.output}")
+            return 0
+        if args.command == "export":
+            from fem_squeal.app.export import export_scene  # heavy: MPI (see the module docstring)
+
+            export_scene(scene, args.output, comm, say, source=str(args.scene))
             return 0
         if args.command == "plan":
             if rank0:

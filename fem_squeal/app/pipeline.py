@@ -62,7 +62,7 @@ def required(scene: dict) -> list[str]:
     def pull(name: str) -> None:
         if name not in want:
             want.add(name)
-            for n in STAGES[name].needs:
+            for n in STAGES[name].needs_of(scene):
                 pull(n)
 
     for name in scene.analyses:
@@ -70,11 +70,12 @@ def required(scene: dict) -> list[str]:
     return [n for n in STAGES if n in want]
 
 
-def downstream(names: Iterable[str], among: list[str]) -> set[str]:
-    """``names`` and every stage of ``among`` that (transitively) needs one of them."""
+def downstream(names: Iterable[str], among: list[str], scene=None) -> set[str]:
+    """``names`` and every stage of ``among`` that (transitively) needs one of them (in ``scene``:
+    :meth:`~fem_squeal.app.stage.Stage.needs_of`)."""
     out = set(names)
     for n in among:  # ``among`` is in execution order, so one pass suffices
-        if any(d in out for d in STAGES[n].needs):
+        if any(d in out for d in (STAGES[n].needs if scene is None else STAGES[n].needs_of(scene))):
             out.add(n)
     return out
 
@@ -107,8 +108,8 @@ def stage_keys(scene: dict, stages: list[str], *, write_fields: bool = True,
     keys: dict[str, str] = {}
     for name in stages:
         st = STAGES[name]
-        payload = {"stage": name, "inputs": st.key_inputs(scene, spec), "upstream": [keys[n] for n in st.needs],
-                   "code": version}
+        payload = {"stage": name, "inputs": st.key_inputs(scene, spec),
+                   "upstream": [keys[n] for n in st.needs_of(scene)], "code": version}
         keys[name] = hashlib.sha256(_canonical(payload).encode()).hexdigest()[:20]
     return keys
 
@@ -147,7 +148,7 @@ def make_plan(scene: dict, cache: Cache, *, force: Iterable[str] = (), write_fie
     if unknown:
         raise PipelineError(f"--force {unknown[0]}: not a stage of this scene; its stages: {stages}")
     keys = stage_keys(scene, stages, version=version)
-    forced = downstream(force, stages)
+    forced = downstream(force, stages, scene)
     status, notes = {}, {}
     for n in stages:
         if n in forced:
@@ -159,7 +160,7 @@ def make_plan(scene: dict, cache: Cache, *, force: Iterable[str] = (), write_fie
             notes[n] = f"cache entry {n}-{keys[n]}: {v.reason}; recomputed"
     for n in reversed(stages):   # a stage that runs needs the in-memory products of its upstream
         if status[n] in ("run", "forced", "memory"):
-            for d in STAGES[n].needs:
+            for d in STAGES[n].needs_of(scene):
                 if STAGES[d].memory and status[d] == "cached":
                     status[d] = "memory"
     return [PlanItem(n, keys[n], status[n], notes.get(n, "")) for n in stages]

@@ -12,6 +12,10 @@ stages           [{stage, key, status ("run" | "cached" | "memory" | "forced"), 
                  run that computed it)}]
 files            output files of the stages (relative to outdir)
 mesh             cells, volumes (part names)
+matrices         (a model given as matrices) dofs, files {name: {file, format, sha256, nonzeros}}, operators
+                 {M, C, K: the affine form}, parameters {name: nominal value}, ranges, asymmetry {M, C, K:
+                 ‖A − Aᵀ‖_F/‖A‖_F at the nominal point}; its real_modes rows hold freq_hz and residual, its
+                 complex_modes rows no mesh descriptors
 model            dofs, cells, ranks, degree
 timings_s        wall time per stage
 solver           kernels {name: built} (fem_squeal.fe.kernels: the compiled kernels this installation
@@ -213,6 +217,8 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
                 say(f"[fem_squeal] warning: {w}")
         ctx = Context(scene, spec, comm, say, write_fields, store, {p.stage: p.key for p in plan})
         functions = _stage_functions()
+        if "matrices" in scene:     # a model given as matrices: the analyses' functions for it
+            functions.update({n: st.on_matrices for n, st in STAGES.items() if st.on_matrices is not None})
         timings: dict[str, float] = {}
         paths: dict[str, dict] = {}
         for i, item in enumerate(plan):

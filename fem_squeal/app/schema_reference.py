@@ -26,6 +26,7 @@ from fem_squeal.app import fields as F
 from fem_squeal.app.analyses import ANALYSES, STAGES
 from fem_squeal.app.fields import REAL, Field
 from fem_squeal.app.scene import FIXED, GEOMETRY, GROUND_SPRING, INTERFACES, MATERIAL, PRESSURE, SECTIONS
+from fem_squeal.app.scene.schema import MATRICES, MATRIX_FILE, MATRIX_PARAMETER
 from geometry.tags import GEOMETRY_TAGS
 
 #: the named checks of :mod:`fem_squeal.app.fields`, in words (checks built by a factory are read
@@ -197,7 +198,8 @@ def render_scene_reference() -> str:
            "A scene is a TOML file.  Its top-level keys: `title` (free text), `extends` (another scene file, "
            "relative to this one, whose tables this one's are merged onto), "
            + ", ".join(_ref(s, s) for s in ("geometry", "materials", "interfaces", *SECTIONS))
-           + " and " + _ref("analyses", "analyses") + ".  "
+           + " and " + _ref("analyses", "analyses") + "; or, for a model given as matrices, "
+           + _ref("matrices", "matrices") + " in place of the model sections.  "
            "Each table is checked against the fields below: an unknown key, a wrong type, a non-finite "
            "number or a value outside *allowed* stops the run before anything is computed, with one line "
            "naming the key path (`analyses.sweep.n: must be >= 2 (got 1)`).  *Required* fields have no "
@@ -232,6 +234,19 @@ def render_scene_reference() -> str:
             if s == sec and sub in flds:
                 out.append(f"### `{sec}.{sub}.<name>`\n")
                 out.append(field_table(sf))
+    on_matrices = [n for n, st in ANALYSES.items() if st.on_matrices is not None]
+    out.append("(matrices)=\n## `matrices`\n\nA model given as matrices (`fem_squeal.app.scene.matrices`): the "
+               "operators of λ²M + λC + K as expressions of named matrix files and parameters.  A scene with "
+               "`[matrices]` has no `geometry`, `materials`, `interfaces`, `boundary`, `loads`, `preload`, "
+               "`discretisation` or `operating`; its analyses (" + _codes(on_matrices, "analyses.")
+               + ") start from the `matrices` stage.  Expressions: numbers, the named matrices and parameters, "
+               "`pi`, `+ - * / **` and `sqrt exp log sin cos` of parameters, linear in the matrices; anything "
+               "else is refused by name.\n")
+    out.append(field_table(MATRICES, "matrices."))
+    out.append("### `matrices.files.<name>`\n\nA string is the file alone.\n")
+    out.append(field_table(MATRIX_FILE))
+    out.append("### `matrices.parameters.<name>`\n\nA number is the value alone.\n")
+    out.append(field_table(MATRIX_PARAMETER))
     out.append("(analyses)=\n## `analyses`\n")
     out.append("One table `[analyses.<name>]` per analysis the scene asks for (at least one).  The pipeline "
                "runs the stages they need, in this order, and caches each under a hash of what it reads.\n")

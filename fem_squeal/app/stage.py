@@ -66,6 +66,15 @@ class Stage:
     fields: bool = False          # writes field files (XDMF/VTU): cached always, published unless --no-fields
     lumped: bool = False          # needs no finite-element model (no geometry, no materials)
     pulled: bool = False          # an analysis that needs it pulls it in with its defaults
+    #: its function for a model given as matrices (a scene with ``[matrices]``,
+    #: :mod:`fem_squeal.app.analyses.matrices`): it then needs the ``matrices`` stage alone; None: the
+    #: analysis is not available there
+    on_matrices: StageFunction | None = None
+
+    def needs_of(self, scene) -> tuple[str, ...]:
+        """The stages this one needs in ``scene``: ``("matrices",)`` where the model is given as matrices
+        and the stage runs on them, else :attr:`needs`."""
+        return ("matrices",) if "matrices" in scene and self.on_matrices is not None else self.needs
 
     def key_inputs(self, scene: dict, spec) -> Any:
         """The part of the validated scene that this stage reads (hashed into its cache key)."""

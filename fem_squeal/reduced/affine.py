@@ -12,12 +12,20 @@ ranges and the coefficient of every term as a function of the parameter values (
 points).  The reduced model (:class:`fem_squeal.reduced.model.ReducedModel`) applies them to its
 projected matrices, :class:`fem_squeal.fe.projection.ParametricOperators` to the full ones, term by
 term (there K_f = μ⁰K_f¹ and C₀ holds C_d: coefficients μ/μ⁰ and the damping scale − 1).
+
+An operator given as an expression of named matrices (a ``[matrices]`` scene,
+:mod:`fem_squeal.reduced.expressions`) has the same form with its own terms: A(p) = Σ_k c_k(p) A_k,
+an :class:`AffineOperator` of :class:`AffineTerm` (the coefficient c_k a function of the parameter
+values, the matrix A_k by name).
 """
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
@@ -127,3 +135,72 @@ def interface_coefficients(point: Mapping[str, object], name: str, kn0: float, k
     if kt_key in point:
         out.append((2, point[kt_key] - kt0))
     return out
+
+
+@dataclass(frozen=True)
+class AffineTerm:
+    """One term c(p) A of an affine operator: the coefficient ``coefficient(values)`` (numbers, or
+    arrays of points, by parameter name), the parameters it reads and its text, and the matrix by name."""
+
+    matrix: str
+    coefficient: Callable[[Mapping[str, Any]], Any]
+    parameters: frozenset[str] = frozenset()
+    text: str = "1"
+
+
+@dataclass(frozen=True)
+class AffineOperator:
+    """A(p) = Σ_k c_k(p) A_k (``name``: what the operator is, e.g. ``K``; at most one term per matrix)."""
+
+    name: str
+    terms: tuple[AffineTerm, ...]
+
+    @property
+    def matrices(self) -> tuple[str, ...]:
+        return tuple(t.matrix for t in self.terms)
+
+    @property
+    def parameters(self) -> frozenset[str]:
+        """The parameters its coefficients read."""
+        return frozenset().union(*(t.parameters for t in self.terms))
+
+    def coefficients(self, values: Mapping[str, Any]) -> list:
+        """c_k at ``values`` (every parameter the terms read), each checked finite (a ModelError names
+        the operator, the matrix and the values where it is not)."""
+        out = []
+        for t in self.terms:
+            with np.errstate(all="ignore"):
+                c = t.coefficient(values)
+            if not np.all(np.isfinite(c)):
+                at = ", ".join(f"{k} = {values[k]}" for k in sorted(t.parameters))
+                raise ModelError(f"{self.name}: the coefficient {t.text} of {t.matrix} is not a finite number at "
+                                 f"{at or 'every point'}")
+            out.append(c)
+        return out
+
+    def evaluate(self, values: Mapping[str, Any], matrices: Mapping[str, Any]):
+        """Σ_k c_k(values) A_k of the named ``matrices`` (SciPy sparse, NumPy arrays: anything with
+        ``*`` by a number and ``+``) at one point.  Sparse matrices are summed on the union of their
+        stored patterns, explicit zeros kept (SciPy's ``+`` drops them), each entry in the order of the
+        terms: the sum of an exported model's terms is then its operator entry for entry, pattern and all
+        (``fem-squeal export``)."""
+        coefs = self.coefficients(values)
+        mats = [matrices[t.matrix] for t in self.terms]
+        if all(sp.issparse(A) for A in mats):
+            parts = [sp.coo_matrix(A) for A in mats]
+            data = np.concatenate([float(c) * A.data for c, A in zip(coefs, parts)])
+            ij = (np.concatenate([A.row for A in parts]), np.concatenate([A.col for A in parts]))
+            return sp.csr_matrix((data, ij), shape=parts[0].shape)
+        total = None
+        for c, t in zip(coefs, self.terms):
+            term = float(c) * matrices[t.matrix]
+            total = term if total is None else total + term
+        return total
+
+    def __str__(self) -> str:
+        def factor(t: AffineTerm) -> str:
+            if t.text == "1":
+                return t.matrix
+            simple = t.text.isidentifier() or t.text.replace(".", "", 1).isdigit()
+            return f"{t.text}*{t.matrix}" if simple else f"({t.text})*{t.matrix}"
+        return " + ".join(factor(t) for t in self.terms)

@@ -46,6 +46,22 @@ class UnknownNameError(ModelError, KeyError):
     """A name that is not in the model: a face, a part, a parameter (the message lists the known ones)."""
 
 
+class MatrixFileError(InputError):
+    """A matrix file that cannot be read or used (missing, of an unknown format, not square, of the
+    wrong size, complex): the message starts with the file."""
+
+
+class ExpressionError(InputError):
+    """An operator expression of named matrices and parameters that is refused (it is parsed, never
+    evaluated as Python).  ``kind`` names the reason: ``syntax``, ``attribute``, ``subscript``,
+    ``call``, ``name``, ``operator``, ``construct``, ``matrix_product``, ``matrix_denominator``,
+    ``matrix_power``, ``matrix_argument``, ``matrix_plus_number``, ``number``, ``no_matrix``."""
+
+    def __init__(self, message: str, kind: str = ""):
+        super().__init__(message)
+        self.kind = kind
+
+
 class PipelineError(FemSquealError, RuntimeError):
     """The stage cache or the pipeline refused a run (a stage that cannot be computed, a locked entry)."""
 

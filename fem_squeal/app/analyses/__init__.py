@@ -11,6 +11,8 @@ part of the report.  The scene loader, the pipeline, the runner and the report l
                                → reduced → sweep, map, sensitivity, masa, transient → limit_cycle
                                → reduced + preload → robustness (its spot checks solve the full CEA)
     segmented_pad (no mesh: a lumped model)
+    matrices → real_modes, cea (a model given as matrices: ``Stage.on_matrices``, in place of mesh,
+               operators and preload)
 """
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ from fem_squeal.app.analyses import (
     cea,
     limit_cycle,
     masa,
+    matrices,
     mesh,
     operators,
     preload,
@@ -33,8 +36,8 @@ from fem_squeal.app.analyses import (
 from fem_squeal.app.stage import Stage
 
 STAGES: dict[str, Stage] = {m.STAGE.name: m.STAGE for m in (
-    mesh, operators, preload, real_modes, cea, reduced, sweep, stability_map, sensitivity, robustness, masa,
-    transient, limit_cycle, segmented_pad,
+    matrices, mesh, operators, preload, real_modes, cea, reduced, sweep, stability_map, sensitivity, robustness,
+    masa, transient, limit_cycle, segmented_pad,
 )}
 
 #: the analyses a scene can ask for (stages with a section ``analyses.<name>``)

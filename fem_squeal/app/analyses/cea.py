@@ -5,6 +5,7 @@ import math
 import time
 from pathlib import Path
 
+from fem_squeal.app.analyses.matrices import operators
 from fem_squeal.app.analyses.preload import operating
 from fem_squeal.app.fields import REAL, Field, band, one_of, positive
 from fem_squeal.app.html import escape as _e
@@ -81,6 +82,31 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     return out
 
 
+def run_on_matrices(ctx: Context, work: Path, timings: dict) -> dict:
+    """Complex eigenvalues λ²M + λC + K of a model given as matrices, at the nominal point, in
+    analyses.cea.band_hz (no descriptors: the matrices carry no mesh)."""
+    from fem_squeal.fe.eigen import solve_complex_modes  # heavy: FE stack
+
+    ops, scene = operators(ctx), ctx.scene
+    a = scene.analyses["cea"]
+    t = time.perf_counter()
+    cm = solve_complex_modes(ops["K"], ops["M"], ops.get("C"), a["n_modes"], cea_target_hz(a), method=a["method"],
+                             tol=a["tol"], max_residual=a["max_residual"], band_hz=tuple(a["band_hz"]),
+                             options=scene.solver.petsc_options, prefix="cea_", progress=True)
+    timings["cea"] = time.perf_counter() - t
+    for x in (*cm.vectors_re, *cm.vectors_im):
+        x.destroy()
+    rows = [{"index": j, "freq_hz": f, "real_part": re, "damping_ratio": zeta, "residual": r,
+             "unstable": bool(unstable(lam, a["growth_tol"]))}
+            for j, (lam, f, re, zeta, r) in enumerate(zip(cm.eigenvalues, cm.freqs_hz, cm.real_parts,
+                                                          cm.damping_ratios, cm.residuals))]
+    n_unstable = sum(r["unstable"] for r in rows)
+    lo, hi = a["band_hz"]
+    ctx.say(f"[fem_squeal] CEA ({cm.method}, {cm.algorithm}): {len(rows)} modes in {lo:g}-{hi:g} Hz, "
+            f"{n_unstable} unstable, {timings['cea']:.2f} s")
+    return {"complex_modes": rows, "n_unstable": n_unstable, "cea_method": cm.method}
+
+
 def check(scene: dict, volumes) -> None:
     """analyses.cea.describe_part must be a part of the model."""
     part = scene.analyses["cea"].describe_part
@@ -107,4 +133,4 @@ def report(res: dict) -> str:
 
 
 STAGE = Stage("cea", ("preload",), run, "complex eigenvalue analysis", section=SECTION, check=check, report=report,
-              fields=True)
+              fields=True, on_matrices=run_on_matrices)

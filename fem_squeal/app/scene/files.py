@@ -61,6 +61,12 @@ def read_scene(path: str | Path, _seen: tuple = ()) -> dict:
     geo = raw.get("geometry")
     if isinstance(geo, dict) and isinstance(geo.get("file"), str) and geo["file"].strip():
         geo["file"] = str((path.parent / geo["file"]).resolve())    # relative to the scene that names it
+    files = raw.get("matrices", {}).get("files") if isinstance(raw.get("matrices"), dict) else None
+    for name, entry in (files.items() if isinstance(files, dict) else ()):     # relative to this scene too
+        if isinstance(entry, str) and entry.strip():
+            files[name] = str((path.parent / entry).resolve())
+        elif isinstance(entry, dict) and isinstance(entry.get("file"), str) and entry["file"].strip():
+            entry["file"] = str((path.parent / entry["file"]).resolve())
     base = raw.pop("extends", None)
     if base is None:
         return raw

@@ -19,6 +19,7 @@ from fem_squeal.app.fields import (
     poisson,
     positive,
 )
+from fem_squeal.util.matrix_files import FORMATS
 from geometry.brake_corner import BrakeCornerParams
 from geometry.tags import GEOMETRY_TAGS, mesh_file_tags
 
@@ -173,3 +174,43 @@ SECTIONS = {
 #: the name -> table maps inside model sections, with the fields of their tables
 SUBTABLES = {("boundary", "fixed"): FIXED, ("boundary", "ground_springs"): GROUND_SPRING,
              ("loads", "pressure"): PRESSURE}
+
+
+def _range(v: list) -> str | None:
+    """[low, high], low < high."""
+    if len(v) != 2 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+        return f"must be [low, high] (got {v!r})"
+    return None if v[0] < v[1] else f"must be increasing (got {v!r})"
+
+
+def _some_matrix(v: dict) -> str | None:
+    """At least one named matrix."""
+    return None if v else "must name at least one matrix"
+
+
+#: ``matrices.files.<name>``: one named matrix (a string is the file alone)
+MATRIX_FILE = {
+    "file": Field(str, check=nonempty_str, doc="the file, relative to the scene: Matrix Market (.mtx, .mm), "
+                  "MATLAB (.mat) or Harwell-Boeing (.hb, .rb, .rua, .rsa, .hbmat)"),
+    "format": Field(str, "", one_of("", *FORMATS), "'' = from the extension"),
+    "variable": Field(str, "", None, "MATLAB: the variable holding the matrix; '' = the matrix's name where the "
+                      "file has it, else the file's only variable"),
+}
+#: ``matrices.parameters.<name>``: one parameter of the operators (a number is the value alone)
+MATRIX_PARAMETER = {
+    "value": Field(REAL, doc="nominal value (the point real_modes and cea solve at)"),
+    "range": Field(list, None, _range, "[low, high]: the range studies of the parameter cover"),
+}
+#: ``[matrices]``: a model given as matrices (no geometry, materials or interfaces then)
+MATRICES = {
+    "files": Field(dict, check=_some_matrix,
+                   doc="name -> file, or {file, format, variable}: the named matrices (square, all of one size)"),
+    "M": Field(str, check=nonempty_str, doc="mass operator: an expression of the named matrices and parameters"),
+    "C": Field(str, None, nonempty_str, "damping operator (not set: undamped)"),
+    "K": Field(str, check=nonempty_str, doc="stiffness operator, e.g. \"K1 + KR + (W**2 - 1)*KGEO\""),
+    "parameters": Field(dict, {}, None, "name -> {value, range}, or name -> value"),
+    "dofs": Field(int, None, positive, "the size n every matrix must have (not set: not checked)"),
+    "block_size": Field(int, 1, positive, "degrees of freedom per node, numbered node by node (3 for a solid "
+                        "model): the factorisations order nodes, and the ranks get whole nodes; n must be a "
+                        "multiple"),
+}

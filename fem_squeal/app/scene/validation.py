@@ -24,6 +24,7 @@ from typing import Any
 
 from fem_squeal.app.analyses import ANALYSES, STAGES
 from fem_squeal.app.fields import Field, Section, check_fields, freeze, section
+from fem_squeal.app.scene.matrices import matrices_section
 from fem_squeal.app.scene.model import build_model_spec, material
 from fem_squeal.app.scene.schema import (
     FIXED,
@@ -75,7 +76,7 @@ def validate(raw: Any) -> Scene:
     validated in one pass (see the module docstring); raises :class:`SceneError` naming the key."""
     if not isinstance(raw, dict):
         raise SceneError("scene: must be a table")
-    allowed = {"title", "geometry", "materials", "interfaces", "analyses", *SECTIONS}
+    allowed = {"title", "geometry", "materials", "interfaces", "analyses", "matrices", *SECTIONS}
     unknown = sorted(set(raw) - allowed)
     if unknown:
         raise SceneError(f"{unknown[0]}: unknown section; allowed: {sorted(allowed)}")
@@ -85,6 +86,8 @@ def validate(raw: Any) -> Scene:
     ana = raw.get("analyses")
     if not isinstance(ana, dict) or not ana:
         raise SceneError(f"analyses: required, at least one of {sorted(ANALYSES)}")
+    if "matrices" in raw:
+        return _matrix_scene(raw, title)
     if all(name in STAGES and STAGES[name].lumped for name in ana) and "geometry" not in raw:
         return _lumped(raw, title)
 
@@ -114,6 +117,25 @@ def _lumped(raw: dict, title: str) -> Scene:
         raise SceneError(f"{extra[0]}: not used by the analyses {sorted(raw['analyses'])} (they need no "
                          "finite-element model); remove it")
     scene = freeze({"title": title, "solver": section(raw.get("solver", {}), SECTIONS["solver"], "solver"),
+                    "analyses": _analyses(raw["analyses"])}, None, "scene", base=Scene)
+    cross_check(scene, {})
+    return scene
+
+
+def _matrix_scene(raw: dict, title: str) -> Scene:
+    """A scene whose model is given as matrices (:mod:`fem_squeal.app.scene.matrices`): no geometry,
+    materials, interfaces or loads, and only the analyses that run on matrices (``Stage.on_matrices``)."""
+    extra = sorted(set(raw) - {"title", "matrices", "analyses", "solver"})
+    if extra:
+        raise SceneError(f"{extra[0]}: not used by a model given as matrices ([matrices]); remove it")
+    on_matrices = sorted(n for n, st in ANALYSES.items() if st.on_matrices is not None)
+    for name in raw["analyses"]:
+        if name in ANALYSES and name not in on_matrices:
+            raise SceneError(f"analyses.{name}: not available for a model given as matrices; available: "
+                             f"{on_matrices}")
+    matrices = matrices_section(raw["matrices"])
+    scene = freeze({"title": title, "matrices": matrices,
+                    "solver": section(raw.get("solver", {}), SECTIONS["solver"], "solver"),
                     "analyses": _analyses(raw["analyses"])}, None, "scene", base=Scene)
     cross_check(scene, {})
     return scene

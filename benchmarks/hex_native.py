@@ -91,6 +91,7 @@ target_hz = 0.0
 VARIANTS = [
     ("native S2, 2x2x2 (default)", "C3D20R", "C3D20R", [], None),
     ("native S2, 3x3x3", "C3D20R", "C3D20", ["discretisation.quadrature_degree=5"], None),
+    ("native S2 on the C3D20 deck (its 3x3x3 rule)", "C3D20", "C3D20", [], None),
     ("native Q2, 2x2x2", "C3D20R", "C3D20R", ["discretisation.quadrature_degree=3"], "Q"),
     ("native Q2, 3x3x3", "C3D20R", "C3D20R", ["discretisation.quadrature_degree=5"], "Q"),
     ("split: curved P2 tetrahedra", "C3D20R", "C3D20R", ["discretisation.hexahedra=split"], None),

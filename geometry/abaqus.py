@@ -68,6 +68,7 @@ class Deck:
     node_ids: np.ndarray
     points: np.ndarray
     blocks: list = field(default_factory=list)          # (meshio type, connectivity, element numbers)
+    element_types: list = field(default_factory=list)   # the deck's TYPE of each block (upper case: C3D20R)
     elsets: dict = field(default_factory=dict)          # name -> element numbers (file order, unique)
     nsets: dict = field(default_factory=dict)           # name -> node numbers
     surfaces: dict = field(default_factory=dict)        # name -> [(element number, label, where)]
@@ -158,7 +159,7 @@ def read_deck(path: str | Path) -> Deck:
     path = Path(path)
     node_ids: list[int] = []
     coords: list[list[float]] = []
-    raw_blocks: list = []                                   # (type, flat ints, where)
+    raw_blocks: list = []                                   # (type, flat ints, where, TYPE)
     elsets: dict[str, list[int]] = {}
     nsets: dict[str, list[int]] = {}
     surfaces: dict[str, list] = {}
@@ -216,7 +217,7 @@ def read_deck(path: str | Path) -> Deck:
                                         "a multiple of "
                                   f"{n} (element number and {n - 1} nodes)")
             flat = np.asarray(values, dtype=np.int64).reshape(-1, n)
-            raw_blocks.append((mtype, flat, where))
+            raw_blocks.append((mtype, flat, where, etype))
             if "ELSET" in params:
                 elsets.setdefault(name_of(params["ELSET"]), []).extend(flat[:, 0].tolist())
         elif kw == "ELSET":
@@ -287,7 +288,7 @@ def read_deck(path: str | Path) -> Deck:
 
     deck = Deck(ids, np.asarray(coords, dtype=float))
     elem_nodes: dict[int, np.ndarray] = {}
-    for mtype, flat, where in raw_blocks:
+    for mtype, flat, where, etype in raw_blocks:
         pos = np.minimum(np.searchsorted(sorted_ids, flat[:, 1:]), len(sorted_ids) - 1)
         bad = np.argwhere(sorted_ids[pos] != flat[:, 1:])
         if len(bad):
@@ -298,6 +299,7 @@ def read_deck(path: str | Path) -> Deck:
         if mtype in PERMUTATION:
             conn = conn[:, PERMUTATION[mtype]]
         deck.blocks.append((mtype, conn, flat[:, 0].copy()))
+        deck.element_types.append(etype)
         if pending_nset_elsets:
             for e, row in zip(flat[:, 0].tolist(), flat[:, 1:]):
                 elem_nodes[e] = row

@@ -68,6 +68,31 @@ def choose_path(mode: str, types: list[str], blockers: list[str] = ()) -> tuple[
                       f"every element is a {hexes[0]} and every feature of the scene is supported on hexahedra")
 
 
+def integration_rule(mtype: str, element_types: list[str]) -> tuple[str, str]:
+    """("reduced" | "full", reason): the cell rule a native hexahedral mesh runs with, from the file's own
+    element types (Abaqus/CalculiX TYPE names; empty for files that do not name them).
+
+    20-node hexahedra: C3D20R is the 2 × 2 × 2 Gauss rule ("reduced"), C3D20 the 3 × 3 × 3 one ("full");
+    a deck of both runs with the reduced rule (the one most squeal decks use), and says so; a file
+    without Abaqus types (gmsh, Nastran, VTK) too.  8-node hexahedra: C3D8's 2 × 2 × 2 rule ("full")
+    always; C3D8R's one point with hourglass control has no counterpart (C3D8's rule, said so)."""
+    named = sorted({t for t in element_types if t})
+    if mtype == "hexahedron":
+        if any(t.endswith("R") for t in named):
+            return "full", (f"{', '.join(named)}: C3D8's 2x2x2 Gauss rule (C3D8R's one point with hourglass "
+                            "control is not available; degree 2 avoids the locking of C3D8 in bending)")
+        return "full", "2x2x2 Gauss points (CalculiX/Abaqus C3D8)"
+    if not named:
+        return "reduced", "the file does not name the integration: 2x2x2 Gauss points (C3D20R)"
+    reduced = [t for t in named if t.endswith("R")]
+    if len(reduced) == len(named):
+        return "reduced", f"{', '.join(named)}: 2x2x2 Gauss points"
+    if not reduced:
+        return "full", f"{', '.join(named)}: 3x3x3 Gauss points"
+    return "reduced", (f"both {', '.join(named)} in the file: 2x2x2 Gauss points (C3D20R) for all; "
+                       "set discretisation.quadrature_degree = 5 for the 3x3x3 rule")
+
+
 def complete_hex27(points: np.ndarray, conn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points and VTK hexahedron27 connectivity of twenty-node hexahedra ``conn`` (m, 20): the face
     and body centres are the 20-node serendipity map's images of the reference centres (one node

@@ -38,6 +38,7 @@ from geometry.hexahedra import (
     face_label,
     facet_nodes,
     hex_quality,
+    integration_rule,
 )
 from geometry.hexahedra import distribute as distribute_hexahedra
 from geometry.quality import tet_quality
@@ -132,6 +133,7 @@ class _Raw:
     faces: dict = field(default_factory=dict)       # name -> [(element index, face 0.., where)]
     skins: dict = field(default_factory=dict)       # name -> [(k, 3|4) corner nodes]
     node_sets: dict = field(default_factory=dict)   # name -> node indices
+    element_types: list = field(default_factory=list)   # the file's own type of each block (Abaqus: C3D20R)
 
 
 def read_mesh_file(path: str | Path, fmt: str = "", id_field: str = "") -> MeshFile:
@@ -265,11 +267,12 @@ def _read_abaqus(path: Path) -> _Raw:
     except AbaqusError as e:
         raise MeshImportError(f"geometry.file: {e}") from None
     vol = [(t, c, ids) for t, c, ids in deck.blocks if t in VOLUMES]
+    vol_types = [e for (t, _, _), e in zip(deck.blocks, deck.element_types) if t in VOLUMES]
     skin = [(t, c, ids) for t, c, ids in deck.blocks if t in SKINS]
     if not vol:
         raise MeshImportError(f"geometry.file: {path.name} has no volume elements; supported: {SUPPORTED}")
     ids = np.concatenate([b[2] for b in vol])
-    raw = _Raw(deck.points, [(t, c) for t, c, _ in vol], ids.astype(np.int64))
+    raw = _Raw(deck.points, [(t, c) for t, c, _ in vol], ids.astype(np.int64), element_types=vol_types)
     vindex = {int(e): i for i, e in enumerate(ids)}
     sindex = {int(e): (k, i) for k, (_, _, sid) in enumerate(skin) for i, e in enumerate(sid)}
     for key, members in deck.elsets.items():
@@ -649,6 +652,9 @@ def prepare(path: str | Path, *, parts: dict[str, list], faces: dict[str, list],
                                       max_aspect_ratio)
     if any(t in HEXAHEDRA for t in types):
         info["hexahedra"] = {"path": route, "reason": reason}
+        if route == "native":
+            rule, why = integration_rule(types[0], raw.element_types)
+            info["hexahedra"].update(integration=rule, integration_reason=why)
     return mapped, info
 
 

@@ -26,6 +26,8 @@ from petsc4py import PETSc
 
 #: UFL quadrature degree of the 2 × 2 × 2 Gauss rule on hexahedra (basix: (degree + 2) // 2 points per axis).
 GAUSS_2X2X2 = 3
+#: UFL quadrature degree of the 3 × 3 × 3 Gauss rule (CalculiX C3D20's): a C3D20 deck's rule.
+GAUSS_3X3X3 = 5
 #: (degree) -> (UFL family, description for the results).
 ELEMENTS = {1: ("Q", "Q1 (8 nodes), 2x2x2 Gauss points: CalculiX C3D8"),
             2: ("S", "serendipity S2 (20 nodes), 2x2x2 Gauss points: CalculiX C3D20R")}
@@ -47,6 +49,8 @@ def element_description(V, quadrature_degree: int | None) -> str:
     degree = V.ufl_element().degree()
     if quadrature_degree is None:
         return ELEMENTS[degree][1]
+    if degree == 2 and quadrature_degree == GAUSS_3X3X3:
+        return "serendipity S2 (20 nodes), 3x3x3 Gauss points: CalculiX C3D20"
     return f"{ELEMENTS[degree][1].split(',')[0]}, quadrature degree {quadrature_degree} (discretisation)"
 
 

@@ -37,6 +37,21 @@ def build_mesh(comm: MPI.Comm, scene: dict):
         return builder(comm, **g)
 
 
+def spec_for_hexahedra(spec, hexahedra: dict):
+    """The model description with the cell rule of a native hexahedral deck: a C3D20 deck (full
+    integration, ``geometry.hexahedra.integration_rule``) at degree 2 gets the 3 × 3 × 3 Gauss rule
+    unless ``discretisation.quadrature_degree`` is set; anything else is unchanged (the 2 × 2 × 2 rule of
+    C3D20R and C3D8, :mod:`fem_squeal.fe.hexahedra`)."""
+    if (spec is None or hexahedra.get("path") != "native" or hexahedra.get("integration") != "full"
+            or spec.degree != 2 or spec.quadrature_degree is not None):
+        return spec
+    import dataclasses
+
+    from fem_squeal.fe.hexahedra import GAUSS_3X3X3  # heavy: FE stack
+
+    return dataclasses.replace(spec, quadrature_degree=GAUSS_3X3X3)
+
+
 def run(ctx: Context, work: Path, timings: dict) -> dict:
     """Build the mesh (gmsh builder or mesh file); summary and import report for results.json."""
     t = time.perf_counter()
@@ -54,6 +69,9 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
         if "hexahedra" in md.info:
             hx = md.info["hexahedra"]
             ctx.say(f"[fem_squeal] hexahedra: {hx['path']} path ({hx['reason']})")
+            if "integration" in hx:
+                ctx.say(f"[fem_squeal] hexahedra: {hx['integration']} integration ({hx['integration_reason']})")
+            ctx.spec = spec_for_hexahedra(ctx.spec, hx)
         for w in md.info["warnings"]:
             ctx.say(f"[fem_squeal] warning: {w}")
     return {"mesh": out}

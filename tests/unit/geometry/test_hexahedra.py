@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from geometry.hexahedra import HexFaceIndex, HexPathError, choose_path, complete_hex27, hex_quality
+from geometry.hexahedra import (
+    HexFaceIndex,
+    HexPathError,
+    choose_path,
+    complete_hex27,
+    hex_quality,
+    integration_rule,
+)
 from geometry.split import reference_nodes
 
 REF20 = reference_nodes("hexahedron20")          # [0, 2]³, VTK order
@@ -79,3 +86,19 @@ def test_path_choice_and_its_reasons():
         choose_path("native", ["hexahedron20", "wedge15"])
     with pytest.raises(HexPathError, match="must be one of"):
         choose_path("hex", ["hexahedron20"])
+
+
+@pytest.mark.parametrize("mtype, types, rule, words", [
+    ("hexahedron20", ["C3D20R"], "reduced", "2x2x2"),
+    ("hexahedron20", ["C3D20", "C3D20"], "full", "3x3x3"),
+    ("hexahedron20", ["C3D20", "C3D20R"], "reduced", "quadrature_degree = 5"),
+    ("hexahedron20", [], "reduced", "does not name"),
+    ("hexahedron", ["C3D8"], "full", "C3D8"),
+    ("hexahedron", ["C3D8R"], "full", "hourglass"),
+])
+def test_the_deck_names_the_cell_rule(mtype, types, rule, words):
+    """C3D20R decks run with 2x2x2 Gauss points and C3D20 decks with 3x3x3 (CalculiX's own rules, as
+    benchmarks/hex_native.py measures), a deck of both or a file without Abaqus types with 2x2x2,
+    saying so; 8-node hexahedra always with C3D8's 2x2x2."""
+    got, why = integration_rule(mtype, types)
+    assert got == rule and words in why

@@ -1,6 +1,7 @@
 """The ``mesh`` stage: the scene's geometry built by its gmsh builder or read from a mesh file."""
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import time
 from pathlib import Path
@@ -45,8 +46,6 @@ def spec_for_hexahedra(spec, hexahedra: dict):
     if (spec is None or hexahedra.get("path") != "native" or hexahedra.get("integration") != "full"
             or spec.degree != 2 or spec.quadrature_degree is not None):
         return spec
-    import dataclasses
-
     from fem_squeal.fe.hexahedra import GAUSS_3X3X3  # heavy: FE stack
 
     return dataclasses.replace(spec, quadrature_degree=GAUSS_3X3X3)

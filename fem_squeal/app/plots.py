@@ -354,3 +354,89 @@ def robustness(path: Path, bands_hz, band_p, band_se, drivers: dict[str, dict], 
     fig.tight_layout()
     save_figure_atomic(fig, path)
     plt.close(fig)
+
+
+def coupling_matrix(path: Path, rows: list[dict], title: str = "", max_modes: int = 16) -> bool:
+    """The participation [%] of the real modes (rows) in the unstable complex modes (columns; all modes
+    when none is unstable), the real modes that reach 1 % in any of them; False when there is nothing."""
+    modes = [r for r in rows if r["unstable"] and "coupling" in r] or [r for r in rows if "coupling" in r]
+    modes = modes[:max_modes]
+    if not modes:
+        return False
+    real = sorted({i for r in modes for i in r["coupling"]["real_modes"]})
+    P = np.zeros((len(real), len(modes)))
+    for j, r in enumerate(modes):
+        for i, q in zip(r["coupling"]["real_modes"], r["coupling"]["percent"]):
+            P[real.index(i), j] = q
+    freq = {i: f for r in modes for i, f in zip(r["coupling"]["real_modes"], r["coupling"]["real_freqs_hz"])}
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(1.6 + 0.75 * len(modes), 1.4 + 0.32 * len(real)))
+    im = ax.imshow(P, cmap="Reds", vmin=0, vmax=100, aspect="auto")
+    for (i, j), q in np.ndenumerate(P):
+        if q >= 1:
+            ax.text(j, i, f"{q:.0f}", ha="center", va="center", fontsize=7, color="white" if q > 60 else "black")
+    ax.set_xticks(range(len(modes)), [f"#{r['index']}\n{r['freq_hz']:.0f} Hz" for r in modes], fontsize=7)
+    ax.set_yticks(range(len(real)), [f"{i}: {freq[i]:.0f} Hz" for i in real], fontsize=7)
+    ax.set_xlabel("complex mode" + (" (unstable)" if modes[0]["unstable"] else ""))
+    ax.set_ylabel("real mode of ½(K + Kᵀ)")
+    fig.colorbar(im, ax=ax, label="participation [%]")
+    ax.set_title(title or "mode coupling", fontsize=9)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+    return True
+
+
+def part_participation(path: Path, rows: list[dict], title: str = "", max_modes: int = 16) -> bool:
+    """Stacked bars: the strain-energy share of each part in each unstable mode (all modes when none is
+    unstable); False when the modes carry no shares or the model has one part."""
+    shared = [r for r in rows if "energy_shares" in r]
+    modes = [r for r in shared if r["unstable"]] or shared
+    modes = modes[:max_modes]
+    if not modes or len(modes[0]["energy_shares"]) < 2:
+        return False
+    parts = list(modes[0]["energy_shares"])
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(max(5.0, 1.2 + 0.6 * len(modes)), 3.8))
+    x = np.arange(len(modes))
+    bottom = np.zeros(len(modes))
+    for p in parts:
+        h = np.array([100 * r["energy_shares"].get(p, 0.0) for r in modes])
+        ax.bar(x, h, 0.7, bottom=bottom, label=p)
+        bottom += h
+    ax.set_xticks(x, [f"#{r['index']}\n{r['freq_hz']:.0f} Hz" for r in modes], fontsize=7)
+    ax.set_ylabel("strain energy share [%]")
+    ax.set_ylim(0, 100)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    ax.set_title(title or "part participation", fontsize=9)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+    return True
+
+
+def erp_levels(path: Path, rows: list[dict], bands: list[dict], title: str = "") -> None:
+    """ERP level [dB re 1 pW] of every complex mode over frequency (unstable ones red, sized by their
+    growth rate), with the 1/3-octave band edges (1-16 kHz) as grid lines."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 4.0))
+    f = np.array([r["freq_hz"] for r in rows])
+    L = np.array([r["erp_db"] for r in rows])
+    u = np.array([r["unstable"] for r in rows], bool)
+    ax.scatter(f[~u], L[~u], s=14, c="0.5", label="stable")
+    if u.any():
+        g = np.array([r["real_part"] for r in rows])[u]
+        ax.scatter(f[u], L[u], s=20 + 80 * g / g.max(), c="tab:red", label="unstable (size: Re λ)")
+        for r in (r for r in rows if r["unstable"]):
+            ax.annotate(f"#{r['index']}", (r["freq_hz"], r["erp_db"]), fontsize=7, xytext=(3, 3),
+                        textcoords="offset points")
+    for b in bands:
+        ax.axvline(b["lower_hz"], color="0.85", lw=0.6, zorder=0)
+    ax.set_xscale("log")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("ERP [dB re 1 pW]")
+    ax.legend(fontsize=8)
+    ax.set_title(title or "equivalent radiated power", fontsize=9)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)

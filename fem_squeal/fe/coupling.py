@@ -35,6 +35,7 @@ class RealModeCoefficients:
     coefficients: np.ndarray      # (n_real, n_modes) complex
     norms: np.ndarray             # (n_modes,) x^H M x
     f_max_hz: float               # every real mode up to this frequency is in Φ
+    Phi: np.ndarray | None = None  # the real modes (rank-local rows, M-orthonormal columns)
 
 
 def symmetric_part(K: PETSc.Mat) -> PETSc.Mat:
@@ -75,4 +76,4 @@ def real_mode_coefficients(K: PETSc.Mat, M: PETSc.Mat, modes: list[tuple[PETSc.V
     finally:
         Ks.destroy()
     C, norms = coefficients_on(M, Phi, modes)
-    return RealModeCoefficients(np.sqrt(np.abs(w2)) * np.sign(w2) / TWO_PI, C, norms, float(f_max_hz))
+    return RealModeCoefficients(np.sqrt(np.abs(w2)) * np.sign(w2) / TWO_PI, C, norms, float(f_max_hz), Phi)

@@ -38,17 +38,14 @@ def modal_part(Y: np.ndarray, n_modes: int) -> tuple[np.ndarray, np.ndarray]:
 
 def summary(p: np.ndarray, r: float, freqs_hz: np.ndarray, min_percent: float = 1.0, top: int = 8) -> dict:
     """One complex mode's coupling (its column ``p`` of :func:`participation`, its outside share ``r``):
-    the real modes of participation ≥ ``min_percent`` (at most ``top``, largest first; at least two),
-    their frequencies, the pair, and the label "real modes 43 (48 %) and 44 (41 %)"."""
+    the real modes of participation ≥ ``min_percent`` (at most ``top``, largest first; the largest
+    always), their frequencies, the pair (the first two of them: one mode where a single real mode
+    carries the complex mode) and the label "real modes 43 (48 %) and 44 (41 %)"."""
     order = np.argsort(-p, kind="stable")
     keep = [int(i) for i in order[:top] if p[i] >= min_percent] or [int(i) for i in order[:1]]
-    if len(keep) < 2 and len(order) > 1:
-        keep.append(int(order[1]))
-    out = {"real_modes": keep, "percent": [float(p[i]) for i in keep],
-           "real_freqs_hz": [float(freqs_hz[i]) for i in keep], "outside": float(r)}
-    out["pair"] = keep[:2]
-    out["label"] = label(keep, out["percent"])
-    return out
+    percent = [float(p[i]) for i in keep]
+    return {"real_modes": keep, "percent": percent, "real_freqs_hz": [float(freqs_hz[i]) for i in keep],
+            "outside": float(r), "pair": keep[:2], "label": label(keep, percent)}
 
 
 def label(modes: list[int], percent: list[float]) -> str:

@@ -105,19 +105,27 @@ def compute(ctx, ops, K, fields, rows: list[dict], lam: np.ndarray, a) -> dict:
 
 
 def _coupling(ctx, ops, K, fields, rows: list[dict], a) -> dict:
-    """The coefficients on the real modes of ½(K + Kᵀ), their summaries into ``rows``, and the
-    described real modes that appear in them."""
+    """The coefficients on the real modes of ½(K + Kᵀ) up to analyses.cea.coupling_f_max_hz and their
+    summaries into ``rows`` (:func:`coupling_summaries`)."""
     from fem_squeal.fe.coupling import real_mode_coefficients  # heavy: FE stack
 
     f_max = a["coupling_f_max_hz"] or COUPLING_CUT_FACTOR * a["band_hz"][1]
     rc = real_mode_coefficients(K, ops.M, fields, f_max, options=ctx.scene.solver.petsc_options,
                                 n_start=max(20, len(fields)))
+    return coupling_summaries(rc, rows, ctx.products.get("basis"), ops.M)
+
+
+def coupling_summaries(rc, rows: list[dict], basis=None, M=None) -> dict:
+    """Each row's ``coupling`` (:func:`fem_squeal.reduced.mode_coupling.summary` of its column of
+    ``rc``, a :class:`fem_squeal.fe.coupling.RealModeCoefficients`; ``pair_kind`` from the real
+    modes' descriptors by ``basis``, a :class:`fem_squeal.fe.descriptors.CircumferentialBasis`, when
+    given with the mass matrix ``M``) and the CEA's ``cea_coupling`` section.  Drops ``rc.Phi``."""
     p, r = mode_coupling.participation(rc.coefficients, rc.norms)
     used: set[int] = set()
     for j, row in enumerate(rows):
         row["coupling"] = mode_coupling.summary(p[:, j], r[j], rc.freqs_hz)
         used.update(row["coupling"]["real_modes"])
-    described = _describe_real_modes(ctx, ops, rc, sorted(used))
+    described = _describe_real_modes(basis, M, rc, sorted(used))
     rc.Phi = None                       # the vectors are not kept
     for row in rows:
         pair = row["coupling"]["pair"]
@@ -128,16 +136,15 @@ def _coupling(ctx, ops, K, fields, rows: list[dict], a) -> dict:
                      "from 0 by frequency"}
 
 
-def _describe_real_modes(ctx, ops, rc, which: list[int]) -> dict[int, dict]:
+def _describe_real_modes(basis, M, rc, which: list[int]) -> dict[int, dict]:
     """Frequency, nodal diameter, nodal and in-plane share of the real modes ``which`` (the columns of
-    ``rc.Phi``), by the descriptors of the complex modes (the ``basis`` product)."""
+    ``rc.Phi``), by the descriptors of the complex modes (``basis``; None: frequencies only)."""
     out = {i: {"index": i, "freq_hz": float(rc.freqs_hz[i])} for i in which}
-    basis = ctx.products.get("basis")
-    if basis is None or not which:
+    if basis is None or rc.Phi is None or not which:
         return out
     vecs = []
     for i in which:
-        v = ops.M.createVecRight()
+        v = M.createVecRight()
         v.array[:] = rc.Phi[:, i]
         vecs.append(v)
     for i, d in zip(which, basis.describe_all([(v, None) for v in vecs])):

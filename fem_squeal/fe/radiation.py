@@ -19,7 +19,8 @@ a property of the shape alone: how much of the mode's motion is normal motion of
 The surface S: the boundary facets of the mesh except those covered by a contact partner: the faces
 of rigid plates, both faces of spring and bonded interfaces, the slave faces of contact interfaces
 (the pad linings), and of their master faces (the disc's friction faces) the facets under the
-slave: a facet whose midpoint lies within one facet diameter of a slave quadrature point; plus the
+slave: a facet whose midpoint lies within the size of its cell (longest edge) of a slave quadrature
+point; plus the
 faces the scene names (``exclude_faces``).
 """
 from __future__ import annotations
@@ -28,7 +29,7 @@ from collections.abc import Mapping
 
 import numpy as np
 import ufl
-from dolfinx import cpp, fem
+from dolfinx import fem
 from dolfinx import mesh as dmesh
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
@@ -37,6 +38,7 @@ from scipy.spatial import cKDTree
 
 from fem_squeal.fe.assembly import _compile
 from fem_squeal.fe.dense import apply
+from fem_squeal.fe.penalty import cell_size
 from fem_squeal.util.errors import UnknownNameError
 
 #: characteristic impedance of air [Pa·s/m]: ρ = 1.21 kg/m³ × c = 343 m/s (20 °C)
@@ -79,7 +81,8 @@ def radiating_facets(mesh_data, spec, exclude_faces=(), contacts=()) -> np.ndarr
         if not len(cand) or not len(points):
             continue
         mid = dmesh.compute_midpoints(mesh, tdim - 1, cand)
-        h = cpp.mesh.h(mesh, tdim - 1, cand)
+        f2c = mesh.topology.connectivity(tdim - 1, tdim)
+        h = cell_size(mesh, np.array([f2c.links(f)[0] for f in cand], dtype=np.int32))
         dist = cKDTree(points).query(mid)[0]
         covered.append(cand[dist <= h])
     return np.setdiff1d(facets, np.concatenate(covered)).astype(np.int32)

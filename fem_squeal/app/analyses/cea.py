@@ -26,8 +26,9 @@ SECTION = {
                         "definition, fem_squeal.reduced.eigensolve.unstable: round-off of a neutral mode, "
                         "a gyroscopic disc's ~1e-9 |λ|, is not an instability)"),
     "describe_part": Field(str, "", None, "part for nodal diameters; '' = disc if present"),
-    "coupling": Field(bool, True, None, "each complex mode on the real modes of ½(K + Kᵀ): their participation "
-                      "and the coupling pair (one more real-mode solve, up to coupling_f_max_hz)"),
+    "coupling": Field(bool, False, None, "each complex mode on the real modes of ½(K + Kᵀ): their participation "
+                      "and the coupling pair (one more real-mode solve, up to coupling_f_max_hz: off by default, "
+                      "it costs about as much as the CEA's own solve)"),
     "coupling_f_max_hz": Field(REAL, None, positive, "the real modes of the coupling reach this frequency; "
                                "not set: 1.25 × the upper end of band_hz", unset=0),
     "radiation": Field(dict, {}, nvh.check_radiation, "the ERP of the modes and the squeal index: a table of "

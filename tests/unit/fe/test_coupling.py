@@ -74,12 +74,9 @@ def test_unstable_ring_modes_are_the_cos_sin_pair(ring):
 def test_participation_sums_to_100_percent_when_the_real_modes_span_the_vector(ring):
     """x = Φ c for a random complex c: its coefficients are c and nothing lies outside (round-off)."""
     ops, _, rc, _, _ = ring
-    from fem_squeal.fe.coupling import coefficients_on, symmetric_part
-    from fem_squeal.fe.projection.shifted import modes_below
+    from fem_squeal.fe.coupling import coefficients_on
 
-    K = symmetric_part(ops.K_total())
-    _, Phi = modes_below(K, ops.M, 2000.0)
-    K.destroy()
+    Phi = rc.Phi
     c = np.random.default_rng(1).standard_normal((Phi.shape[1], 2)) @ np.array([1.0, 1j])
     xr, xi = ops.M.createVecRight(), ops.M.createVecRight()
     xr.array[:], xi.array[:] = Phi @ c.real, Phi @ c.imag
@@ -87,6 +84,29 @@ def test_participation_sums_to_100_percent_when_the_real_modes_span_the_vector(r
     p, r = mode_coupling.participation(C, norms)
     assert np.allclose(C[:, 0], c, atol=1e-10 * np.abs(c).max())
     assert abs(r[0]) < 1e-12 and abs(p.sum() - 100.0) < 1e-10
+
+
+def test_report_names_the_cos_sin_pair_of_the_unstable_ring_modes(ring):
+    """The CEA report's ranking names each unstable mode's pair and says it is the k-diameter cos/sin pair."""
+    import dataclasses
+
+    from fem_squeal.app import nvh
+    from fem_squeal.app.analyses.cea import report
+    from fem_squeal.fe.descriptors import CircumferentialBasis
+    from fem_squeal.reduced.eigensolve import unstable
+
+    ops, cm, rc, _, _ = ring
+    rows = [{"index": j, "freq_hz": f, "real_part": lam.real, "damping_ratio": 0.0, "residual": 0.0,
+             "unstable": bool(unstable(lam, 1e-6))} for j, (f, lam) in enumerate(zip(cm.freqs_hz, cm.eigenvalues))]
+    res = {"complex_modes": rows, "n_unstable": sum(r["unstable"] for r in rows), "cea_method": "linear",
+           "cea_coupling": nvh.coupling_summaries(dataclasses.replace(rc), rows,
+                                                  CircumferentialBasis(ops.V, ops.M, ops.M_axial), ops.M)}
+    assert res["n_unstable"] == 2
+    html = report(res)
+    assert "Unstable modes ranked" in html
+    for k, r in zip((2, 3), (r for r in rows if r["unstable"])):
+        assert r["coupling"]["pair_kind"] == f"cos/sin pair, nodal diameter {k}"
+        assert f"{r['coupling']['label']} (cos/sin pair, nodal diameter {k})" in html
 
 
 def test_ring_between_plates_radiates_from_its_cylindrical_faces_only(ring):
@@ -134,3 +154,32 @@ def test_two_ranks_give_the_same_coupling_and_erp(mpirun, tmp_path):
     assert np.allclose(np.array(one["erp"])[order1], np.array(two["erp"])[order2], rtol=1e-6)
     assert np.allclose(np.array(one["groups"])[:, order1], np.array(two["groups"])[:, order2], atol=1e-4)
     assert np.allclose(np.array(one["outside"])[order1], np.array(two["outside"])[order2], atol=1e-7)
+
+
+@pytest.mark.slow
+def test_ring_scene_report_says_the_unstable_pair_is_the_cos_sin_pair(tmp_path):
+    """scenes/ryzhik_ring.toml with analyses.cea.coupling = true: every unstable mode's coupling is its
+    k-diameter cos/sin pair (k = 2..6) in results.json, report.html and cea_coupling.csv."""
+    import json
+
+    from mpi4py import MPI
+    from support.paths import ROOT
+
+    from fem_squeal.app.run import run_scene
+    from fem_squeal.app.scene import load_scene
+
+    scene = load_scene(ROOT / "scenes" / "ryzhik_ring.toml", ["analyses.cea.coupling=true"])
+    run_scene(scene, tmp_path, MPI.COMM_SELF, cache=tmp_path / "cache", log=lambda *a: None)
+    res = json.loads((tmp_path / "results.json").read_text())
+    html = (tmp_path / "report.html").read_text()
+    ks = []
+    for m in res["complex_modes"]:
+        if m["unstable"]:
+            c = m["coupling"]
+            assert c["pair_kind"] == f"cos/sin pair, nodal diameter {m['nodal_diameter']}"
+            assert abs(c["percent"][0] - 50) < 1 and c["outside"] < 1e-4
+            assert f"{c['label']} ({c['pair_kind']})" in html
+            ks.append(m["nodal_diameter"])
+    assert sorted(ks) == [2, 3, 4, 5, 6]
+    assert res["cea_squeal_ranking"]
+    assert {"cea_coupling.csv", "cea_radiation.csv", "cea_erp.png"} <= set(res["files"])

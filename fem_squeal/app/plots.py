@@ -440,3 +440,36 @@ def erp_levels(path: Path, rows: list[dict], bands: list[dict], title: str = "")
     fig.tight_layout()
     save_figure_atomic(fig, path)
     plt.close(fig)
+
+
+def merging_pairs(path: Path, values: np.ndarray, lam: np.ndarray, unstable: np.ndarray,
+                  events: list[tuple[float, float, dict]], xlabel: str, band_hz: tuple[float, float],
+                  title: str = "") -> None:
+    """Which real modes merge where: the tracked branches' frequencies over the swept parameter (grey,
+    unstable points red) with each change of stability (value, frequency, coupling summary of
+    :mod:`fem_squeal.reduced.mode_coupling`) marked and labelled by its real-mode pair."""
+    plt = pyplot()
+    f = lam.imag / TWO_PI
+    keep = np.flatnonzero(np.any((f >= band_hz[0]) & (f <= band_hz[1]), axis=0))
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    for j in keep:
+        ax.plot(values, f[:, j], "-", color="0.75", lw=0.7)
+        u = unstable[:, j]
+        if u.any():
+            ax.plot(values[u], f[u, j], ".", color="tab:red", ms=3)
+    marks, named = [], set()
+    for v, fr, c in events:
+        ax.plot([v], [fr], "o", mfc="none", mec="k", ms=6)
+        key = (tuple(sorted(c["real_modes"][:2])), round(fr, -1))
+        if key not in named:           # the same pair merging at ±μ: named once
+            named.add(key)
+            marks.append((v, fr, " + ".join(f"{i} ({q:.0f} %)" for i, q in zip(c["real_modes"][:2],
+                                                                               c["percent"][:2]))))
+    ax.set_ylim(*band_hz)
+    _labels_apart(ax, marks)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("frequency [Hz]")
+    ax.set_title((title + ": " if title else "") + "real modes merging at each change of stability", fontsize=9)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)

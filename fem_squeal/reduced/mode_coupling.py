@@ -70,3 +70,29 @@ def group_sums(p: np.ndarray, groups: list[list[int]]) -> np.ndarray:
     """The participations summed over each group of :func:`degenerate_groups` (rows: groups): the
     numbers that do not depend on the basis chosen inside a degenerate eigenspace."""
     return np.array([p[g].sum(axis=0) for g in groups])
+
+
+def basis_modes(K0: np.ndarray, n_modes: int) -> tuple[np.ndarray, np.ndarray]:
+    """The real modes in the reduced basis: its first ``n_modes`` columns span the nominal frictionless
+    modes (M-orthonormal, but rotated among themselves by the basis' orthonormalisation), so the modes
+    are their combinations V of ½(K₀ + K₀ᵀ)_nn V = V diag(ω²) (M = I there).  Returns the frequencies
+    [Hz] (ascending) and V (n_modes × n_modes, orthonormal columns)."""
+    A = np.asarray(K0)[:n_modes, :n_modes]
+    w2, V = np.linalg.eigh(0.5 * (A + A.T))
+    return np.sign(w2) * np.sqrt(np.abs(w2)) / (2 * np.pi), V
+
+
+def coupling_at(solve, value: float, freq_hz: float, modes: tuple[np.ndarray, np.ndarray]) -> dict:
+    """The coupling (:func:`summary`) of the reduced model's eigenvalue nearest ``freq_hz`` (Im λ > 0; of
+    two at one frequency, the one of larger Re λ: the unstable half of a merged pair) at parameter
+    ``value`` on the real modes ``modes`` = (frequencies, V) of :func:`basis_modes`; ``solve(p) -> (λ, Y)``
+    gives the reduced eigenpairs (columns of Y)."""
+    freqs_hz, V = modes
+    lam, Y = solve(value)
+    w = 2 * np.pi * freq_hz
+    dist = np.where(lam.imag > 0, np.abs(lam.imag - w), np.inf)
+    near = np.flatnonzero(dist <= dist.min() + 1e-6 * max(w, 1.0))
+    j = int(near[np.argmax(lam.real[near])])
+    c, norms = modal_part(Y[:, [j]], V.shape[0])
+    p, r = participation(V.T @ c, norms)
+    return summary(p[:, 0], float(r[0]), freqs_hz)

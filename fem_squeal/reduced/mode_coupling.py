@@ -41,7 +41,7 @@ def summary(p: np.ndarray, r: float, freqs_hz: np.ndarray, min_percent: float = 
     the real modes of participation ≥ ``min_percent`` (at most ``top``, largest first; the largest
     always), their frequencies, the pair (the first two of them: one mode where a single real mode
     carries the complex mode) and the label "real modes 43 (48 %) and 44 (41 %)"."""
-    order = np.argsort(-p, kind="stable")
+    order = np.lexsort((np.arange(len(p)), -np.round(p, 6)))    # ties (a pair split 50/50) by index
     keep = [int(i) for i in order[:top] if p[i] >= min_percent] or [int(i) for i in order[:1]]
     percent = [float(p[i]) for i in keep]
     return {"real_modes": keep, "percent": percent, "real_freqs_hz": [float(freqs_hz[i]) for i in keep],
@@ -82,17 +82,15 @@ def basis_modes(K0: np.ndarray, n_modes: int) -> tuple[np.ndarray, np.ndarray]:
     return np.sign(w2) * np.sqrt(np.abs(w2)) / (2 * np.pi), V
 
 
-def coupling_at(solve, value: float, freq_hz: float, modes: tuple[np.ndarray, np.ndarray]) -> dict:
-    """The coupling (:func:`summary`) of the reduced model's eigenvalue nearest ``freq_hz`` (Im λ > 0; of
-    two at one frequency, the one of larger Re λ: the unstable half of a merged pair) at parameter
-    ``value`` on the real modes ``modes`` = (frequencies, V) of :func:`basis_modes`; ``solve(p) -> (λ, Y)``
-    gives the reduced eigenpairs (columns of Y)."""
+def coupling_at(solve, value: float, target: complex, modes: tuple[np.ndarray, np.ndarray]) -> dict:
+    """The coupling (:func:`summary`) on the real modes ``modes`` = (frequencies, V) of :func:`basis_modes`
+    of the reduced model's eigenvalue nearest ``target`` at parameter ``value`` (``solve(p) -> (λ, Y)``:
+    the reduced eigenpairs, columns of Y).  For a change of stability, take a grid value next to it on
+    its unstable side and the tracked eigenvalue there (:func:`fem_squeal.app.analyses.sweep`): a
+    coalescence is an exceptional point, where the eigenvector is determined to √ε only."""
     freqs_hz, V = modes
     lam, Y = solve(value)
-    w = 2 * np.pi * freq_hz
-    dist = np.where(lam.imag > 0, np.abs(lam.imag - w), np.inf)
-    near = np.flatnonzero(dist <= dist.min() + 1e-6 * max(w, 1.0))
-    j = int(near[np.argmax(lam.real[near])])
+    j = int(np.argmin(np.abs(lam - target)))
     c, norms = modal_part(Y[:, [j]], V.shape[0])
     p, r = participation(V.T @ c, norms)
     return summary(p[:, 0], float(r[0]), freqs_hz)

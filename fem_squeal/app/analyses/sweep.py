@@ -67,11 +67,17 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     f = tr.freqs_hz
     inside = np.flatnonzero(np.any((f >= band[0]) & (f <= band[1]), axis=0))
     events = [e for e in tr.events if band[0] <= e.freq_hz <= band[1]]
-    # which real modes of the basis merge at each change of stability (one reduced solve each)
+    # which real modes of the basis merge at each change of stability: the branch's eigenvector at the
+    # grid value of its bracket where it grows faster (one reduced solve each; mode_coupling.coupling_at)
     n_modes = int(model.info.get("modes", 0))
     real = mode_coupling.basis_modes(model.K0, n_modes)
-    couplings = [mode_coupling.coupling_at(path_solver(model, s["parameter"], fixed), e.value, e.freq_hz, real)
-                 if n_modes else None for e in events]
+    solve = path_solver(model, s["parameter"], fixed)
+    couplings = []
+    for e in events:
+        k = max((int(np.argmin(np.abs(values - b))) for b in e.bracket),
+                key=lambda i, j=e.branch: tr.eigenvalues[i, j].real)
+        couplings.append(mode_coupling.coupling_at(solve, values[k], tr.eigenvalues[k, e.branch], real)
+                         if n_modes else None)
     out = {"parameter": s["parameter"], "values": values, "branches": [
         {"label": tr.labels[j], "parent_hz": tr.parents_hz[j], "freq_hz": f[:, j],
          "real_part": tr.eigenvalues[:, j].real} for j in inside],
@@ -124,7 +130,7 @@ def report(res: dict) -> str:
     s = res["sweep"]
     return (f"<h2>Sweep of {_e(s['parameter'])}</h2><p>{len(s['values'])} values, {s['solves']} reduced "
                "solves; real modes: the modes of the reduced basis (nominal, frictionless) in the unstable "
-               "eigenvector at the critical value.</p>" + _table(
+               "eigenvector at the grid value next to the critical value on its unstable side.</p>" + _table(
                    ["value", "f [Hz]", "kind", "branches", "real modes"],
                    [[c["value"], c["freq_hz"], c["kind"], c.get("labels", ""), c["coupling"]["label"]
                      if "coupling" in c else ""] for c in s["critical"]]))

@@ -31,8 +31,7 @@ def test_the_merged_pair_is_found_through_the_basis_rotation():
     modes = mode_coupling.basis_modes(K, 4)
     assert np.allclose(modes[0], [100.0, 200.0, 210.0, 400.0], rtol=1e-12)
     lam = solve(0.2)[0]
-    f = lam[np.argmax(lam.real)].imag / (2 * np.pi)
-    c = mode_coupling.coupling_at(solve, 0.2, f, modes)
+    c = mode_coupling.coupling_at(solve, 0.2, lam[np.argmax(lam.real)], modes)
     assert sorted(c["pair"]) == [1, 2] and len(c["real_modes"]) == 2
     assert c["percent"] == pytest.approx([50.0, 50.0], abs=1e-8)
     assert abs(c["outside"]) < 1e-12

@@ -370,7 +370,7 @@ def coupling_matrix(path: Path, rows: list[dict], title: str = "", max_modes: in
             P[real.index(i), j] = q
     freq = {i: f for r in modes for i, f in zip(r["coupling"]["real_modes"], r["coupling"]["real_freqs_hz"])}
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(1.6 + 0.75 * len(modes), 1.4 + 0.32 * len(real)))
+    fig, ax = plt.subplots(figsize=(max(5.0, 2.4 + 0.75 * len(modes)), 1.6 + 0.32 * len(real)))
     im = ax.imshow(P, cmap="Reds", vmin=0, vmax=100, aspect="auto")
     for (i, j), q in np.ndenumerate(P):
         if q >= 1:
@@ -380,7 +380,7 @@ def coupling_matrix(path: Path, rows: list[dict], title: str = "", max_modes: in
     ax.set_xlabel("complex mode" + (" (unstable)" if modes[0]["unstable"] else ""))
     ax.set_ylabel("real mode of ½(K + Kᵀ)")
     fig.colorbar(im, ax=ax, label="participation [%]")
-    ax.set_title(title or "mode coupling", fontsize=9)
+    ax.set_title(f"{title}\nmode coupling" if title else "mode coupling", fontsize=8)
     fig.tight_layout()
     save_figure_atomic(fig, path)
     plt.close(fig)

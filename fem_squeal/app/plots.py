@@ -354,3 +354,122 @@ def robustness(path: Path, bands_hz, band_p, band_se, drivers: dict[str, dict], 
     fig.tight_layout()
     save_figure_atomic(fig, path)
     plt.close(fig)
+
+
+def coupling_matrix(path: Path, rows: list[dict], title: str = "", max_modes: int = 16) -> bool:
+    """The participation [%] of the real modes (rows) in the unstable complex modes (columns; all modes
+    when none is unstable), the real modes that reach 1 % in any of them; False when there is nothing."""
+    modes = [r for r in rows if r["unstable"] and "coupling" in r] or [r for r in rows if "coupling" in r]
+    modes = modes[:max_modes]
+    if not modes:
+        return False
+    real = sorted({i for r in modes for i in r["coupling"]["real_modes"]})
+    P = np.zeros((len(real), len(modes)))
+    for j, r in enumerate(modes):
+        for i, q in zip(r["coupling"]["real_modes"], r["coupling"]["percent"]):
+            P[real.index(i), j] = q
+    freq = {i: f for r in modes for i, f in zip(r["coupling"]["real_modes"], r["coupling"]["real_freqs_hz"])}
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(max(5.0, 2.4 + 0.75 * len(modes)), 1.6 + 0.32 * len(real)))
+    im = ax.imshow(P, cmap="Reds", vmin=0, vmax=100, aspect="auto")
+    for (i, j), q in np.ndenumerate(P):
+        if q >= 1:
+            ax.text(j, i, f"{q:.0f}", ha="center", va="center", fontsize=7, color="white" if q > 60 else "black")
+    ax.set_xticks(range(len(modes)), [f"#{r['index']}\n{r['freq_hz']:.0f} Hz" for r in modes], fontsize=7)
+    ax.set_yticks(range(len(real)), [f"{i}: {freq[i]:.0f} Hz" for i in real], fontsize=7)
+    ax.set_xlabel("complex mode" + (" (unstable)" if modes[0]["unstable"] else ""))
+    ax.set_ylabel("real mode of ½(K + Kᵀ)")
+    fig.colorbar(im, ax=ax, label="participation [%]")
+    ax.set_title(f"{title}\nmode coupling" if title else "mode coupling", fontsize=8)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+    return True
+
+
+def part_participation(path: Path, rows: list[dict], title: str = "", max_modes: int = 16) -> bool:
+    """Stacked bars: the strain-energy share of each part in each unstable mode (all modes when none is
+    unstable); False when the modes carry no shares or the model has one part."""
+    shared = [r for r in rows if "energy_shares" in r]
+    modes = [r for r in shared if r["unstable"]] or shared
+    modes = modes[:max_modes]
+    if not modes or len(modes[0]["energy_shares"]) < 2:
+        return False
+    parts = list(modes[0]["energy_shares"])
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(max(5.0, 1.2 + 0.6 * len(modes)), 3.8))
+    x = np.arange(len(modes))
+    bottom = np.zeros(len(modes))
+    for p in parts:
+        h = np.array([100 * r["energy_shares"].get(p, 0.0) for r in modes])
+        ax.bar(x, h, 0.7, bottom=bottom, label=p)
+        bottom += h
+    ax.set_xticks(x, [f"#{r['index']}\n{r['freq_hz']:.0f} Hz" for r in modes], fontsize=7)
+    ax.set_ylabel("strain energy share [%]")
+    ax.set_ylim(0, 100)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    ax.set_title(title or "part participation", fontsize=9)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+    return True
+
+
+def erp_levels(path: Path, rows: list[dict], bands: list[dict], title: str = "") -> None:
+    """ERP level [dB re 1 pW] of every complex mode over frequency (unstable ones red, sized by their
+    growth rate), with the 1/3-octave band edges (1-16 kHz) as grid lines."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 4.0))
+    f = np.array([r["freq_hz"] for r in rows])
+    L = np.array([r["erp_db"] for r in rows])
+    u = np.array([r["unstable"] for r in rows], bool)
+    ax.scatter(f[~u], L[~u], s=14, c="0.5", label="stable")
+    if u.any():
+        g = np.array([r["real_part"] for r in rows])[u]
+        ax.scatter(f[u], L[u], s=20 + 80 * g / g.max(), c="tab:red", label="unstable (size: Re λ)")
+        for r in (r for r in rows if r["unstable"]):
+            ax.annotate(f"#{r['index']}", (r["freq_hz"], r["erp_db"]), fontsize=7, xytext=(3, 3),
+                        textcoords="offset points")
+    for b in bands:
+        ax.axvline(b["lower_hz"], color="0.85", lw=0.6, zorder=0)
+    ax.set_xscale("log")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("ERP [dB re 1 pW]")
+    ax.legend(fontsize=8)
+    ax.set_title(title or "equivalent radiated power", fontsize=9)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)
+
+
+def merging_pairs(path: Path, values: np.ndarray, lam: np.ndarray, unstable: np.ndarray,
+                  events: list[tuple[float, float, dict]], xlabel: str, band_hz: tuple[float, float],
+                  title: str = "") -> None:
+    """Which real modes merge where: the tracked branches' frequencies over the swept parameter (grey,
+    unstable points red) with each change of stability (value, frequency, coupling summary of
+    :mod:`fem_squeal.reduced.mode_coupling`) marked and labelled by its real-mode pair."""
+    plt = pyplot()
+    f = lam.imag / TWO_PI
+    keep = np.flatnonzero(np.any((f >= band_hz[0]) & (f <= band_hz[1]), axis=0))
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    for j in keep:
+        ax.plot(values, f[:, j], "-", color="0.75", lw=0.7)
+        u = unstable[:, j]
+        if u.any():
+            ax.plot(values[u], f[u, j], ".", color="tab:red", ms=3)
+    marks, named = [], set()
+    for v, fr, c in events:
+        ax.plot([v], [fr], "o", mfc="none", mec="k", ms=6)
+        key = (tuple(sorted(c["real_modes"][:2])), round(fr, -1))
+        if key not in named:           # the same pair merging at ±μ: named once
+            named.add(key)
+            marks.append((v, fr, " + ".join(f"{i} ({q:.0f} %)" for i, q in zip(c["real_modes"][:2],
+                                                                               c["percent"][:2]))))
+    ax.set_ylim(*band_hz)
+    _labels_apart(ax, marks)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("frequency [Hz]")
+    ax.set_title((title + ": " if title else "") + "real modes merging at each change of stability", fontsize=9)
+    fig.tight_layout()
+    save_figure_atomic(fig, path)
+    plt.close(fig)

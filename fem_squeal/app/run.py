@@ -40,6 +40,17 @@ n_unstable       number of complex modes with Re λ > analyses.cea.growth_tol·|
 cea_method       "linear" (undamped: EPS) or "pep" (damping, friction damping or the turning disc)
 cea_rotation     (operating.gyroscopic or preload.geometric_stiffness) speed and the norms of the added
                  terms
+                 complex_modes rows also carry (fem_squeal.app.nvh): coupling {real_modes, percent,
+                 real_freqs_hz, outside, pair, label, pair_kind} (analyses.cea.coupling: participation
+                 100|c_i|²/Σ|c_j|² [%] of the real modes of ½(K + Kᵀ) ≥ 1 %, c = ΦᵀMx; outside =
+                 1 − Σ|c_j|²/x^HMx), erp_w, erp_db [dB re 1 pW], squeal_index_db (unstable modes; None else)
+cea_coupling     f_max_hz, n_real_modes, real_freqs_hz, real_modes [{index, freq_hz, nodal_diameter,
+                 nodal_share, in_plane_share}] (those named in a coupling), basis
+cea_radiation    rho_c, kinetic_energy_j, area_m2, default_efficiency, efficiency, exclude_faces, norm,
+                 squeal_index (the definitions; analyses.cea.radiation)
+cea_squeal_ranking  unstable modes (index), highest squeal index first
+cea_bands        [{band_hz, lower_hz, upper_hz, n_modes, n_unstable, max_level_db,
+                 max_unstable_level_db, max_squeal_index_db}] (1/3-octave bands 1-16 kHz)
 reduced          size, parameters, mu0, rounds [{cut_hz, modes, sampled_modes, static, dropped,
                  size, change, seconds}], converged, tol, estimated_error, lifted_residuals
                  [{point, freq_hz, real_part, backward_error}], verification [{point,

@@ -246,6 +246,8 @@ def test_brake_scene_same_on_one_and_two_ranks(tmp_path, mpirun):
         assert b[j]["freq_hz"] == pytest.approx(x["freq_hz"], rel=1e-8)
         assert b[j]["real_part"] == pytest.approx(x["real_part"], abs=1e-8 * 2 * np.pi * x["freq_hz"])
     assert matched >= 24
+    # the radiating surface (the disc under the pads left out by the slave points' positions)
+    assert out[2]["cea_radiation"]["area_m2"] == pytest.approx(out[1]["cea_radiation"]["area_m2"], rel=1e-12)
     pa, pb = out[1]["preload"]["interfaces"], out[2]["preload"]["interfaces"]
     for k in pa:
         assert pb[k]["normal_force"] == pytest.approx(pa[k]["normal_force"], rel=1e-9)

@@ -184,7 +184,9 @@ IGNORED = (".solver.", "timings_s", "seconds", "started", "residual", "backward_
            ".sweep.solves", ".sweep.vector_solves", ".sweep.ambiguous_steps")
 # critical values are refined to a bracket of 1e-10 of the sweep range (fem_squeal.reduced.tracking.track):
 # two runs may differ by twice that on top of round-off
-ABSOLUTE = {".sweep.critical[*].value": 2 * 1e-10 * 2.0}
+ABSOLUTE = {".sweep.critical[*].value": 2 * 1e-10 * 2.0,
+            # the share of an eigenvector outside the basis' modes: round-off (~1e-11) of a residual
+            ".sweep.critical[*].coupling.outside": 1e-9}
 
 
 @pytest.mark.mpi

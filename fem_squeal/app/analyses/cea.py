@@ -5,6 +5,7 @@ import math
 import time
 from pathlib import Path
 
+from fem_squeal.app import nvh
 from fem_squeal.app.analyses.matrices import operators
 from fem_squeal.app.analyses.preload import operating
 from fem_squeal.app.fields import REAL, Field, band, one_of, positive
@@ -26,6 +27,13 @@ SECTION = {
                         "definition, fem_squeal.reduced.eigensolve.unstable: round-off of a neutral mode, "
                         "a gyroscopic disc's ~1e-9 |λ|, is not an instability)"),
     "describe_part": Field(str, "", None, "part for nodal diameters; '' = disc if present"),
+    "coupling": Field(bool, False, None, "each complex mode on the real modes of ½(K + Kᵀ): their participation "
+                      "and the coupling pair (one more real-mode solve, up to coupling_f_max_hz: off by default, "
+                      "it costs about as much as the CEA's own solve)"),
+    "coupling_f_max_hz": Field(REAL, None, positive, "the real modes of the coupling reach this frequency; "
+                               "not set: 1.25 × the upper end of band_hz", unset=0),
+    "radiation": Field(dict, {}, nvh.check_radiation, "the ERP of the modes and the squeal index: a table of "
+                       + ", ".join(f"{k} ({f.doc}; default {f.default!r})" for k, f in nvh.RADIATION.items())),
 }
 
 
@@ -66,6 +74,9 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
         if e is not None:
             rows[-1]["energy_shares"] = e
     timings["cea_descriptors"] = time.perf_counter() - t
+    t = time.perf_counter()
+    more = nvh.compute(ctx, ops, K, fields, rows, cm.eigenvalues, a)
+    timings["cea_nvh"] = time.perf_counter() - t
     n_unstable = sum(r["unstable"] for r in rows)
     ctx.say(f"[fem_squeal] CEA ({cm.method}, {cm.algorithm}): {len(rows)} modes in {lo:g}-{hi:g} Hz, "
             f"{n_unstable} unstable, {timings['cea']:.2f} s (factorisation {cm.seconds['factor']:.2f} s, "
@@ -76,7 +87,9 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
               {f"mode_{j}_{part}": x for j, pair in enumerate(fields) for part, x in zip(("re", "im"), pair)},
               {"freq_hz": [r["freq_hz"] for r in rows], "real_part": [r["real_part"] for r in rows]})
     timings["cea_fields"] = time.perf_counter() - t
-    out = {"complex_modes": rows, "n_unstable": n_unstable, "cea_method": cm.method}
+    out = {"complex_modes": rows, "n_unstable": n_unstable, "cea_method": cm.method, **more}
+    if ctx.comm.rank == 0:
+        nvh.write_files(work, rows, out, scene.title)
     if rotation:
         out["cea_rotation"] = {"speed": scene.operating.speed, **rotation}
     return out
@@ -108,10 +121,11 @@ def run_on_matrices(ctx: Context, work: Path, timings: dict) -> dict:
 
 
 def check(scene: dict, volumes) -> None:
-    """analyses.cea.describe_part must be a part of the model."""
+    """analyses.cea.describe_part and the parts of analyses.cea.radiation.efficiency must be parts of the model."""
     part = scene.analyses["cea"].describe_part
     if part and part not in volumes:
         raise SceneError(f"analyses.cea.describe_part: unknown part {part!r}; parts: {sorted(volumes)}")
+    nvh.check_parts(scene.analyses["cea"], volumes)
 
 
 def report(res: dict) -> str:
@@ -129,7 +143,7 @@ def report(res: dict) -> str:
     return (f"<h2>Complex eigenvalue analysis</h2><p><b>{res['n_unstable']}</b> unstable of {len(cm)} "
             f"modes ({_e(res.get('cea_method', ''))}); unstable rows are shaded.{note}</p>" + _table(
                 ["#", "f [Hz]", "Re λ [1/s]", "ζ", "nodal diameter", "travelling", "residual", "shape"], rows,
-                ["unstable" if c["unstable"] else "" for c in cm]))
+                ["unstable" if c["unstable"] else "" for c in cm]) + nvh.report_html(res))
 
 
 STAGE = Stage("cea", ("preload",), run, "complex eigenvalue analysis", section=SECTION, check=check, report=report,

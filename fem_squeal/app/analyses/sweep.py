@@ -2,7 +2,8 @@
 every branch tracked by MAC continuation (:func:`fem_squeal.reduced.tracking.track`) and the
 critical values refined (by default only as far as the reduced model's estimated error warrants:
 the parameter step over which the eigenvalue moves by that error; ``refine_tol`` asks for more).
-Files: sweep.json, root_locus.png, complex_plane.png."""
+Files: sweep.json, root_locus.png, complex_plane.png and sweep_coupling.png (the real modes of the basis
+that merge at each change of stability: :func:`fem_squeal.reduced.mode_coupling.coupling_at`)."""
 from __future__ import annotations
 
 import time
@@ -17,6 +18,7 @@ from fem_squeal.app.fields import REAL, Field, at_least, increasing, positive
 from fem_squeal.app.html import escape as _e
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
+from fem_squeal.reduced import mode_coupling
 from fem_squeal.reduced.eigensolve import unstable
 from fem_squeal.reduced.model import MU, SPEED
 from fem_squeal.reduced.sweep import path_solver
@@ -65,10 +67,22 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     f = tr.freqs_hz
     inside = np.flatnonzero(np.any((f >= band[0]) & (f <= band[1]), axis=0))
     events = [e for e in tr.events if band[0] <= e.freq_hz <= band[1]]
+    # which real modes of the basis merge at each change of stability: the branch's eigenvector at the
+    # grid value of its bracket where it grows faster (one reduced solve each; mode_coupling.coupling_at)
+    n_modes = int(model.info.get("modes", 0))
+    real = mode_coupling.basis_modes(model.K0, n_modes)
+    solve = path_solver(model, s["parameter"], fixed)
+    couplings = []
+    for e in events:
+        k = max((int(np.argmin(np.abs(values - b))) for b in e.bracket),
+                key=lambda i, j=e.branch: tr.eigenvalues[i, j].real)
+        couplings.append(mode_coupling.coupling_at(solve, values[k], tr.eigenvalues[k, e.branch], real)
+                         if n_modes else None)
     out = {"parameter": s["parameter"], "values": values, "branches": [
         {"label": tr.labels[j], "parent_hz": tr.parents_hz[j], "freq_hz": f[:, j],
          "real_part": tr.eigenvalues[:, j].real} for j in inside],
-        "critical": [e.as_dict() for e in events], "solves": tr.solves, "vector_solves": tr.vector_solves,
+        "critical": [{**e.as_dict(), **({"coupling": c} if c else {})} for e, c in zip(events, couplings)],
+        "solves": tr.solves, "vector_solves": tr.vector_solves,
         "ambiguous_steps": tr.ambiguous_steps, "seconds": timings["sweep"],
         # the error the critical values were refined to (None: refine_tol, or 1e-10 of the range)
         "seconds_per_value": timings["sweep"] / s["n"], "refined_to_estimated_error": error}
@@ -80,6 +94,10 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
         plots.root_locus(work / "root_locus.png", values, tr.eigenvalues, unstable(tr.eigenvalues, gt),
                          xlabel, band, tr.labels, scene.title)
         plots.complex_plane(work / "complex_plane.png", tr.eigenvalues, band, gt, scene.title)
+        if any(couplings):
+            plots.merging_pairs(work / "sweep_coupling.png", values, tr.eigenvalues, unstable(tr.eigenvalues, gt),
+                                [(e.value, e.freq_hz, c) for e, c in zip(events, couplings) if c], xlabel, band,
+                                scene.title)
     out.pop("branches")  # kept in sweep.json; results.json holds the summary
     return {"sweep": out}
 
@@ -111,9 +129,11 @@ def report(res: dict) -> str:
         return ""
     s = res["sweep"]
     return (f"<h2>Sweep of {_e(s['parameter'])}</h2><p>{len(s['values'])} values, {s['solves']} reduced "
-               "solves.</p>" + _table(["value", "f [Hz]", "kind", "branches"],
-                                      [[c["value"], c["freq_hz"], c["kind"], c.get("labels", "")]
-                                       for c in s["critical"]]))
+               "solves; real modes: the modes of the reduced basis (nominal, frictionless) in the unstable "
+               "eigenvector at the grid value next to the critical value on its unstable side.</p>" + _table(
+                   ["value", "f [Hz]", "kind", "branches", "real modes"],
+                   [[c["value"], c["freq_hz"], c["kind"], c.get("labels", ""), c["coupling"]["label"]
+                     if "coupling" in c else ""] for c in s["critical"]]))
 
 
 STAGE = Stage("sweep", ("reduced",), run, "one-parameter sweep with mode tracking", section=SECTION, check=check,

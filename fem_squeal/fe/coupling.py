@@ -1,0 +1,79 @@
+"""Mode coupling of the full CEA: each complex mode on the real modes of the symmetric system.
+
+With Φ the M-orthonormal real modes of (K_s, M), K_s = ½(K + Kᵀ) the symmetric part of the CEA's
+operating stiffness (elasticity, closed contacts, the symmetric part of the friction stiffness,
+prestress), every real mode up to ``f_max_hz``, a complex mode x (x^H M x = 1) has the coefficients
+
+    c = Φᵀ M x,    x = Φ c + r,    ‖x‖²_M = Σ |c_i|² + ‖r‖²_M        (M-orthogonality of Φ),
+
+so |c_i|² / ‖x‖²_M is the share of real mode i in the mode's M-norm (kinetic energy) and
+‖r‖²_M / ‖x‖²_M = 1 − Σ |c_i|² / ‖x‖²_M the share outside the real modes kept (the basis-norm
+residual: 0 to round-off when they span x).  The real modes come from
+:func:`fem_squeal.fe.projection.modes_below` (the reduced stage's solver of its basis modes).
+The summaries (participation in percent, the coupling pair) are pure NumPy:
+:mod:`fem_squeal.reduced.mode_coupling`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from fem_squeal.fe.dense import apply, gram
+from fem_squeal.fe.eigen import TWO_PI
+from fem_squeal.fe.projection.shifted import modes_below
+
+
+@dataclass
+class RealModeCoefficients:
+    """Coefficients c = ΦᵀMx of complex modes on real modes (``coefficients[i, j]``: real mode i,
+    complex mode j), the real modes' frequencies and each complex mode's M-norm ‖x‖²_M."""
+
+    freqs_hz: np.ndarray          # (n_real,) ascending
+    coefficients: np.ndarray      # (n_real, n_modes) complex
+    norms: np.ndarray             # (n_modes,) x^H M x
+    f_max_hz: float               # every real mode up to this frequency is in Φ
+    Phi: np.ndarray | None = None  # the real modes (rank-local rows, M-orthonormal columns)
+
+
+def symmetric_part(K: PETSc.Mat) -> PETSc.Mat:
+    """K_s = ½(K + Kᵀ) as a new matrix (K's pattern is structurally symmetric: FE assembly)."""
+    Ks = K.copy()
+    Kt = K.transpose(PETSc.Mat())
+    Ks.axpy(1.0, Kt, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+    Ks.scale(0.5)
+    Kt.destroy()
+    return Ks
+
+
+def coefficients_on(M: PETSc.Mat, Phi: np.ndarray, modes: list[tuple[PETSc.Vec, PETSc.Vec | None]]
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """c = Φᵀ M x for each x = xr + i xi of ``modes`` (Φ: rank-local rows) and x^H M x, summed over the
+    ranks: (n_real × n_modes complex, n_modes)."""
+    comm = M.getComm().tompi4py()
+    n_local = M.getLocalSize()[0]
+    X = np.zeros((n_local, 2 * len(modes)), order="F")
+    for j, (xr, xi) in enumerate(modes):
+        X[:, 2 * j] = xr.array_r
+        if xi is not None:
+            X[:, 2 * j + 1] = xi.array_r
+    MX = apply(M, X) if X.shape[1] else X
+    C = gram(comm, MX, Phi).T if Phi.shape[1] else np.zeros((0, X.shape[1]))   # ΦᵀMX
+    norms = comm.allreduce(np.einsum("ij,ij->j", X, MX), op=MPI.SUM)
+    return C[:, 0::2] + 1j * C[:, 1::2], norms[0::2] + norms[1::2]
+
+
+def real_mode_coefficients(K: PETSc.Mat, M: PETSc.Mat, modes: list[tuple[PETSc.Vec, PETSc.Vec | None]],
+                           f_max_hz: float, *, options=None, prefix: str = "coupling_",
+                           n_start: int = 20) -> RealModeCoefficients:
+    """The real modes of (½(K + Kᵀ), M) up to ``f_max_hz`` and the coefficients of ``modes`` on them
+    (module docstring).  ``options``/``prefix``: the PETSc options of the real-mode solve."""
+    Ks = symmetric_part(K)
+    try:
+        w2, Phi = modes_below(Ks, M, f_max_hz, n_start=n_start, options=options, prefix=prefix)
+    finally:
+        Ks.destroy()
+    C, norms = coefficients_on(M, Phi, modes)
+    return RealModeCoefficients(np.sqrt(np.abs(w2)) * np.sign(w2) / TWO_PI, C, norms, float(f_max_hz), Phi)

@@ -6,8 +6,8 @@ the shape reads in three dimensions.
 The triangles are filled by Pillow's ``ImageDraw.polygon`` at twice the resolution and the image
 reduced (anti-aliasing): the 7k triangles of a view of the brake corner in 30 ms, where
 matplotlib's ``PolyCollection`` makes one ``Path`` object per triangle (0.7 s per view at 20k).
-The views are then put into a frame (the views' titles, the colour bar) that matplotlib draws
-once for all the modes.
+The views are then put into a frame (the views' titles, the colour bar) drawn once for all the
+modes, with matplotlib's colour map and font but not its pyplot (1 s to import and lay out).
 
 Views: along the axis (z, the disc's axis: the builders' convention) and an oblique view (30° above
 the disc's plane, azimuth −120°: the brake corner's caliper behind the disc).  Scales
@@ -19,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 
-from fem_squeal.app.plots import pyplot
 from fem_squeal.util.atomic import atomic_path
 
 #: displacement drawn where |u| is its PERCENTILEth percentile, as a share of the largest extent
@@ -29,7 +28,6 @@ PERCENTILE = 98.0
 VIEWS = (("along the axis", 90.0, -90.0), ("oblique", 30.0, -120.0))
 COLOURMAP = "RdBu_r"
 SUPERSAMPLE = 2
-DPI = 80
 #: pixel size of a view (:func:`raster`'s default), and the largest of a thumbnail
 VIEW_PX = (400, 300)
 THUMB_PX = (200, 150)
@@ -111,28 +109,47 @@ def deformed(points: np.ndarray, u: np.ndarray, full: float) -> np.ndarray:
     return points + (DEFORMATION * np.ptp(points, axis=0).max() / full) * u * clip[:, None]
 
 
-def _frame(width: float, height: float):
-    """The figure without its views and title, drawn once: (RGB array, the views' pixel boxes
-    [[(x0, y0, w, h)]] by row (real, imaginary) and column (:data:`VIEWS`), the title's centre)."""
-    plt = pyplot()
-    fig, axes = plt.subplots(2, 2, figsize=(width, height))
-    fig.subplots_adjust(left=0.01, right=0.86, bottom=0.01, top=0.9, wspace=0.03, hspace=0.12)
-    for row, name in zip(axes, ("real part", "imaginary part")):
-        for ax, (view, _, _) in zip(row, VIEWS):
-            ax.set_title(f"{name}, {view}", fontsize=9)
-            ax.set_axis_off()
-    sm = plt.cm.ScalarMappable(cmap=COLOURMAP, norm=plt.Normalize(-1.0, 1.0))
-    bar = fig.colorbar(sm, cax=fig.add_axes([0.885, 0.2, 0.022, 0.6]),
-                       label=f"normal displacement / its {PERCENTILE:g}th percentile")
-    bar.set_ticks([-1, -0.5, 0, 0.5, 1])
-    fig.set_dpi(DPI)
-    fig.canvas.draw()
-    rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-    H = rgb.shape[0]
-    boxes = [[(round(b.x0), round(H - b.y1), round(b.width), round(b.height))
-              for b in (ax.get_window_extent() for ax in row)] for row in axes]
-    plt.close(fig)
-    return rgb, boxes, (rgb.shape[1] / 2, round(0.04 * H))
+def _frame(width: int = 720, height: int = 500):
+    """The picture without its views and title, drawn once (Pillow; matplotlib's pyplot, 1 s to
+    import and lay out, is not needed): (RGB array, the views' pixel boxes [[(x0, y0, w, h)]] by row
+    (real, imaginary) and column (:data:`VIEWS`), the title's centre)."""
+    from PIL import Image, ImageDraw  # heavy: Pillow (pictures only; matplotlib's own dependency)
+
+    img = Image.new("RGB", (width, height), (255, 255, 255))
+    draw = ImageDraw.Draw(img)
+    small = _font(11)
+    top, sub, bar_w = 34, 18, 110
+    w = (width - bar_w - 12) // 2
+    h = (height - top - 2 * sub - 6) // 2
+    boxes = []
+    for r, name in enumerate(("real part", "imaginary part")):
+        y0 = top + sub + r * (h + sub)
+        boxes.append([(6 + c * (w + 6), y0, w, h) for c in range(2)])
+        for (x0, _, _, _), (view, _, _) in zip(boxes[-1], VIEWS):
+            _text(draw, (x0 + w / 2, y0 - sub / 2), f"{name}, {view}", small)
+    x0, y0, bh = width - bar_w + 14, top + 60, height - top - 130
+    ramp = np.round(255 * colours(np.linspace(1.0, -1.0, bh), 1.0)).astype(np.uint8)
+    rgb = np.asarray(img).copy()
+    rgb[y0:y0 + bh, x0:x0 + 16] = ramp[:, None, :]
+    img = Image.fromarray(rgb)
+    draw = ImageDraw.Draw(img)
+    draw.rectangle([x0 - 1, y0 - 1, x0 + 16, y0 + bh], outline=(0, 0, 0))
+    for t in (-1.0, -0.5, 0.0, 0.5, 1.0):
+        y = y0 + (1.0 - t) / 2 * (bh - 1)
+        draw.line([x0 + 16, y, x0 + 20, y], fill=(0, 0, 0))
+        draw.text((x0 + 23, y - 6), f"{t:g}", fill=(0, 0, 0), font=small)
+    label = Image.new("RGB", (bh, 16), (255, 255, 255))
+    _text(ImageDraw.Draw(label), (bh / 2, 8), f"normal displacement / its {PERCENTILE:g}th percentile", small)
+    img.paste(label.rotate(90, expand=True), (x0 + 54, y0))
+    return np.asarray(img).copy(), boxes, (width / 2, top / 2)
+
+
+def _text(draw, centre, text: str, font) -> None:
+    """``text`` centred at ``centre`` (Pillow's bitmap font, without anchors: from its left end)."""
+    try:
+        draw.text(centre, text, fill=(0, 0, 0), font=font, anchor="mm")
+    except ValueError:
+        draw.text((centre[0] - 3 * len(text), centre[1] - 6), text, fill=(0, 0, 0), font=font)
 
 
 def _font(size: int):
@@ -151,10 +168,10 @@ def mode_pictures(shapes, paths: list[tuple[Path, Path]], titles: list[str]) -> 
     its real and imaginary parts (rows) in the two :data:`VIEWS` (columns), the surface displaced by
     the part and coloured by its normal displacement (one scale for both), saved at ``paths[k][0]``,
     and a thumbnail (the oblique view of the real part) at ``paths[k][1]``.  The frame (titles of
-    the views, colour bar) is drawn by matplotlib once; each mode's views and title are put in it."""
+    the views, colour bar) is drawn once; each mode's views and title are put in it."""
     from PIL import Image, ImageDraw  # heavy: Pillow (pictures only; matplotlib's own dependency)
 
-    frame, boxes, (tx, ty) = _frame(9.0, 6.2)
+    frame, boxes, (tx, ty) = _frame()
     font = _font(13)
     for k, ((png, thumb), title) in enumerate(zip(paths, titles)):
         full, vmax = scales(shapes.u_re[k], shapes.u_im[k], shapes.un_re[k], shapes.un_im[k])
@@ -167,11 +184,7 @@ def mode_pictures(shapes, paths: list[tuple[Path, Path]], titles: list[str]) -> 
                 views.append(raster(x, shapes.triangles, un, vmax, view_matrix(elev, azim), (w, h)))
                 rgb[y0:y0 + h, x0:x0 + w] = views[-1]
         img = Image.fromarray(rgb)
-        draw = ImageDraw.Draw(img)
-        try:
-            draw.text((tx, ty), title, fill=(0, 0, 0), font=font, anchor="mm")
-        except ValueError:                     # Pillow's bitmap font takes no anchor
-            draw.text((10, ty - 6), title, fill=(0, 0, 0), font=font)
+        _text(ImageDraw.Draw(img), (tx, ty), title, font)
         with atomic_path(png) as tmp:          # a fast PNG compression: 2x larger files, 4x less time
             img.save(tmp, format="PNG", compress_level=1)
         small = Image.fromarray(views[1])      # the oblique view of the real part

@@ -3,9 +3,10 @@
 The complex modes' fields, gathered on rank 0 by :func:`fem_squeal.fe.output.write_vtu` (points =
 the mesh's coordinate nodes, cells in VTK order), are reduced to what a picture needs:
 
-- the **surface**: the boundary faces of the tetrahedra (faces that belong to one cell only; the
-  faces of parts that touch through an interface are boundary faces of each), drawn by their corner
-  triangles (a curved P2 face as its flat corner triangle), oriented outwards; above
+- the **surface**: the boundary faces of the cells, tetrahedra or hexahedra (faces that belong to
+  one cell only; the faces of parts that touch through an interface are boundary faces of each),
+  drawn by their corner triangles (a curved P2 face as its flat corner triangle, a quadrilateral as
+  two), oriented outwards; above
   :data:`MAX_TRIANGLES` the surface is decimated by vertex clustering on a uniform grid;
 - the **vertices in a canonical order** (sorted by coordinates, ties by the mean of their neighbours)
   and the triangles sorted, so that the data do not depend on the rank count (the global numbering
@@ -45,10 +46,12 @@ FIRST_FEW = 3
 MAX_TRIANGLES = 40000
 NPZ = "mode_shapes.npz"
 FOLDER = "mode_shapes"
-#: the corner triangles of a tetrahedron's four faces (VTK order: the corners are nodes 0-3) and the
-#: corner opposite each
-_FACES = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])
-_OPPOSITE = np.array([0, 1, 2, 3])
+#: the faces of a cell by their corners (VTK node order: the corners come first), per number of
+#: corners: a tetrahedron's four triangles, a hexahedron's six quadrilaterals
+_FACES = {4: np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]),
+          8: np.array([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]])}
+#: corners of the VTK cell types (meshio names)
+CORNERS = {"tetra": 4, "tetra10": 4, "hexahedron": 8, "hexahedron20": 8, "hexahedron27": 8}
 
 
 @dataclass
@@ -62,20 +65,27 @@ class Surface:
     members: np.ndarray | None = None
 
 
-def boundary_triangles(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Corner triangles of the faces that belong to one tetrahedron only, oriented outwards
-    (their normal points away from the cell's fourth corner)."""
-    corners = np.asarray(cells)[:, :4].astype(np.int64)
-    faces = corners[:, _FACES].reshape(-1, 3)
-    opposite = corners[:, _OPPOSITE].reshape(-1)
-    key = np.sort(faces, axis=1)
-    _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
+def boundary_triangles(points: np.ndarray, cells: np.ndarray, kind: str = "tetra") -> np.ndarray:
+    """Corner triangles of the faces that belong to one cell only (a quadrilateral face as two),
+    oriented outwards (their normal points away from the cell's centre); ``kind``: the meshio cell
+    type (:data:`CORNERS`)."""
+    if kind not in CORNERS:
+        raise ValueError(f"mode pictures: cells of type {kind!r} are not drawn (types: {sorted(CORNERS)})")
+    n = CORNERS[kind]
+    corners = np.asarray(cells)[:, :n].astype(np.int64)
+    table = _FACES[n]
+    faces = corners[:, table].reshape(-1, table.shape[1])
+    centre = np.repeat(points[corners].mean(axis=1), len(table), axis=0)
+    _, first, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True)
     keep = first[counts == 1]
-    tri, opp = faces[keep], opposite[keep]
-    a, b, c = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
-    inward = np.einsum("ij,ij->i", np.cross(b - a, c - a), points[opp] - a) > 0
-    tri[inward] = tri[inward][:, [0, 2, 1]]
-    return tri
+    faces, centre = faces[keep], centre[keep]
+    if faces.shape[1] == 4:          # a quadrilateral: the triangles (0, 1, 2) and (0, 2, 3)
+        faces = np.concatenate([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]])
+        centre = np.concatenate([centre, centre])
+    a, b, c = points[faces[:, 0]], points[faces[:, 1]], points[faces[:, 2]]
+    inward = np.einsum("ij,ij->i", np.cross(b - a, c - a), centre - a) > 0
+    faces[inward] = faces[inward][:, [0, 2, 1]]
+    return faces
 
 
 def _canonical(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -99,9 +109,10 @@ def _canonical(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, n
     return order, t
 
 
-def outer_surface(points: np.ndarray, cells: np.ndarray, max_triangles: int = MAX_TRIANGLES) -> Surface:
-    """The outer surface of a tetrahedral mesh (module docstring), at most ``max_triangles``."""
-    tri = boundary_triangles(points, cells)
+def outer_surface(points: np.ndarray, cells: np.ndarray, max_triangles: int = MAX_TRIANGLES,
+                  kind: str = "tetra") -> Surface:
+    """The outer surface of a mesh of ``kind`` cells (module docstring), at most ``max_triangles``."""
+    tri = boundary_triangles(points, cells, kind)
     nodes, local = np.unique(tri, return_inverse=True)
     local = local.reshape(-1, 3)
     xyz = points[nodes]
@@ -208,9 +219,9 @@ class ModeShapes:
 
 
 def mode_shapes(points: np.ndarray, cells: np.ndarray, fields: dict[str, np.ndarray], modes: list[int],
-                max_triangles: int = MAX_TRIANGLES) -> ModeShapes:
+                max_triangles: int = MAX_TRIANGLES, kind: str = "tetra") -> ModeShapes:
     """The surface data of ``modes`` from the gathered mesh and fields ``mode_<j>_re``/``_im``."""
-    s = outer_surface(points, cells, max_triangles)
+    s = outer_surface(points, cells, max_triangles, kind)
     parts = [normalised(surface_values(s, fields[f"mode_{j}_re"]), surface_values(s, fields[f"mode_{j}_im"]))
              for j in modes]
     re = np.array([p[0] for p in parts]).reshape(len(modes), len(s.points), 3)
@@ -226,12 +237,12 @@ def write_mode_shapes(work: Path, gathered: tuple, rows: list[dict], title: str 
     returns {"modes": [...], "triangles", "points", "seconds_per_mode"} for results.json."""
     from fem_squeal.app import shape_pictures  # heavy: matplotlib (pictures only)
 
-    points, cells, _, fields = gathered
+    points, cells, kind, fields = gathered
     modes = chosen_modes(rows)
     if not modes:
         return {"modes": []}
     t0 = time.perf_counter()
-    shapes = mode_shapes(points, cells, fields, modes)
+    shapes = mode_shapes(points, cells, fields, modes, kind=kind)
     shapes.save(work / NPZ)
     t1 = time.perf_counter()
     folder = work / FOLDER

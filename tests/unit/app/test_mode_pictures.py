@@ -60,6 +60,23 @@ def test_the_surface_is_the_boundary_outwards():
     assert len(s.points) == len(np.unique(s.triangles))
 
 
+def test_the_surface_of_hexahedra():
+    pts, tets = box()
+    s = ms.outer_surface(pts, _vtk_hexes(), kind="hexahedron")
+    assert len(s.triangles) == 2 * 2 * (4 * 3 + 4 * 2 + 3 * 2)
+    a, b, c = (s.points[s.triangles[:, k]] for k in range(3))
+    assert np.einsum("ij,ij->", (a + b + c) / 3, np.cross(b - a, c - a)) / 2 == pytest.approx(3 * 0.12, rel=1e-12)
+    with pytest.raises(ValueError, match="'wedge' are not drawn"):
+        ms.outer_surface(pts, tets, kind="wedge")
+
+
+def _vtk_hexes(nx=4, ny=3, nz=2):
+    idx = np.arange((nx + 1) * (ny + 1) * (nz + 1)).reshape(nx + 1, ny + 1, nz + 1)
+    return np.array([[idx[i + a, j + b, k + d] for d, b, a in ((0, 0, 0), (0, 0, 1), (0, 1, 1), (0, 1, 0),
+                                                               (1, 0, 0), (1, 0, 1), (1, 1, 1), (1, 1, 0))]
+                     for i in range(nx) for j in range(ny) for k in range(nz)])
+
+
 def test_the_picture_data_do_not_depend_on_the_numbering():
     pts, cells = box()
     re, im = bump(pts)

@@ -161,6 +161,10 @@ def test_ring_cache_recomputes_only_what_changed(ring_run, tmp_path, monkeypatch
     again = run_scene(s0, tmp_path / "a", MPI.COMM_SELF, cache=cache, write_fields=False, **QUIET)
     assert {s["status"] for s in again["stages"]} == {"cached"}
     assert again["complex_modes"] == first["complex_modes"]
+    # --no-fields: the mode pictures (drawn into the cache) are not published, and the report says so
+    html = (tmp_path / "a" / "report.html").read_text()
+    assert "<code>--no-fields</code>" in html and 'id="viewer"' not in html and "mode_shapes/" not in html
+    assert not (tmp_path / "a" / "mode_shapes.npz").exists() and not (tmp_path / "a" / "mode_shapes").exists()
     monkeypatch.undo()
     # more modes: the CEA runs again on the mesh and operators rebuilt in memory
     s1 = load_scene(RING, ["geometry.mesh_size=0.003", "analyses.cea.n_modes=18"])

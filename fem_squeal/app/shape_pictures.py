@@ -93,11 +93,14 @@ def raster(points: np.ndarray, triangles: np.ndarray, value: np.ndarray, vmax: f
 
 def scales(u_re: np.ndarray, u_im: np.ndarray, un_re: np.ndarray, un_im: np.ndarray) -> tuple[float, float]:
     """The displacement and the normal displacement drawn full-scale: the :data:`PERCENTILE`th
-    percentile of |u| at the points and of |u_n| over the triangles (both parts).  A mode's peak sits
-    often at a corner of a small part (a backplate's edge): scaled by it, the rest would be grey."""
+    percentile of |u| at the points and of |u_n| over the triangles (both parts), at least a tenth of
+    the largest.  A mode's peak sits often at a corner of a small part (a backplate's edge): scaled
+    by it, the rest would be grey."""
     mag = np.sqrt((u_re ** 2).sum(axis=1) + (u_im ** 2).sum(axis=1))
     un = np.abs(np.concatenate([un_re, un_im]))
-    return float(np.percentile(mag, PERCENTILE)) or 1.0, float(np.percentile(un, PERCENTILE)) or 1.0
+    # at least a tenth of the largest: where few triangles move normally (a bar's end faces under a
+    # longitudinal mode) the percentile is round-off
+    return tuple(max(float(np.percentile(v, PERCENTILE)), 0.1 * float(v.max())) or 1.0 for v in (mag, un))
 
 
 def deformed(points: np.ndarray, u: np.ndarray, full: float) -> np.ndarray:

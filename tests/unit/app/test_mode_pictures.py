@@ -77,6 +77,18 @@ def _vtk_hexes(nx=4, ny=3, nz=2):
                      for i in range(nx) for j in range(ny) for k in range(nz)])
 
 
+def test_a_large_surface_is_decimated():
+    pts, cells = box(20, 12, 2)
+    full = ms.outer_surface(pts, cells)
+    s = ms.outer_surface(pts, cells, max_triangles=300)
+    assert 50 < len(s.triangles) <= 300 < len(full.triangles)
+    assert np.allclose(s.points.min(axis=0), 0.0, atol=0.1)
+    assert np.allclose(s.points.max(axis=0), [1.0, 0.6, 0.2], atol=0.1)
+    # the clusters' values are their nodes' means: a linear field stays linear at the cluster centres
+    values = ms.surface_values(s, pts @ np.array([1.0, 2.0, 3.0]))
+    assert np.allclose(values, s.points @ np.array([1.0, 2.0, 3.0]), atol=1e-12)
+
+
 def test_the_picture_data_do_not_depend_on_the_numbering():
     pts, cells = box()
     re, im = bump(pts)

@@ -26,15 +26,17 @@ from fem_squeal.app.cache import INDEX, file_problem
 from fem_squeal.util.errors import PipelineError, StorageError
 from fem_squeal.util.storage import clone_file, free_bytes, mib, storage_errors
 
-#: field files (XDMF, its HDF5, VTU): in the cache always, published only when fields are asked for
+#: field files (XDMF, its HDF5, VTU) and the mode pictures drawn from them (``mode_shapes.npz`` and
+#: ``mode_shapes/``: fem_squeal.app.mode_shapes): in the cache always, published only when fields are asked for
 FIELD_SUFFIXES = (".xdmf", ".h5", ".vtu")
+FIELD_PREFIXES = ("mode_shapes.", "mode_shapes/")
 STAGING_PREFIX = ".fem_squeal-staging."
 #: a staging folder older than this [s] was left by a killed run and is removed by the next one
 STALE_STAGING_S = 3600.0
 
 
 def is_field(rel: str) -> bool:
-    return rel.endswith(FIELD_SUFFIXES)
+    return rel.endswith(FIELD_SUFFIXES) or rel.startswith(FIELD_PREFIXES)
 
 
 @contextmanager

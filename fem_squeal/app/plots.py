@@ -1,4 +1,5 @@
-"""Matplotlib figures (Agg backend, rank 0 only), saved atomically as PNG."""
+"""Matplotlib figures (Agg backend, rank 0 only), saved atomically as PNG, each with the data it
+draws as CSV next to it (same name, ``.csv``: :func:`figure_data`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -6,7 +7,10 @@ from pathlib import Path
 import numpy as np
 
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
-from fem_squeal.util.atomic import save_figure_atomic
+from fem_squeal.util.atomic import save_figure_atomic, write_csv_atomic
+
+#: the columns of a plot's CSV (one row per drawn point, bar or polygon corner)
+CSV_HEADER = ["panel", "title", "xlabel", "ylabel", "series", "x", "y", "value"]
 
 
 def pyplot():
@@ -17,6 +21,80 @@ def pyplot():
     import matplotlib.pyplot as plt  # heavy: matplotlib (plots only)
 
     return plt
+
+
+def _ticks(ax, which: str) -> dict[float, str]:
+    ticks = ax.get_yticks() if which == "y" else ax.get_xticks()
+    labels = ax.get_yticklabels() if which == "y" else ax.get_xticklabels()
+    return {round(float(t), 9): lab.get_text() for t, lab in zip(ticks, labels) if lab.get_text()}
+
+
+def figure_data(fig) -> list[list]:
+    """What the axes of ``fig`` draw, as rows of :data:`CSV_HEADER`: the points of its lines in data
+    coordinates (not the reference lines axhline/axvline), its scatter points (value: their colour
+    value), its mesh cells (pcolormesh: centre and value), its bars (x and height, or the bar's tick
+    label and length for barh) and the corners of its polygons (stackplot, step histograms).
+    Colour-bar axes are left out; contour fills are not read (a plot of them gives its own data)."""
+    from matplotlib.collections import PathCollection, PolyCollection, QuadMesh  # heavy: matplotlib
+    from matplotlib.container import BarContainer  # heavy: matplotlib (plots only)
+    from matplotlib.patches import Polygon  # heavy: matplotlib (plots only)
+
+    rows: list[list] = []
+    panels = [ax for ax in fig.axes if not hasattr(ax, "_colorbar")]
+    for p, ax in enumerate(panels):
+        head = [p, ax.get_title(), ax.get_xlabel(), ax.get_ylabel()]
+
+        def add(series, xs, ys, values=None, head=head):
+            vals = [""] * len(xs) if values is None else list(values)
+            rows.extend([*head, series, float(x), float(y), v] for x, y, v in zip(xs, ys, vals))
+
+        for i, line in enumerate(ax.get_lines()):
+            if line.get_transform() != ax.transData:
+                continue
+            xy = np.asarray(line.get_xydata(), dtype=float)
+            label = line.get_label()
+            add(label if not label.startswith("_") else f"line {i}", xy[:, 0], xy[:, 1])
+        for i, c in enumerate(ax.collections):
+            label = c.get_label() if not c.get_label().startswith("_") else f"collection {i}"
+            arr = c.get_array()
+            if isinstance(c, QuadMesh):
+                xy = c.get_coordinates()
+                centre = 0.25 * (xy[:-1, :-1] + xy[1:, :-1] + xy[:-1, 1:] + xy[1:, 1:])
+                add(label, centre[..., 0].ravel(), centre[..., 1].ravel(), np.asarray(arr).ravel())
+            elif isinstance(c, PolyCollection):
+                for k, path in enumerate(c.get_paths()):
+                    add(f"{label} {k}" if len(c.get_paths()) > 1 else label, path.vertices[:, 0],
+                        path.vertices[:, 1])
+            elif isinstance(c, PathCollection) and c.get_offset_transform() == ax.transData:
+                off = np.asarray(c.get_offsets(), dtype=float).reshape(-1, 2)
+                add(label, off[:, 0], off[:, 1], None if arr is None or len(arr) != len(off) else arr)
+        yt, xt = _ticks(ax, "y"), _ticks(ax, "x")
+        for i, bars in enumerate(c for c in ax.containers if isinstance(c, BarContainer)):
+            label = bars.get_label() if not str(bars.get_label()).startswith("_") else f"bars {i}"
+            for r in bars.patches:
+                if getattr(bars, "orientation", "vertical") == "horizontal":
+                    y = r.get_y() + r.get_height() / 2
+                    add(yt.get(round(y, 9), label), [r.get_x() + r.get_width()], [y])
+                else:
+                    x = r.get_x() + r.get_width() / 2
+                    add(xt.get(round(x, 9), label), [x], [r.get_y() + r.get_height()])
+        for i, patch in enumerate(q for q in ax.patches if isinstance(q, Polygon)):
+            xy = patch.get_xy()
+            label = patch.get_label() if not patch.get_label().startswith("_") else f"polygon {i}"
+            add(label, xy[:, 0], xy[:, 1])
+    return rows
+
+
+def save(fig, path: Path, data: tuple[list[str], list] | None = None) -> None:
+    """The figure as PNG at ``path`` and its data as CSV next to it: ``data`` (header, columns) when
+    given, else what :func:`figure_data` reads from the figure."""
+    save_figure_atomic(fig, path)
+    csv = Path(path).with_suffix(".csv")
+    if data is not None:
+        write_csv_atomic(csv, *data)
+    else:
+        rows = figure_data(fig)
+        write_csv_atomic(csv, CSV_HEADER, [list(col) for col in zip(*rows)] if rows else [[]] * len(CSV_HEADER))
 
 
 def contact_pressure(path: Path, data: dict[str, tuple[np.ndarray, np.ndarray]], title: str = "") -> None:
@@ -38,7 +116,10 @@ def contact_pressure(path: Path, data: dict[str, tuple[np.ndarray, np.ndarray]],
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    save_figure_atomic(fig, path)
+    names = [name for name, (_, p) in data.items() for _ in range(len(p))]
+    xy = np.concatenate([x[:, :2] for x, _ in data.values()]) if names else np.empty((0, 2))
+    save(fig, path, (["interface", "x_m", "y_m", "pressure_pa"],
+                     [names, xy[:, 0], xy[:, 1], np.concatenate([p for _, p in data.values()]) if names else []]))
     plt.close(fig)
 
 
@@ -89,7 +170,7 @@ def root_locus(path: Path, values: np.ndarray, lam: np.ndarray, unstable: np.nda
     if title:
         a1.set_title(title)
     fig.tight_layout()
-    save_figure_atomic(fig, path)
+    save(fig, path)
     plt.close(fig)
 
 
@@ -111,7 +192,7 @@ def complex_plane(path: Path, lam: np.ndarray, band_hz: tuple[float, float], gro
     if title:
         ax.set_title(title)
     fig.tight_layout()
-    save_figure_atomic(fig, path)
+    save(fig, path)
     plt.close(fig)
 
 
@@ -137,7 +218,7 @@ def stability_maps(path: Path, mu: np.ndarray, E: np.ndarray, counts: np.ndarray
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    save_figure_atomic(fig, path)
+    save(fig, path)
     plt.close(fig)
 
 
@@ -164,7 +245,7 @@ def masa(path: Path, res, title: str = "", amplitude_label: str = "modal amplitu
         a2.axvline(s, color="r", lw=0.8, ls="--")
     a2.set_ylabel(f"Re λ of the {res.freq_hz:.0f} Hz mode [1/s]")
     a2.set_xlabel(amplitude_label)
-    save_figure_atomic(fig, path)
+    save(fig, path)
     plt.close(fig)
 
 
@@ -182,7 +263,7 @@ def contact_status(path: Path, res, title: str = "", amplitude_label: str = "mod
     ax.set_ylabel("contact element")
     ax.set_title(title or f"contact status, instability at {res.freq_hz:.0f} Hz (dot: contact, red: impacts)")
     fig.tight_layout()
-    save_figure_atomic(fig, path)
+    save(fig, path)
     plt.close(fig)
 
 
@@ -214,7 +295,7 @@ def transient(path: Path, t: np.ndarray, x: np.ndarray, v: np.ndarray, extra: di
     ax[1, 1].set(xlabel="t [ms]", title="contact")
     fig.suptitle(title)
     fig.tight_layout()
-    save_figure_atomic(fig, path)
+    save(fig, path)
     plt.close(fig)
 
 
@@ -234,7 +315,7 @@ def dynamic_stability(path: Path, t: np.ndarray, lam: np.ndarray, band_hz, title
     ax[1].set(xlabel="f [kHz]", ylabel="Re λ [1/s]", title="frequency–damping (colour: t)")
     fig.suptitle(title)
     fig.tight_layout()
-    save_figure_atomic(fig, path)
+    save(fig, path)
     plt.close(fig)
 
 
@@ -270,7 +351,7 @@ def limit_cycle(path: Path, t: np.ndarray, x: np.ndarray, lc, svd_energy, best_m
                  title="complex-mode cycles (seed 002 eq. 6)")
     fig.suptitle(title)
     fig.tight_layout()
-    save_figure_atomic(fig, path)
+    save(fig, path)
     plt.close(fig)
 
 
@@ -294,7 +375,7 @@ def pad_portraits(path: Path, runs: list[dict], pad, title: str = "") -> None:
         ax[1, c].set_title(", ".join(sorted(set(r["regimes"]))), fontsize=8)
     fig.suptitle(f"segmented pad (μ_s {pad.mu_s}, μ_d {pad.mu_d}, F {pad.force:g} N) {title}")
     fig.tight_layout()
-    save_figure_atomic(fig, path)
+    save(fig, path)
     plt.close(fig)
 
 
@@ -321,7 +402,7 @@ def tornado(path: Path, record: dict, title: str = "") -> None:
             a.set_xlabel(label)
     fig.suptitle(f"{head}  {title}", fontsize=9)
     fig.tight_layout()
-    save_figure_atomic(fig, path)
+    save(fig, path)
     plt.close(fig)
 
 
@@ -352,7 +433,7 @@ def robustness(path: Path, bands_hz, band_p, band_se, drivers: dict[str, dict], 
         ax[2].legend(fontsize=7)
     fig.suptitle(title)
     fig.tight_layout()
-    save_figure_atomic(fig, path)
+    save(fig, path)
     plt.close(fig)
 
 

@@ -37,6 +37,9 @@ complex_modes    [{index, freq_hz, real_part [1/s], damping_ratio, residual, uns
                  (Im λ > 0, inside analyses.cea.band_hz; descriptors of describe_part;
                  energy_shares only for models with several parts)
 n_unstable       number of complex modes with Re λ > analyses.cea.growth_tol·|λ| (their ``unstable``)
+mode_shapes      the modes drawn for the report (fem_squeal.app.mode_shapes): modes (indices: the
+                 unstable ones by decreasing Re λ, or the first three), points and triangles of the
+                 outer surface drawn, surface_seconds, seconds_per_mode
 cea_method       "linear" (undamped: EPS) or "pep" (damping, friction damping or the turning disc)
 cea_rotation     (operating.gyroscopic or preload.geometric_stiffness) speed and the norms of the added
                  terms
@@ -90,8 +93,10 @@ way): real_modes.xdmf, complex_modes.xdmf (mode_re, mode_im), preload.xdmf, and 
 as VTU (meshio; real_modes.vtu mode_<j>, complex_modes.vtu mode_<j>_re/_im, preload.vtu; frequencies
 in the field data) for tools other than ParaView
 (preload_displacement, contact_pressure), contact_pressure.png; reduced_model.npz,
-sweep.json, root_locus.png, complex_plane.png, stability_map.npz/png; each stage module of
-:mod:`fem_squeal.app.analyses` lists its files.
+sweep.json, root_locus.png, complex_plane.png, stability_map.npz/png (every PNG plot with its data
+as CSV of the same name); mode_shapes.npz and mode_shapes/ (the report's mode pictures and their
+CSV, published with the field files); each stage module of :mod:`fem_squeal.app.analyses` lists its
+files.
 """
 from __future__ import annotations
 

@@ -186,10 +186,12 @@ def field_rows(V, vectors, scalar: bool = False):
 
 
 def write_vtu(comm, path: Path, V, point_data: dict[str, object], field_data: dict | None = None,
-              scalars: dict[str, object] | None = None) -> None:
+              scalars: dict[str, object] | None = None) -> tuple | None:
     """One VTU file (meshio, rank 0, atomic) with vector fields ``point_data`` (PETSc vectors or
     Functions on V) and scalar Functions ``scalars``, on the mesh's coordinate nodes (curved P2
-    geometry as tetra10).  ``field_data``: name -> numbers (e.g. the frequencies)."""
+    geometry as tetra10).  ``field_data``: name -> numbers (e.g. the frequencies).  Returns what it
+    wrote on rank 0, ``(points, cells, kind, data)`` (data: name -> gathered rows; None elsewhere),
+    for other views of the same fields (the report's mode pictures)."""
     rows = field_rows(V, point_data.values())
     W = next(rows)
     layout = vtu_mesh(comm, W)
@@ -199,6 +201,7 @@ def write_vtu(comm, path: Path, V, point_data: dict[str, object], field_data: di
         gathered = _gather_rows(comm, next(srows), next(srows))
         if gathered is not None:
             data[name] = gathered[:, 0]
+    written = None
     if comm.rank == 0:
         points, cells, kind = layout
         with atomic_path(path) as tmp:
@@ -207,7 +210,9 @@ def write_vtu(comm, path: Path, V, point_data: dict[str, object], field_data: di
             meshio.write(tmp, meshio.Mesh(points, [(kind, cells)], point_data=data), file_format="vtu",
                          compression=None)
             add_vtu_field_data(tmp, field_data or {})
+        written = (points, cells, kind, data)
     comm.barrier()
+    return written
 
 
 def write_basis_field(comm, path: Path, V, Phi: np.ndarray) -> None:

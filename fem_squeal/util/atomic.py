@@ -5,6 +5,7 @@ A file is written to a temporary name in its folder and renamed over the target 
 folder that rank 0 moves into place.  JSON, npz, figures and any text go through :func:`atomic_path`."""
 from __future__ import annotations
 
+import csv
 import json
 import math
 import os
@@ -103,3 +104,25 @@ def save_figure_atomic(fig, path: Path, dpi: int = 120) -> None:
     """Save a matplotlib figure through :func:`atomic_path` (rank 0 only)."""
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi)
+
+
+def write_csv_atomic(path: Path, header: list[str], columns: list, fmt: str = "%.9g") -> None:
+    """Columns of equal length (numbers or texts) as CSV with a header line, atomically (rank 0)."""
+    cols = [np.asarray(c) for c in columns]
+    if all(c.dtype.kind in "biuf" for c in cols):
+        n = len(cols[0]) if cols else 0
+        data = np.column_stack([c.astype(float) for c in cols]) if n else np.empty((0, len(cols)))
+        row = ",".join([fmt] * len(cols))        # one formatting per row, one write: 2x numpy.savetxt
+        text = "\n".join([",".join(header), *(row % tuple(r) for r in data.tolist())]) + "\n"
+        write_atomic(path, lambda f: f.write(text))
+        return
+
+    def text(x) -> str:
+        return fmt % x if isinstance(x, (float, np.floating)) else str(x)
+
+    def write(f) -> None:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(header)
+        w.writerows([text(x) for x in row] for row in zip(*(c.tolist() for c in cols)))
+
+    write_atomic(path, write)

@@ -10,8 +10,11 @@
 """
 from __future__ import annotations
 
+import base64
+import io
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -25,6 +28,7 @@ from support.paths import ROOT
 from support.processes import clean_env
 
 from fem_squeal.app import run as run_module
+from fem_squeal.app.mode_shapes import NPZ, ModeShapes
 from fem_squeal.app.pipeline import Cache, PipelineError, make_plan, required, stage_keys
 from fem_squeal.app.run import run_scene
 from fem_squeal.app.scene import load_scene, validate
@@ -142,14 +146,25 @@ def test_killed_run_recovers(tmp_path):
     assert clean.returncode == 0 and not cache.exists()
 
 
-def test_ring_cache_recomputes_only_what_changed(tmp_path, monkeypatch):
-    cache = tmp_path / "cache"
+@pytest.fixture(scope="module")
+def ring_run(tmp_path_factory):
+    """The ring's CEA on a coarse mesh with its fields and report (its cache, outputs and results)."""
+    base = tmp_path_factory.mktemp("ring")
     s0 = load_scene(RING, ["geometry.mesh_size=0.003"])
-    first = run_scene(s0, tmp_path / "a", MPI.COMM_SELF, cache=cache, write_fields=False, **QUIET)
+    res = run_scene(s0, base / "out", MPI.COMM_SELF, cache=base / "cache", **QUIET)
+    return s0, base / "cache", base / "out", res
+
+
+def test_ring_cache_recomputes_only_what_changed(ring_run, tmp_path, monkeypatch):
+    s0, cache, _, first = ring_run
     _forbid(monkeypatch, "mesh", "operators", "preload", "cea")
     again = run_scene(s0, tmp_path / "a", MPI.COMM_SELF, cache=cache, write_fields=False, **QUIET)
     assert {s["status"] for s in again["stages"]} == {"cached"}
     assert again["complex_modes"] == first["complex_modes"]
+    # --no-fields: the mode pictures (drawn into the cache) are not published, and the report says so
+    html = (tmp_path / "a" / "report.html").read_text()
+    assert "<code>--no-fields</code>" in html and 'id="viewer"' not in html and "mode_shapes/" not in html
+    assert not (tmp_path / "a" / "mode_shapes.npz").exists() and not (tmp_path / "a" / "mode_shapes").exists()
     monkeypatch.undo()
     # more modes: the CEA runs again on the mesh and operators rebuilt in memory
     s1 = load_scene(RING, ["geometry.mesh_size=0.003", "analyses.cea.n_modes=18"])
@@ -221,12 +236,74 @@ def test_results_do_not_depend_on_the_rank_count(tmp_path, mpirun):
             bad.append((k, x, y))
     assert not bad, bad[:5]
     assert outs[0]["sweep"]["critical"] and outs[0]["n_unstable"] > 0
+    # the mode pictures' data (drawn by the CEA into its cache entry, with --no-fields too): the same
+    # surface (its points to round-off), the same modes, the same normalised shapes (float32)
+    one, two = (ModeShapes.load(next((tmp_path / f"c{n}").rglob(NPZ))) for n in (1, 2))
+    for k in ("triangles", "modes"):
+        assert np.array_equal(getattr(one, k), getattr(two, k)), k
+    assert np.allclose(one.points, two.points, rtol=0, atol=1e-12)
+    for k in ("u_re", "u_im", "un_re", "un_im"):
+        assert np.allclose(getattr(one, k), getattr(two, k), atol=1e-5), k
 
 
-def test_report_renders_in_headless_chromium(tmp_path):
+def _chromium() -> str:
     exe = shutil.which("chromium") or shutil.which("chromium-browser")
     if exe is None:
         pytest.skip("chromium not installed (scripts/setup.sh --test installs it; scripts/test.sh passes --test)")
+    return exe
+
+
+def _dump_dom(page) -> str:
+    """The DOM of ``page`` after its scripts ran, rendered by headless Chromium without network."""
+    p = subprocess.run([_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=5000",
+                        "--dump-dom", page.as_uri()], capture_output=True, text=True, timeout=120)
+    return p.stdout
+
+
+#: appended to a copy of the report: click the summary table's frequency header, note the order
+CLICK = """<script>window.addEventListener('load',function(){var th=[].filter.call(document.querySelectorAll('th'),
+function(h){return h.textContent.trim()==='f [Hz]';})[0];th.click();var t=th.closest('table');
+document.body.setAttribute('data-sorted',[].slice.call(t.rows,1).map(function(r){return r.cells[1].textContent;})
+.join(','));
+});</script>"""
+
+
+def test_mode_pictures_and_3d_view_in_headless_chromium(ring_run, tmp_path):
+    """The ring's report: a summary of the unstable modes with thumbnails, a section per drawn mode
+    with its picture (non-blank), the 3-D view drawn (triangles, a canvas that is not uniform), no
+    script error, nothing from the network, and a table sorted by a click on its header."""
+    _, _, out, res = ring_run
+    drawn = res["mode_shapes"]["modes"]
+    assert drawn and all(res["complex_modes"][j]["unstable"] for j in drawn)
+    html = (out / "report.html").read_text()
+    assert not re.search(r"https?://", html)
+    from PIL import Image
+
+    pngs = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
+    assert len(pngs) == 2 * len(drawn)               # pictures and thumbnails
+    for b64 in pngs:
+        img = np.asarray(Image.open(io.BytesIO(base64.b64decode(b64))).convert("L"), dtype=float)
+        assert img.std() > 5                           # not blank
+    for j in drawn:
+        assert f'id="mode-{j}"' in html and f"mode_shapes/mode_{j}_points.csv" in html
+        assert (out / "mode_shapes" / f"mode_{j}_triangles.csv").is_file()
+    page = tmp_path / "report.html"
+    page.write_text(html.replace("</body>", CLICK + "</body>"))
+    dom = _dump_dom(page)
+    body = dom[dom.find("<body"):].split(">", 1)[0]
+    n = len(pngs)
+    assert f'data-images-total="{n}"' in body and f'data-images-loaded="{n}"' in body, body
+    assert 'data-script-errors="0"' in body, body
+    view = dom[dom.find('<div id="viewer"'):].split(">", 1)[0]
+    triangles = int(re.search(r'data-viewer-triangles="(\d+)"', view).group(1))
+    assert 0 < triangles < res["mode_shapes"]["triangles"]     # the ones facing the viewer
+    assert float(re.search(r'data-viewer-variance="([\d.]+)"', view).group(1)) > 50
+    ranked = sorted((m for m in res["complex_modes"] if m["unstable"]), key=lambda m: m["freq_hz"])
+    assert re.search(r'data-sorted="([\d,]+)"', body).group(1) == ",".join(str(m["index"]) for m in ranked)
+
+
+def test_report_renders_in_headless_chromium(tmp_path):
+    exe = _chromium()
     out = tmp_path / "out"
     run_scene(pad_scene(velocity_pairs=[[0.002, 0.05]], pair_speeds=[0.02]), out, MPI.COMM_SELF,
               cache=tmp_path / "c", **QUIET)

@@ -97,5 +97,10 @@ def test_scene_with_real_modes_and_damping_writes_all_outputs(tmp_path):
     shutil.rmtree(tmp_path / "u")
     fields = ["complex_modes.h5", "complex_modes.vtu", "complex_modes.xdmf", "real_modes.h5", "real_modes.vtu",
               "real_modes.xdmf"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*fields, "report.html", "results.json"])
-    assert sorted(res["files"]) == fields
+    # the mode pictures, published with the fields (fem_squeal.app.mode_shapes)
+    pictures = ["mode_shapes.npz", "mode_shapes/surface_points.csv", "mode_shapes/surface_triangles.csv"] + [
+        f"mode_shapes/mode_{j}{end}" for j in res["mode_shapes"]["modes"]
+        for end in (".png", "_thumb.png", "_points.csv", "_triangles.csv")]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*fields, "mode_shapes", "mode_shapes.npz",
+                                                                 "report.html", "results.json"])
+    assert sorted(res["files"]) == sorted(fields + pictures)

@@ -12,6 +12,7 @@ from fem_squeal.app.fields import REAL, Field, band, one_of, positive
 from fem_squeal.app.html import escape as _e
 from fem_squeal.app.html import link
 from fem_squeal.app.html import table as _table
+from fem_squeal.app.mode_shapes import write_mode_shapes
 from fem_squeal.app.stage import Context, Stage
 from fem_squeal.reduced.eigensolve import unstable
 from fem_squeal.util.errors import SceneError
@@ -83,13 +84,19 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
             f"iterations {cm.seconds['solve']:.2f} s)")
     t = time.perf_counter()
     write_modes_xdmf(ctx.comm, work / "complex_modes.xdmf", ops.V, fields)
-    write_vtu(ctx.comm, work / "complex_modes.vtu", ops.V,
-              {f"mode_{j}_{part}": x for j, pair in enumerate(fields) for part, x in zip(("re", "im"), pair)},
-              {"freq_hz": [r["freq_hz"] for r in rows], "real_part": [r["real_part"] for r in rows]})
+    gathered = write_vtu(ctx.comm, work / "complex_modes.vtu", ops.V,
+                         {f"mode_{j}_{part}": x for j, pair in enumerate(fields)
+                          for part, x in zip(("re", "im"), pair)},
+                         {"freq_hz": [r["freq_hz"] for r in rows], "real_part": [r["real_part"] for r in rows]})
     timings["cea_fields"] = time.perf_counter() - t
     out = {"complex_modes": rows, "n_unstable": n_unstable, "cea_method": cm.method, **more}
     if ctx.comm.rank == 0:
         nvh.write_files(work, rows, out, scene.title)
+    t = time.perf_counter()
+    # the report's pictures (rank 0, from the gathered fields; fem_squeal.app.mode_shapes)
+    pictures = write_mode_shapes(work, gathered, rows, scene.title) if gathered and ctx.keep_files else None
+    out["mode_shapes"] = ctx.comm.bcast(pictures, root=0)
+    timings["cea_pictures"] = time.perf_counter() - t
     if rotation:
         out["cea_rotation"] = {"speed": scene.operating.speed, **rotation}
     return out

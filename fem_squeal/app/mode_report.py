@@ -2,11 +2,11 @@
 ranked, with thumbnails), then one section per drawn mode (its pictures and, when the results
 carry them, its part participation, mode coupling and radiated power), then the 3-D view.
 
-Ranking: by the squeal index where the results give one (``squeal_index`` of a complex mode, the
-larger the louder), else by the growth rate Re λ.  Blocks shown only when their keys are present
-and not empty (:data:`BLOCKS`): no empty boxes.  The pictures and the 3-D view come from the CEA's
-``mode_shapes`` files (:mod:`fem_squeal.app.mode_shapes`), published with the field files: with
-``--no-fields`` the sections say so and show the rest."""
+Ranking: by the squeal index where every unstable mode has one (``squeal_index_db``,
+:mod:`fem_squeal.reduced.squeal_index`: the larger the louder), else by the growth rate Re λ.
+Blocks are shown only when their keys are present and not empty: no empty boxes.  The pictures
+and the 3-D view come from the CEA's ``mode_shapes`` files (:mod:`fem_squeal.app.mode_shapes`),
+published with the field files: with ``--no-fields`` the sections say so and show the rest."""
 from __future__ import annotations
 
 import base64
@@ -17,13 +17,15 @@ from fem_squeal.app.html import escape as _e
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.mode_shapes import FOLDER
 
-#: the optional keys of a complex mode shown in its section, with their titles (first present wins)
-BLOCKS = (
-    (("coupling", "real_mode_participation", "participation"), "Mode coupling (participation of the real modes)"),
-    (("erp_db", "erp"), "Radiated sound (equivalent radiated power)"),
-)
 #: summary columns read when present: (key, header)
-EXTRA_COLUMNS = (("squeal_index", "squeal index"), ("erp_db", "ERP [dB re 1 pW]"))
+EXTRA_COLUMNS = (("squeal_index_db", "squeal index [dB]"), ("erp_db", "ERP [dB re 1 pW]"))
+#: the squeal index of a complex mode (fem_squeal.app.nvh; "squeal_index" read too)
+INDEX_KEYS = ("squeal_index_db", "squeal_index")
+
+
+def _index(m: dict) -> float | None:
+    v = next((m[k] for k in INDEX_KEYS if isinstance(m.get(k), (int, float))), None)
+    return float(v) if v is not None else None
 
 
 def _png(data: bytes, alt: str, cls: str = "") -> str:
@@ -34,8 +36,8 @@ def _png(data: bytes, alt: str, cls: str = "") -> str:
 def ranked(modes: list[dict]) -> list[dict]:
     """The unstable modes, loudest first: by ``squeal_index`` where every one has it, else by Re λ."""
     bad = [m for m in modes if m.get("unstable")]
-    if bad and all(isinstance(m.get("squeal_index"), (int, float)) for m in bad):
-        return sorted(bad, key=lambda m: -m["squeal_index"])
+    if bad and all(_index(m) is not None for m in bad):
+        return sorted(bad, key=lambda m: -_index(m))
     return sorted(bad, key=lambda m: -m["real_part"])
 
 
@@ -60,7 +62,8 @@ def summary(res: dict, thumbs: dict[int, bytes]) -> str:
     linked = set(_with_sections(res))
     lo, hi = res.get("scene", {}).get("analyses", {}).get("cea", {}).get("band_hz", [None, None])
     band = f" in {lo:g}–{hi:g} Hz" if lo is not None else ""
-    by = "squeal index" if top and "squeal_index" in top[0] else "growth rate Re λ"
+    by = "squeal index" if top and _index(top[0]) is not None and all(_index(m) is not None for m in top) \
+        else "growth rate Re λ"
     if not top:
         drawn = res.get("mode_shapes", {}).get("modes", [])
         text = (f"<p>No unstable mode among the {len(modes)} complex modes{band}."
@@ -106,12 +109,30 @@ def _generic(value: Any) -> str:
     return ""
 
 
+def _coupling(c: Any) -> str:
+    """The coupling block of :func:`fem_squeal.app.nvh` (``coupling``: label, pair kind, outside share,
+    the real modes with their frequencies and percentages); anything else generically."""
+    if not (isinstance(c, dict) and "label" in c and "real_modes" in c):
+        return _generic(c)
+    kind = f" ({_e(c['pair_kind'])})" if c.get("pair_kind") else ""
+    head = f"<p>{_e(c['label'])}{kind}; outside the real modes {100 * float(c.get('outside', 0.0)):.2g} %</p>"
+    rows = [[i, f, q] for i, f, q in zip(c["real_modes"], c.get("real_freqs_hz", []), c.get("percent", []))]
+    return head + _table(["real mode", "f [Hz]", "participation [%]"], rows)
+
+
+def _radiation(m: dict) -> str:
+    rows = [[h, m[k]] for k, h in (("erp_db", "ERP [dB re 1 pW]"), ("erp_w", "ERP [W]"),
+                                    ("squeal_index_db", "squeal index [dB]")) if m.get(k) is not None]
+    return _table(["", ""], rows) if rows else ""
+
+
 def _blocks(m: dict) -> str:
+    """Part shares, coupling and radiated sound of a complex mode, each only when present."""
     out = [_bars(m["energy_shares"])] if m.get("energy_shares") else []
-    for keys, title in BLOCKS:
-        key = next((k for k in keys if m.get(k) not in (None, "", [], {})), None)
-        if key is not None and (html := _generic(m[key])):
-            out.append(f"<h4>{_e(title)}</h4>{html}")
+    if m.get("coupling") and (html := _coupling(m["coupling"])):
+        out.append(f"<h4>Mode coupling (participation of the real modes)</h4>{html}")
+    if (html := _radiation(m)):
+        out.append(f"<h4>Radiated sound (equivalent radiated power)</h4>{html}")
     return "".join(out)
 
 

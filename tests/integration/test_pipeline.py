@@ -280,7 +280,8 @@ def test_mode_pictures_and_3d_view_in_headless_chromium(ring_run, tmp_path):
     from PIL import Image
 
     pngs = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
-    assert len(pngs) == 2 * len(drawn)               # pictures and thumbnails
+    plots = [f for f in res.get("files", []) if f.endswith(".png") and not f.startswith("mode_shapes/")]
+    assert len(pngs) == 2 * len(drawn) + len(plots)  # pictures and thumbnails, and the plots section
     for b64 in pngs:
         img = np.asarray(Image.open(io.BytesIO(base64.b64decode(b64))).convert("L"), dtype=float)
         assert img.std() > 5                           # not blank

@@ -33,7 +33,14 @@ complex_modes    [{index, freq_hz, real_part [1/s], damping_ratio, residual, uns
                  (Im λ > 0, inside analyses.cea.band_hz; descriptors of describe_part;
                  energy_shares only for models with several parts)
 n_unstable       number of complex modes with Re λ > analyses.cea.growth_tol·|λ| (their ``unstable``)
-cea_method       "linear" (undamped: EPS) or "pep" (damping, friction damping or the turning disc)
+cea_method       "linear" (undamped: EPS) or "pep" (damping, friction damping or the turning disc), or
+                 "projection" (analyses.cea.method, or "auto" on a large model: issue 36)
+cea_choice       (analyses.cea.method = "auto") why the method was chosen: DOFs and real modes below
+                 the band top against the thresholds (fem_squeal.app.analyses.cea.AUTO_DOFS, AUTO_MODES)
+cea_projection   (the projection) cut_hz, shift_hz, basis_size, basis {modes, static, enrichment,
+                 dropped, size}, enrichment_rounds, worst_residual (the complex_modes' residual),
+                 worst_relative_residual (η, relative to λ²M), n_real_modes_in_band, rounds [{size,
+                 pairs_in_band, worst_residual, worst_relative_residual, above_tol}], seconds
 cea_rotation     (operating.gyroscopic or preload.geometric_stiffness) speed and the norms of the added
                  terms
 reduced          size, parameters, mu0, rounds [{cut_hz, modes, sampled_modes, static, dropped,

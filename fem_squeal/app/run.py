@@ -40,7 +40,15 @@ n_unstable       number of complex modes with Re λ > analyses.cea.growth_tol·|
 mode_shapes      the modes drawn for the report (fem_squeal.app.mode_shapes): modes (indices: the
                  unstable ones by decreasing Re λ, or the first three), points and triangles of the
                  outer surface drawn, surface_seconds, seconds_per_mode
-cea_method       "linear" (undamped: EPS) or "pep" (damping, friction damping or the turning disc)
+cea_method       "linear" (undamped: EPS) or "pep" (damping, friction damping or the turning disc), or
+                 "projection" (analyses.cea.method = "projection": issue 36)
+cea_choice       (analyses.cea.method = "auto") why the method was chosen: DOFs and real modes below
+                 the band top against the thresholds (fem_squeal.app.analyses.cea.AUTO_DOFS, AUTO_MODES;
+                 AUTO_DOFS None: "auto" keeps the full CEA and writes no cea_choice)
+cea_projection   (the projection) cut_hz, shift_hz, basis_size, basis {modes, static, enrichment,
+                 dropped, size}, enrichment_rounds, worst_residual (the complex_modes' residual),
+                 worst_relative_residual (η, relative to λ²M), n_real_modes_in_band, rounds [{size,
+                 pairs_in_band, worst_residual, worst_relative_residual, above_tol}], seconds
 cea_rotation     (operating.gyroscopic or preload.geometric_stiffness) speed and the norms of the added
                  terms
                  complex_modes rows also carry (fem_squeal.app.nvh): coupling {real_modes, percent,

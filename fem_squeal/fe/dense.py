@@ -99,6 +99,16 @@ def apply(A: PETSc.Mat, Phi: np.ndarray) -> np.ndarray:
     return out
 
 
+def apply_transpose(A: PETSc.Mat, Phi: np.ndarray) -> np.ndarray:
+    """Aᵀ Φ, rank-local rows (n_local, m), column-major, by MatTransposeMatMult (no transposed copy of A)."""
+    D = dense_matrix(A.getComm().tompi4py(), Phi, A.getSize()[0])
+    P = A.transposeMatMult(D)
+    out = np.array(P.getDenseArray(), order="F")
+    D.destroy()
+    P.destroy()
+    return out
+
+
 def matmul_f(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """A B, column-major (NumPy returns a product row-major: (Bᵀ Aᵀ)ᵀ is the same BLAS call on
     transposed views), so that the rows of a basis stay in the layout :func:`apply` takes, without

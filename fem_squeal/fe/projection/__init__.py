@@ -19,7 +19,8 @@ One concept per module, imports downward: :mod:`.basis` (M-orthonormal bases) �
 :mod:`.shifted` (the shared shifted factorisation, modes below a cut) ← :mod:`.parametric` (the
 operators term by term, lifted residuals) ← :mod:`.sensitivity` (full-order dλ/dp) ←
 :mod:`.reductor` (the basis built and the model projected) ← :mod:`.adaptive` (enrichment to the
-tolerance).  Every public name is re-exported here (the import paths of the former module).
+tolerance), :mod:`.projected_cea` (the CEA of a whole band on the basis, its pairs checked in the full
+model).  Every public name is re-exported here (the import paths of the former module).
 """
 from __future__ import annotations
 
@@ -38,9 +39,15 @@ from fem_squeal.fe.projection.parametric import (  # noqa: F401
     parameter_derivative,
     project_plates,
 )
+from fem_squeal.fe.projection.projected_cea import (  # noqa: F401
+    ProjectionReport,
+    auto_method,
+    projected_complex_modes,
+)
 from fem_squeal.fe.projection.reductor import (  # noqa: F401
     build_basis,
     contact_attachments,
+    correction_operators,
     reduce,
     restrict_contacts,
     static_loads,

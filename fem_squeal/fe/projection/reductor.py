@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 from mpi4py import MPI
+from petsc4py import PETSc
 
-from fem_squeal.fe.assembly import Operators
+from fem_squeal.fe.assembly import OperatingTerms, Operators
 from fem_squeal.fe.dense import apply
 from fem_squeal.fe.eigen import (
     TWO_PI,
@@ -47,11 +48,12 @@ def restrict_contacts(ops: Operators, Phi: np.ndarray, preload=None) -> dict[str
     return out
 
 
-def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
+def build_basis(ops: Operators, par: ParametricOperators | None, f_cut_hz: float, *,
                 samples: list[dict[str, float]] = (), static: bool = True, sigma_hz: float | None = None,
                 options=None, prefix: str = "basis_", rtol: float = 1e-8, enrich_rtol: float = 1e-3,
                 n_start: int = 20, extra: np.ndarray | None = None, modes: tuple | None = None,
-                directions: np.ndarray | None = None, solver: ShiftedSolver | None = None) -> Basis:
+                directions: np.ndarray | None = None, solver: ShiftedSolver | None = None,
+                operating: OperatingTerms | None = None) -> Basis:
     """Frictionless modes ≤ ``f_cut_hz`` at the nominal point and at each of ``samples``, plus the
     static corrections (K + σM)⁻¹ K_f Φ (of all the modes kept; and of C_d Φ with friction damping,
     ``ops.Cd``), M-orthonormalised (see the module
@@ -62,7 +64,9 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
     Given by :func:`adaptive_reduce`, which shares them between its rounds: ``modes`` (ω², local
     vectors) already solved up to at least the cut (the subset ≤ ``f_cut_hz`` is used),
     ``directions`` (local rows) enriching like the sampled modes (e.g. their derivatives),
-    and ``solver``, the factorisation of K + σM for the corrections (then ``sigma_hz`` is its)."""
+    and ``solver``, the factorisation of K + σM for the corrections (then ``sigma_hz`` is its).
+    ``par`` None (no ``samples``): the corrections take the disc's rotation from ``operating``
+    (the projected CEA, :mod:`.projected_cea`, which has no parametric operators)."""
     if not f_cut_hz > 0:
         raise ModelError(f"f_cut_hz: must be > 0 (got {f_cut_hz})")
     if modes is None:
@@ -98,7 +102,10 @@ def build_basis(ops: Operators, par: ParametricOperators, f_cut_hz: float, *,
         # (non-normal) they are not: 1e-2 gave 1.0e-3 on the brake at a map corner, 1e-3 is the default
         added, d = extend(Vs, enrich_rtol, owned=True)
         n_sample, dropped = n_sample + added, dropped + d
-    loads = static_loads(ops, par, blocks) if static else []
+    if par is None and samples:
+        raise ModelError("samples: modes at other parameter values need the parametric operators (par)")
+    loads = _loads(correction_operators(ops, par.operating if par is not None else operating), blocks) \
+        if static else []
     if loads:
         sigma = (TWO_PI * (sigma_hz if sigma_hz is not None else 0.1 * f_cut_hz)) ** 2
         F = np.column_stack(loads)
@@ -126,11 +133,21 @@ def static_loads(ops: Operators, par: ParametricOperators, Phi: np.ndarray | lis
     Measured on the coarse brake (50k DOFs, corners μ = ±0.6 × Ω = 2, 100 rad/s, worst relative error
     of the unstable eigenvalues): K_f, C_d: 239 vectors, 2.6e-4; + G: 324, 7.3e-5; + G, K_σc − S, K_σ0:
     496, 1.7e-4; + their sum at Ω₀: 325, 1.0e-4."""
-    op = par.operating
-    mats = [ops.Kf, getattr(ops, "Cd", None), op.G if op is not None else None]
-    if isinstance(Phi, list):   # a basis held as blocks [(Φ_b, …)]: A Φ_b side by side
-        return [np.hstack([apply(A, b[0]) for b in Phi]) for A in mats if A is not None]
-    return [apply(A, Phi) for A in mats if A is not None]
+    return _loads(correction_operators(ops, par.operating), Phi)
+
+
+def correction_operators(ops: Operators, operating: OperatingTerms | None = None) -> list[PETSc.Mat]:
+    """The operators A of :func:`static_loads` (K_f, C_d, the gyroscopic G of ``operating``) that
+    the model has."""
+    mats = [ops.Kf, getattr(ops, "Cd", None), operating.G if operating is not None else None]
+    return [A for A in mats if A is not None]
+
+
+def _loads(mats: list[PETSc.Mat], Phi: np.ndarray | list[tuple[np.ndarray, ...]]) -> list[np.ndarray]:
+    """A Φ for each A of ``mats`` (Φ given as blocks [(Φ_b, …)]: A Φ_b side by side)."""
+    if isinstance(Phi, list):
+        return [np.hstack([apply(A, b[0]) for b in Phi]) for A in mats]
+    return [apply(A, Phi) for A in mats]
 
 
 def contact_attachments(ops: Operators, patches: tuple[int, int], sigma_hz: float, options=None,

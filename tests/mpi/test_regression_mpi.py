@@ -103,6 +103,7 @@ def test_scene_with_real_modes_and_damping_writes_all_outputs(tmp_path):
     pictures = ["mode_shapes.npz", "mode_shapes/surface_points.csv", "mode_shapes/surface_triangles.csv"] + [
         f"mode_shapes/mode_{j}{end}" for j in res["mode_shapes"]["modes"]
         for end in (".png", "_thumb.png", "_points.csv", "_triangles.csv")]
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*fields, "mode_shapes", "mode_shapes.npz",
+    nvh = ["cea_bands.csv", "cea_erp.png", "cea_radiation.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*fields, *nvh, "mode_shapes", "mode_shapes.npz",
                                                                  "report.html", "results.json"])
-    assert sorted(res["files"]) == sorted(fields + pictures)
+    assert sorted(res["files"]) == sorted(fields + pictures + nvh)

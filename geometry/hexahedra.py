@@ -20,9 +20,7 @@ from __future__ import annotations
 import re
 
 import numpy as np
-from mpi4py import MPI
 
-from geometry.gmsh_io import MeshData
 from geometry.quality import DEGENERATE  # noqa: F401 (re-exported: the same bound on both paths)
 from geometry.split import FACES, HEX27_CENTRE, HEX27_FACE_NODE, reference_nodes, shape_functions
 
@@ -210,35 +208,3 @@ def face_label(label: str, name: str, where: str) -> int:
     if not re.fullmatch(r"S[1-6]", label):
         raise ValueError(f"{where}: *SURFACE {name}: face label {label!r}; hexahedron elements have S1-S6")
     return int(label[1]) - 1
-
-
-def distribute(comm: MPI.Comm, mapped) -> MeshData:
-    """dolfinx hexahedral mesh (Q1 or Q2 coordinate element) and tags from rank 0's arrays
-    (:class:`geometry.mesh_file.MappedMesh` with hexahedron/hexahedron27 cells, quad/quad9 facets)."""
-    import ufl  # heavy: FE stack
-    from dolfinx import cpp  # heavy: FE stack
-    from dolfinx.mesh import CellType, create_mesh, meshtags_from_entities  # heavy: FE stack
-
-    nodes, fnodes = comm.bcast(None if mapped is None else (mapped.cells.shape[1], mapped.facets.shape[1]), root=0)
-    if comm.rank == 0:
-        x, cells, cv = mapped.points, mapped.cells, mapped.cell_values
-        facets, fv = mapped.facets, mapped.facet_values
-    else:
-        x, cells, cv = np.zeros((0, 3)), np.zeros((0, nodes), np.int64), np.zeros(0, np.int32)
-        facets, fv = np.zeros((0, fnodes), np.int64), np.zeros(0, np.int32)
-    degree = 2 if nodes == 27 else 1
-    domain = ufl.Mesh(ufl.VectorElement("Q", ufl.hexahedron, degree))
-    cells = cells[:, cpp.io.perm_vtk(CellType.hexahedron, nodes)]
-    facets = facets[:, cpp.io.perm_vtk(CellType.quadrilateral, fnodes)]
-    mesh = create_mesh(comm, cells, x, domain)
-    ents, vals = cpp.io.distribute_entity_data(mesh._mesh, 3, cells, cv)
-    mesh.topology.create_connectivity(3, 0)
-    ct = meshtags_from_entities(mesh, 3, cpp.graph.AdjacencyList_int32(ents), vals.astype(np.int32))
-    ct.name = "Cell tags"
-    ents, vals = cpp.io.distribute_entity_data(mesh._mesh, 2, facets, fv)
-    mesh.topology.create_connectivity(2, 3)
-    ft = meshtags_from_entities(mesh, 2, cpp.graph.AdjacencyList_int32(ents), vals.astype(np.int32))
-    ft.name = "Facet tags"
-    mesh.name = "mesh"
-    volumes, faces = comm.bcast(None if mapped is None else (mapped.volumes, mapped.faces), root=0)
-    return MeshData(mesh, ct, ft, volumes, faces)

@@ -40,7 +40,6 @@ from geometry.hexahedra import (
     hex_quality,
     integration_rule,
 )
-from geometry.hexahedra import distribute as distribute_hexahedra
 from geometry.quality import tet_quality
 from geometry.split import ELEMENTS, FACES, SplitError, split_mesh
 from geometry.tags import mesh_file_tags
@@ -596,7 +595,10 @@ def transform_points(points: np.ndarray, scale: float, center, axis) -> np.ndarr
 
 
 def distribute(comm: MPI.Comm, mapped: MappedMesh | None) -> MeshData:
-    """dolfinx mesh and tags from rank 0's arrays, exactly as ``gmshio.model_to_mesh`` builds them."""
+    """dolfinx mesh and tags from rank 0's arrays, exactly as ``gmshio.model_to_mesh`` builds them:
+    tetrahedra (4 or 10 nodes, triangle facets) or, on the native hexahedral path
+    (:mod:`geometry.hexahedra`), hexahedra (8 or 27 nodes: the Q1 or Q2 coordinate element,
+    quadrilateral facets)."""
     import ufl  # heavy: FE stack
     from dolfinx import cpp  # heavy: FE stack
     from dolfinx.mesh import CellType, create_mesh, meshtags_from_entities  # heavy: FE stack
@@ -608,11 +610,16 @@ def distribute(comm: MPI.Comm, mapped: MappedMesh | None) -> MeshData:
     else:
         x, cells, cv = np.zeros((0, 3)), np.zeros((0, nodes), np.int64), np.zeros(0, np.int32)
         facets, fv = np.zeros((0, fnodes), np.int64), np.zeros(0, np.int32)
-    degree = 2 if nodes == 10 else 1
-    element = ufl.VectorElement(ufl.FiniteElement("Lagrange", ufl.tetrahedron, degree, variant="equispaced"))
-    domain = ufl.Mesh(element)
-    cells = cells[:, cpp.io.perm_vtk(CellType.tetrahedron, nodes)]
-    facets = facets[:, cpp.io.perm_vtk(CellType.triangle, fnodes)]
+    if nodes in (8, 27):
+        domain = ufl.Mesh(ufl.VectorElement("Q", ufl.hexahedron, 2 if nodes == 27 else 1))
+        cell, facet = CellType.hexahedron, CellType.quadrilateral
+    else:
+        degree = 2 if nodes == 10 else 1
+        domain = ufl.Mesh(ufl.VectorElement(ufl.FiniteElement("Lagrange", ufl.tetrahedron, degree,
+                                                              variant="equispaced")))
+        cell, facet = CellType.tetrahedron, CellType.triangle
+    cells = cells[:, cpp.io.perm_vtk(cell, nodes)]
+    facets = facets[:, cpp.io.perm_vtk(facet, fnodes)]
     mesh = create_mesh(comm, cells, x, domain)
     ents, vals = cpp.io.distribute_entity_data(mesh._mesh, 3, cells, cv)
     mesh.topology.create_connectivity(3, 0)
@@ -658,6 +665,14 @@ def prepare(path: str | Path, *, parts: dict[str, list], faces: dict[str, list],
     return mapped, info
 
 
+def _mapped(mf: MeshFile, parts, faces, info: dict) -> tuple[MappedMesh, dict]:
+    """The sets of ``mf`` mapped to the scene's parts and faces, with their sizes in ``info``."""
+    mapped = map_sets(mf, parts, faces)
+    info["parts"] = {p: int(np.count_nonzero(mapped.cell_values == t)) for p, t in mapped.volumes.items()}
+    info["faces"] = {f: int(np.count_nonzero(mapped.facet_values == t)) for f, t in mapped.faces.items()}
+    return mapped, info
+
+
 def _prepare_split(path: str, mf: MeshFile, parts, faces, scale, center, axis, max_aspect_ratio):
     mf.points = transform_points(mf.points, scale, center, axis)
     info: dict = {"file": str(path), "format": mf.format, "nodes": len(mf.points), "elements": len(mf.cells),
@@ -692,10 +707,7 @@ def _prepare_split(path: str, mf: MeshFile, parts, faces, scale, center, axis, m
         info["warnings"].append(
             f"geometry.max_aspect_ratio: {len(ids)} elements have an aspect ratio above {max_aspect_ratio:g} "
             f"(worst {q.aspect_ratio[worst[0]]:.3g}; elements {ids[:10]}){split_note}")
-    mapped = map_sets(mf, parts, faces)
-    info["parts"] = {p: int(np.count_nonzero(mapped.cell_values == t)) for p, t in mapped.volumes.items()}
-    info["faces"] = {f: int(np.count_nonzero(mapped.facet_values == t)) for f, t in mapped.faces.items()}
-    return mapped, info
+    return _mapped(mf, parts, faces, info)
 
 
 def _prepare_native(path: str, file: Path, fmt: str, raw: _Raw, parts, faces, scale, center, axis,
@@ -752,10 +764,7 @@ def _prepare_native(path: str, file: Path, fmt: str, raw: _Raw, parts, faces, sc
         info["warnings"].append(
             f"geometry.max_aspect_ratio: {len(poor)} elements have an aspect ratio above {max_aspect_ratio:g} "
             f"(worst {aspect[worst[0]]:.3g}; elements {raw.ids[worst[:10]].tolist()})")
-    mapped = map_sets(mf, parts, faces)
-    info["parts"] = {p: int(np.count_nonzero(mapped.cell_values == t)) for p, t in mapped.volumes.items()}
-    info["faces"] = {f: int(np.count_nonzero(mapped.facet_values == t)) for f, t in mapped.faces.items()}
-    return mapped, info
+    return _mapped(mf, parts, faces, info)
 
 
 def mesh_file_mesh(comm: MPI.Comm, *, file: str, parts: dict[str, list], faces: dict[str, list],
@@ -780,8 +789,5 @@ def mesh_file_mesh(comm: MPI.Comm, *, file: str, parts: dict[str, list], faces: 
     if comm.rank == 0:
         for w in info["warnings"]:
             warnings.warn(w, stacklevel=2)
-    if info.get("hexahedra", {}).get("path") == "native":
-        md = distribute_hexahedra(comm, mapped)
-    else:
-        md = distribute(comm, mapped)
+    md = distribute(comm, mapped)
     return md._replace(info=info)

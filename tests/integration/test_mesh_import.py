@@ -290,7 +290,7 @@ class _BrakeRuns(dict):
         self.physics = ANALYSES[1:] + ["analyses.real_modes.n_modes=12"]
 
     def __missing__(self, fmt):
-        from geometry.mesh_file import _hypermesh_names
+        from geometry.nastran import hypermesh_names
 
         base, quiet, native = self.base, self.quiet, self.native_scene
         if fmt == "native":
@@ -300,7 +300,7 @@ class _BrakeRuns(dict):
             scene = load_scene(IMPORT, [f"geometry.file={base / 'brake_mm.inp'}", *self.physics])
         else:
             write_geometry(COMM, native["geometry"], base / "brake.bdf")
-            pids = {name: pid for pid, name in _hypermesh_names(base / "brake.bdf").items()}
+            pids = {name: pid for pid, name in hypermesh_names(base / "brake.bdf").items()}
             by_number = [f"geometry.{kind}.{n}=[{pids[n]}]" for kind, names in
                          (("parts", native["materials"]), ("faces", load_scene(IMPORT)["geometry"]["faces"]))
                          for n in names]

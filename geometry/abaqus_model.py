@@ -173,7 +173,8 @@ def read_model(path: str | Path) -> DeckModel:
                 c = _floats(lines, 9, where, f"*ELASTIC, TYPE=ENGINEERING CONSTANTS of {material['name'].value}")
                 material.update(_transversely_isotropic(c[:9], at))
             else:
-                raise AbaqusError(f"{at}, TYPE={params['TYPE']}: not supported (isotropic, or engineering constants "
+                raise AbaqusError(f"{at}, TYPE={params['TYPE']}: not supported (isotropic, or engineering "
+                                  "constants "
                                   "transversely isotropic about z)")
             if "DEPENDENCIES" in params or len(lines) > (1 if kind == "ISOTROPIC" else 2):
                 raise AbaqusError(f"{at}: temperature or field dependent constants are not supported")
@@ -240,7 +241,8 @@ def read_model(path: str | Path) -> DeckModel:
         elif kw == "CONTACT PAIR":
             name = params.get("INTERACTION", "").upper()
             if name not in model.interactions:
-                raise AbaqusError(f"{at}: INTERACTION={params.get('INTERACTION', '')}: no such *SURFACE INTERACTION")
+                raise AbaqusError(f"{at}: INTERACTION={params.get('INTERACTION', '')}: no such "
+                                  "*SURFACE INTERACTION")
             for ln, w in lines:
                 f = _fields(ln)
                 if len(f) < 2 or not f[0] or not f[1]:
@@ -296,7 +298,8 @@ def _transversely_isotropic(c: list[float], at: str) -> dict:
 
     if not (close(e1, e2) and close(n13, n23) and close(g13, g23) and close(g12, e1 / (2 * (1 + n12)))):
         raise AbaqusError(f"{at}, TYPE=ENGINEERING CONSTANTS: not transversely isotropic about z (needs E1 = E2, "
-                          "nu13 = nu23, G13 = G23, G12 = E1/(2(1 + nu12))); orthotropic materials are not supported")
+                          "nu13 = nu23, G13 = G23, G12 = E1/(2(1 + nu12))); orthotropic materials are not "
+                          "supported")
     return {"E": Value(e1, where), "nu": Value(n12, where), "E_axial": Value(e3, where),
             "nu_axial": Value(n13 * e3 / e1, where), "G_axial": Value(g13, where)}
 

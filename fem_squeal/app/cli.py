@@ -8,9 +8,9 @@
     fem-squeal convert IN OUT [--scale S]                  convert a mesh (.msh .inp .bdf .vtu), keeping its sets
     fem-squeal convert MODEL.inp SCENE.toml                the scene of an Abaqus/CalculiX squeal deck (materials,
                                                            contacts, boundary conditions, steps; the mesh stays
-                                                           the deck), each value commented with its keyword and line
-    fem-squeal run MODEL.inp [...]                         run an Abaqus/CalculiX squeal deck as it is (converted in
-                                                           memory; --set overrides the scene's keys)
+                                                           the deck), each value commented with its keyword, line
+    fem-squeal run MODEL.inp [...]                         run an Abaqus/CalculiX squeal deck as it is (converted
+                                                           in memory; --set overrides the scene's keys)
     fem-squeal mesh SCENE.toml OUT [--set ...] [--scale S] write a scene's mesh (e.g. the gmsh brake as .inp)
     fem-squeal export SCENE.toml DIR [--set ...]           write the scene's operators (M, C, K and their
                                                            parametric terms, Matrix Market) and a
@@ -146,7 +146,7 @@ def _convert(args, comm, say) -> None:
     if comm.rank != 0:
         return
     if args.input.suffix.lower() == ".inp" and args.output.suffix.lower() == ".toml":
-        from fem_squeal.app.deck import write_scene
+        from fem_squeal.app.deck import write_scene  # heavy: MPI (see the module docstring)
 
         ds = write_scene(args.input, args.output)
         for n in ds.notes:
@@ -190,8 +190,8 @@ def _load(args):
         k, v = item.split("=", 1)
         overrides.append(f"solver.petsc_options.{k.lstrip('-')}={v}")
     if args.scene.suffix.lower() == ".inp":     # an Abaqus/CalculiX squeal deck, converted in memory
-        from fem_squeal.app.deck import deck_scene
-        from fem_squeal.app.scene import apply_overrides, validate
+        from fem_squeal.app.deck import deck_scene  # heavy: MPI (see the module docstring)
+        from fem_squeal.app.scene import apply_overrides, validate  # heavy: MPI (see the module docstring)
 
         ds = deck_scene(args.scene)
         for n in ds.notes:

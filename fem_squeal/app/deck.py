@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fem_squeal.util.atomic import atomic_path
 from fem_squeal.util.errors import MeshError
 from geometry.abaqus import AbaqusError
 from geometry.abaqus_model import DeckModel, read_model, rigid_sets, rotation
@@ -75,7 +76,7 @@ def _scene(m: DeckModel) -> DeckScene:
     out.raw["geometry"] = geo
     for p, k in parts.items():
         origin[f"geometry.parts.{p}"] = f"{m.sections[k].where}: *SOLID SECTION"
-    for k, w in rigid.items():
+    for w in rigid.values():
         origin.setdefault("geometry.skip_sets", f"{w}: *SOLID SECTION of a rigid part (every node prescribed)")
 
     mats = {}
@@ -91,7 +92,8 @@ def _scene(m: DeckModel) -> DeckScene:
         for key in ("E", "nu", "rho", "rayleigh_alpha", "rayleigh_beta", "E_axial", "nu_axial", "G_axial"):
             if key in mat:
                 mats[p][key] = mat[key].value
-                kw = {"rho": "DENSITY", "rayleigh_alpha": "DAMPING", "rayleigh_beta": "DAMPING"}.get(key, "ELASTIC")
+                kw = {"rho": "DENSITY", "rayleigh_alpha": "DAMPING",
+                      "rayleigh_beta": "DAMPING"}.get(key, "ELASTIC")
                 origin[f"materials.{p}.{key}"] = f"{mat[key].where}: *{kw} of *MATERIAL {sec.value}"
     out.raw["materials"] = mats
 
@@ -120,7 +122,7 @@ def _scene(m: DeckModel) -> DeckScene:
     for k in rigid:
         rigid_nodes |= set(m.elset_nodes(k).tolist())
     fixed: dict[str, set] = {}
-    for step, rows in [(None, m.boundary)] + [(s, s.boundary) for s in m.steps if s.procedure == "STATIC"]:
+    for rows in [m.boundary] + [s.boundary for s in m.steps if s.procedure == "STATIC"]:
         for name, first, last, value, w in rows:
             nodes = set(m.set_nodes(name, w).tolist())
             if nodes <= rigid_nodes:
@@ -185,13 +187,16 @@ def _scene(m: DeckModel) -> DeckScene:
             t = {"type": "contact", "slave": sl, "master": face(master, w, "CONTACT PAIR")}
         t.update(kn=float(inter.kn.value), mu=mu, sliding=sliding, kt=kt)
         interfaces[key] = t
-        origin[f"interfaces.{key}"] = f"{w}: *CONTACT PAIR" + (" (master on a rigid part)" if mpart in rigid else "")
+        origin[f"interfaces.{key}"] = f"{w}: *CONTACT PAIR" + (" (master on a rigid part)" if mpart in rigid
+                                                                else "")
         origin[f"interfaces.{key}.kn"] = f"{inter.kn.where}: *SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR"
         origin[f"interfaces.{key}.mu"] = f"{mu_v.where}: *FRICTION" if mu_v is not None else "no *FRICTION"
-        origin[f"interfaces.{key}.kt"] = (f"{lam.where}: *FRICTION stick slope λ = {float(lam.value):g} × μ/μ_static "
+        origin[f"interfaces.{key}.kt"] = (f"{lam.where}: *FRICTION stick slope λ = {float(lam.value):g} "
+                                          "× μ/μ_static "
                                           f"= {mu:g}/{static_mu:g} (CalculiX's slip-state tangent λ/F)"
                                           if lam is not None else "no stick slope: 0")
-        origin[f"interfaces.{key}.sliding"] = (f"{turn[-1][1]}: *BOUNDARY, rigid rotation θ = {turn[-1][0]:.4g} rad "
+        origin[f"interfaces.{key}.sliding"] = (f"{turn[-1][1]}: *BOUNDARY, rigid rotation θ = "
+                                               f"{turn[-1][0]:.4g} rad "
                                                "about z of the master part" if turn else
                                                "no prescribed rotation of the master part: no sliding")
         sliding_friction |= mu > 0 and sliding != 0
@@ -300,8 +305,6 @@ def _relative(target: Path, folder: Path) -> str:
 
 def write_scene(deck: str | Path, scene_path: str | Path) -> DeckScene:
     """``fem-squeal convert model.inp scene.toml``: the deck's scene, written (atomically) with its comments."""
-    from fem_squeal.util.atomic import atomic_path
-
     ds = deck_scene(deck)
     scene_path = Path(scene_path)
     with atomic_path(scene_path) as tmp:

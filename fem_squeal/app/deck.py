@@ -122,7 +122,7 @@ def _scene(m: DeckModel) -> DeckScene:
     for k in rigid:
         rigid_nodes |= set(m.elset_nodes(k).tolist())
     fixed: dict[str, set] = {}
-    for rows in [m.boundary] + [s.boundary for s in m.steps if s.procedure == "STATIC"]:
+    for rows in [m.boundary] + [s.boundary for s in m.steps]:
         for name, first, last, value, w in rows:
             nodes = set(m.set_nodes(name, w).tolist())
             if nodes <= rigid_nodes:
@@ -146,7 +146,11 @@ def _scene(m: DeckModel) -> DeckScene:
     out.raw["boundary"] = boundary
 
     pressure = {}
-    for name, label, p, w in list(m.dload) + [r for s in m.steps for r in s.dload]:
+    for st in m.steps:
+        if st.procedure != "STATIC" and st.dload:
+            out.notes.append(f"{st.dload[0][3]}: *DLOAD in a *{st.procedure} step ignored (an eigenvalue step "
+                             "takes no loads)")
+    for name, label, p, w in list(m.dload) + [r for s in m.steps if s.procedure == "STATIC" for r in s.dload]:
         if label != "P":
             raise AbaqusError(f"{w}: *DLOAD {name}, {label}: element-face pressure; define a *SURFACE and "
                               "write surface, P, pressure")
@@ -155,11 +159,31 @@ def _scene(m: DeckModel) -> DeckScene:
         origin[f"loads.pressure.{f}"] = f"{w}: *DLOAD"
     out.raw["loads"] = {"pressure": pressure}
 
-    # the eigenvalue step and its friction
+    # the eigenvalue steps (one of each kind) and the friction in force in each step
     eig = [s for s in m.steps if s.procedure in ("FREQUENCY", "COMPLEX FREQUENCY")]
     if not eig:
         raise AbaqusError(f"{m.path.name}: no *FREQUENCY or *COMPLEX FREQUENCY step: nothing to compute")
-    last = eig[-1]
+    for i, st in enumerate(m.steps):
+        if st.procedure in ("FREQUENCY", "COMPLEX FREQUENCY") and any(
+                o.procedure == st.procedure for o in m.steps[:i]):
+            raise AbaqusError(f"{st.procedure_where}: *{st.procedure}: a second one (one eigenvalue step of each "
+                              "kind)")
+        if st.procedure == "STATIC" and any(o.procedure != "STATIC" for o in m.steps[:i]):
+            raise AbaqusError(f"{st.procedure_where}: *STATIC after an eigenvalue step is not supported")
+    last = next((s for s in eig if s.procedure == "COMPLEX FREQUENCY"), eig[-1])
+
+    def friction_at(name: str, upto) -> tuple:
+        """(μ, λ) of interaction ``name`` in force in step ``upto`` (None: before the first step)."""
+        inter = m.interactions[name]
+        mu, lam = inter.mu, inter.stick
+        for st in m.steps:
+            if upto is None:
+                break
+            if name in st.friction:
+                mu, lam = st.friction[name][0], st.friction[name][1] or lam
+            if st is upto:
+                break
+        return mu, lam
     interfaces = {}
     for name, slave, master, w in m.ties:
         s, ma = face(slave, w, "TIE"), face(master, w, "TIE")
@@ -171,10 +195,11 @@ def _scene(m: DeckModel) -> DeckScene:
         if inter.kn is None:
             raise AbaqusError(f"{inter.where}: *SURFACE INTERACTION: needs *SURFACE BEHAVIOR, "
                               "PRESSURE-OVERCLOSURE=LINEAR (the penalty slope)")
-        mu_v = last.friction.get(name, (inter.mu, inter.stick))[0] or inter.mu
+        mu_v, lam = friction_at(name, last)
         mu = float(mu_v.value) if mu_v is not None else 0.0
-        static_mu = float(inter.mu.value) if inter.mu is not None else mu
-        lam = inter.stick
+        slid = [s for s in m.steps if s.procedure == "STATIC"]
+        static_v = friction_at(name, slid[-1] if slid else None)[0]
+        static_mu = float(static_v.value) if static_v is not None else mu
         kt = float(lam.value) * mu / static_mu if lam is not None and static_mu > 0 else 0.0
         mpart = part_of_surface(master, w)
         turn = rotation(m, m.elset_nodes(mpart)) if mpart else []
@@ -200,6 +225,9 @@ def _scene(m: DeckModel) -> DeckScene:
                                                "about z of the master part" if turn else
                                                "no prescribed rotation of the master part: no sliding")
         sliding_friction |= mu > 0 and sliding != 0
+        if not turn and mu > 0:
+            out.notes.append(f"{w}: *CONTACT PAIR {slave}, {master}: μ = {mu:g} but no prescribed rotation of the "
+                             f"master part: sliding = 0 (set interfaces.{key}.sliding)")
     out.raw["interfaces"] = interfaces
 
     statics = [s for s in m.steps if s.procedure == "STATIC"]
@@ -216,21 +244,27 @@ def _scene(m: DeckModel) -> DeckScene:
     out.raw["discretisation"] = {"degree": 2 if has_quadratic else 1}
     origin["discretisation.degree"] = "the deck's element types"
 
-    n = int(last.data[0])
-    lo = float(last.data[1]) if len(last.data) > 1 and last.data[1] > 0 else 0.0
-    hi = float(last.data[2]) if len(last.data) > 2 and last.data[2] > 0 else OPEN_BAND_TOP_HZ
-    cea = last.procedure == "COMPLEX FREQUENCY" or sliding_friction
-    name = "cea" if cea else "real_modes"
-    if not last.perturbation and cea:
-        out.notes.append(f"{last.where}: *STEP without PERTURBATION: run as a perturbation about the preload")
-    a = {"n_modes": n, "target_hz": max(lo, LOWEST_TARGET_HZ) if hi == OPEN_BAND_TOP_HZ else 0.5 * (lo + hi)}
-    if cea:
-        a["band_hz"] = [lo, hi]
-    out.raw["analyses"] = {name: a}
-    origin[f"analyses.{name}"] = (f"{last.procedure_where}: *{last.procedure}"
-                                  + (" on a sliding frictional contact (CalculiX: complex frequencies)"
-                                     if last.procedure == "FREQUENCY" and cea else "")
-                                  + ("; no frequency range: the lowest modes" if hi == OPEN_BAND_TOP_HZ else ""))
+    complex_step = any(s.procedure == "COMPLEX FREQUENCY" for s in eig)
+    out.raw["analyses"] = {}
+    for st in eig:
+        # *FREQUENCY alone on a sliding frictional contact: CalculiX solves the non-symmetric problem (complex)
+        cea = st.procedure == "COMPLEX FREQUENCY" or (sliding_friction and not complex_step)
+        name = "cea" if cea else "real_modes"
+        n = int(st.data[0])
+        lo = float(st.data[1]) if len(st.data) > 1 and st.data[1] > 0 else 0.0
+        hi = float(st.data[2]) if len(st.data) > 2 and st.data[2] > 0 else OPEN_BAND_TOP_HZ
+        if not st.perturbation:
+            out.notes.append(f"{st.where}: *STEP without PERTURBATION: run as a perturbation about the preload")
+        a = {"n_modes": n,
+             "target_hz": max(lo, LOWEST_TARGET_HZ) if hi == OPEN_BAND_TOP_HZ else 0.5 * (lo + hi)}
+        if cea:
+            a["band_hz"] = [lo, hi]
+        out.raw["analyses"][name] = a
+        origin[f"analyses.{name}"] = (f"{st.procedure_where}: *{st.procedure}"
+                                      + (" on a sliding frictional contact (CalculiX: complex frequencies)"
+                                         if st.procedure == "FREQUENCY" and cea else "")
+                                      + ("; no frequency range: the lowest modes" if hi == OPEN_BAND_TOP_HZ
+                                         else ""))
     return out
 
 

@@ -161,11 +161,29 @@ def test_deck_scene_round_trip(deck):
     write_scene(deck, out)
     text = out.read_text()
     assert "[boundary.fixed.NBACK]    # model.inp line 30: *BOUNDARY" in text
-    assert "kt = " in text and "model.inp line 24: *FRICTION stick slope" in text
+    assert "kt = " in text and "model.inp line 63: *FRICTION stick slope" in text
     assert tomllib.loads(text)["geometry"]["file"] == "../model.inp"      # relative to the scene's folder
     scene = load_scene(out)
     assert scene.interfaces["PADBOT_PLATETOP"].kt == pytest.approx(plate["kt"])
     assert scene.materials["PAD"].E_axial == 2e9 and list(scene.geometry.skip_sets) == ["PLATE"]
+
+
+def test_frequency_and_complex_frequency_steps(deck):
+    """Abaqus's pair of steps: *FREQUENCY -> real_modes, *COMPLEX FREQUENCY (n, f_min, f_max) -> cea; a
+    second step of one kind is refused."""
+    from fem_squeal.app.deck import deck_scene
+    from fem_squeal.util.errors import MeshError
+
+    two = deck.parent / "two.inp"
+    text = deck.read_text().replace("*FREQUENCY\n6\n", "*FREQUENCY\n6\n*END STEP\n*STEP, PERTURBATION\n"
+                                    "*COMPLEX FREQUENCY\n4, 100., 5000.\n")
+    two.write_text(text)
+    assert deck_scene(two).raw["analyses"] == {
+        "real_modes": {"n_modes": 6, "target_hz": 1.0},
+        "cea": {"n_modes": 4, "target_hz": 2550.0, "band_hz": [100.0, 5000.0]}}
+    two.write_text(text.replace("*COMPLEX FREQUENCY", "*FREQUENCY"))
+    with pytest.raises(MeshError, match=r"two.inp line 69: \*FREQUENCY: a second one"):
+        deck_scene(two)
 
 
 @pytest.mark.parametrize("edit, message", [

@@ -35,6 +35,17 @@ OUTPUT = {"NODE PRINT", "EL PRINT", "NODE FILE", "EL FILE", "OUTPUT", "NODE OUTP
 #: Keywords whose data belong to the keyword above them.
 OPTIONS = {"ELASTIC": "MATERIAL", "DENSITY": "MATERIAL", "DAMPING": "MATERIAL",
            "SURFACE BEHAVIOR": "SURFACE INTERACTION", "FRICTION": "SURFACE INTERACTION"}
+#: The parameters each model keyword may have (any other is refused: it would change what the keyword means).
+PARAMETERS = {
+    "MATERIAL": {"NAME"}, "ELASTIC": {"TYPE"}, "DENSITY": set(), "DAMPING": {"ALPHA", "BETA"},
+    "SOLID SECTION": {"ELSET", "MATERIAL"}, "BOUNDARY": {"OP", "TYPE"}, "DLOAD": {"OP"}, "CLOAD": {"OP"},
+    "TIE": {"NAME", "POSITION TOLERANCE", "ADJUST"}, "SURFACE INTERACTION": {"NAME"},
+    "SURFACE BEHAVIOR": {"PRESSURE-OVERCLOSURE"}, "FRICTION": set(),
+    "CONTACT PAIR": {"INTERACTION", "TYPE", "SMALL SLIDING", "ADJUST"},
+    "STEP": {"PERTURBATION", "NLGEOM", "INC", "NAME", "UNSYMM"}, "STATIC": {"SOLVER", "DIRECT"},
+    "FREQUENCY": {"SOLVER", "STORAGE", "EIGENSOLVER", "NORMALIZATION"}, "COMPLEX FREQUENCY": set(),
+    "CHANGE FRICTION": {"INTERACTION"}, "END STEP": set(), "HEADING": set(),
+}
 SUPPORTED = sorted(MESH | set(OPTIONS) | {"MATERIAL", "SOLID SECTION", "BOUNDARY", "DLOAD", "TIE",
                                           "SURFACE INTERACTION", "CONTACT PAIR", "STEP", "STATIC", "FREQUENCY",
                                           "COMPLEX FREQUENCY", "CHANGE FRICTION", "END STEP", "HEADING"})
@@ -154,6 +165,12 @@ def read_model(path: str | Path) -> DeckModel:
         if kw in OUTPUT:
             model.notes.append(f"{at}: output request ignored")
             continue
+        extra = sorted(set(params) - PARAMETERS.get(kw, set(params)))
+        if extra:
+            raise AbaqusError(f"{at}, {extra[0]}: parameter not supported (allowed: "
+                              f"{', '.join(sorted(PARAMETERS[kw])) or 'none'})")
+        if params.get("OP", "MOD").upper() != "MOD":
+            raise AbaqusError(f"{at}, OP={params['OP']}: only OP=MOD (conditions kept from step to step)")
         if kw in OPTIONS and not (kw == "FRICTION" and change):
             if owner != OPTIONS[kw]:
                 raise AbaqusError(f"{at}: must follow *{OPTIONS[kw]}")
@@ -251,9 +268,6 @@ def read_model(path: str | Path) -> DeckModel:
         elif kw == "STEP":
             if step is not None:
                 raise AbaqusError(f"{at}: *STEP inside the step of {step.where} (missing *END STEP)")
-            other = sorted(set(params) - {"PERTURBATION", "NLGEOM", "INC", "NAME"})
-            if other:
-                raise AbaqusError(f"{at}, {other[0]}: not supported")
             step = Step(where, "PERTURBATION" in params,
                         params.get("NLGEOM", "NO" if "NLGEOM" not in params else "YES").upper() != "NO")
         elif kw in ("STATIC", "FREQUENCY", "COMPLEX FREQUENCY"):

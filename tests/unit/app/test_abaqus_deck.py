@@ -196,6 +196,10 @@ def test_frequency_and_complex_frequency_steps(deck):
      "line 16: *SOLID SECTION, ORIENTATION"),
     (("BACKTOP, P, 2e5", "PAD, P2, 2e5"), "line 37: *DLOAD PAD, P2: element-face pressure"),
     (("NBACK, 1, 2", "NBACK, 1, 2, 1e-6"), "line 30: *BOUNDARY NBACK, 1, 2, 1e-06: a nonzero prescribed"),
+    (("*FREQUENCY\n6", "*COMPLEX FREQUENCY, FRICTION DAMPING=YES\n6"),
+     "line 65: *COMPLEX FREQUENCY, FRICTION DAMPING: parameter not supported"),
+    (("NPLATE, 3, 3, 1e-8", "NPLATE, 3, 3, 1e-8\n*BOUNDARY, OP=NEW\nNPLATE, 3, 3, 1e-8"),
+     "*BOUNDARY, OP=NEW: only OP=MOD"),
     (("*EL FILE", "*MODAL DAMPING\n1, 6, 0.01\n*EL FILE"), "line 67: *MODAL DAMPING: not supported"),
     (("INPUT=mesh/parts.inp", "INPUT=parts.inp"), "model.inp line 3: *INCLUDE, INPUT=parts.inp: no such file"),
 ])

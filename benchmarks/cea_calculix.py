@@ -18,9 +18,14 @@ every node slides, and the slip-state tangent keeps λ μ/μ_static = λ/F acros
 So fem_squeal runs with k_t = λ/F (F = 1.001), and with k_t = 0 (the seed 001 model) for contrast.
 The .dat file lists complex eigenfrequencies ω; s = iω, Re(s) = −Im(ω).
 
-    .venv/bin/python benchmarks/cea_calculix.py [--quick] [--mu 0.3] [--kn 1e13] [--workdir DIR]
+    .venv/bin/python benchmarks/cea_calculix.py [--quick] [--mu 0.3] [--kn 1e13] [--workdir DIR] [--deck]
 
 Writes benchmarks/out/cea_calculix[_quick].json and .md.
+
+``--deck``: the deck ccx runs is run as it is by ``fem-squeal run ring_muX.inp`` (the scene of
+:mod:`fem_squeal.app.deck`, converted in memory); its eigenvalues against the hand-built model of
+:func:`fem_cea` at the run's n_modes and target (the same model: |Δλ|/|λ|), and against ccx's
+(unstable pairs, f, Re s).  Writes benchmarks/out/cea_calculix_deck[_quick].json and .md.
 
 Measured (h 3 mm ``--quick``: 1457 C3D10; k_n = 1e13, λ = k_n/10, fem_squeal with k_t = λ/F; ccx 23 s per
 μ on a quiet machine; 24 modes, the same 12 unstable pairs in both codes at every μ):
@@ -38,6 +43,10 @@ plates' finite rotation (see SLIP).  Found by rebuilding ccx's own stiffness (``
 ``SOLVER=MATRIXSTORAGE``, which reproduces its .dat eigenvalues to 1e-7): per contact node and per
 k_n a it holds nn 0.999, rr 0.0998 (= λ/(F k_n)), θn −0.2998 (= −μ), and rθ −0.00076 = −φ·0.0998,
 rn −0.0023 = −φμ; tilting t₂ by that φ in fem_squeal's forms reproduces the old offset.
+
+``--deck`` (h 3 mm ``--quick``, 24 modes): the deck run by ``fem-squeal run`` equals the hand-built model to
+3.4e-15 … 9.5e-15 (max |Δλ|/|λ|) and so finds CalculiX's 12 unstable pairs at μ = 0.1, 0.3, 0.6, Δf/f within
+1.8e-4, ΔRe(s)/Re(s) +0.36 … +0.54 %.
 
 History: the earlier runs placed the plates at z ∈ [H, H + T] and [−T, 0] while the ring spans
 [−H/2, H/2] (ccx resolved it by a 2 mm rigid shift in the static step) and used ccx's default σ∞:
@@ -219,6 +228,81 @@ def fem_cea(folder: Path, mu: float, kn: float, kt: float, n_modes: int, target_
     return cm.eigenvalues
 
 
+def deck_run(folder: Path, job: str) -> tuple[np.ndarray, dict]:
+    """``fem-squeal run JOB.inp`` (in this process): its eigenvalues s = Re + 2πi f (Im s > 0) and the
+    scene's cea section."""
+    from fem_squeal.app.cli import main as cli
+    from fem_squeal.app.deck import deck_scene
+
+    out = folder / f"{job}_fem"
+    code = cli(["--cache-dir", str(folder / "cache"), "--log-level", "warning", "run", str(folder / f"{job}.inp"),
+                "-o", str(out), "--no-fields", "--no-report"])
+    if code != 0:
+        raise RuntimeError(f"fem-squeal run {job}.inp: exit {code}")
+    modes = json.loads((out / "results.json").read_text())["complex_modes"]
+    lam = np.array([m["real_part"] + 2j * np.pi * m["freq_hz"] for m in modes])
+    return lam, deck_scene(folder / f"{job}.inp").raw["analyses"]["cea"]
+
+
+def main_deck(args, folder: Path, mesh: dict, lam_st: float) -> dict:
+    """``--deck``: ccx and ``fem-squeal run`` on the same deck, and the hand-built model at the run's settings."""
+    res = {"h": 0.003 if args.quick else 0.002, "nodes": mesh["nodes"], "elements": mesh["elements"],
+           "kn": args.kn,
+           "lambda": lam_st, "F": F_STATIC, "runs": []}
+    for mu in args.mu:
+        job = f"ring_mu{mu:g}".replace(".", "p")
+        (folder / f"{job}.inp").write_text(ccx_deck(mesh, mu, args.kn, lam_st, args.n_modes))
+        t = time.perf_counter()
+        lam_deck, cea = deck_run(folder, job)
+        t_deck = time.perf_counter() - t
+        lam_hand = fem_cea(folder, mu, args.kn, lam_st / F_STATIC, cea["n_modes"], cea["target_hz"])
+        up = lam_deck[lam_deck.imag > 0]
+        same = max(float(np.min(np.abs(lam_hand - v)) / abs(v)) for v in up)
+        t = time.perf_counter()
+        run_ccx(folder, job)
+        t_ccx = time.perf_counter() - t
+        s_ccx = read_complex_dat(folder / f"{job}.dat")
+        rows = compare(s_ccx, lam_deck)
+        unstable_ccx = int(np.sum((s_ccx.imag > 0) & (s_ccx.real > 0)))
+        unstable_fem = int(np.sum(up.real > 1e-6 * np.abs(up)))
+        pairs_same = all((r["re_ccx"] > 0) == (r["re_fem"] > 1e-6 * abs(r["f_fem"]) * 2 * np.pi) for r in rows)
+        run = {"mu": mu, "deck_seconds": t_deck, "ccx_seconds": t_ccx, "deck_vs_hand_max_rel": same,
+               "unstable_ccx": unstable_ccx, "unstable_fem": unstable_fem, "unstable_pairs_same": pairs_same,
+               "rows": rows}
+        res["runs"].append(run)
+        print(deck_table(run), flush=True)
+    out = ROOT / "benchmarks" / "out"
+    out.mkdir(exist_ok=True)
+    name = f"cea_calculix_deck{'_quick' if args.quick else ''}"
+    (out / f"{name}.json").write_text(json.dumps(res, indent=1))
+    (out / f"{name}.md").write_text(deck_summary(res) + "\n")
+    print(deck_summary(res))
+    return res
+
+
+def deck_table(run: dict) -> str:
+    df = [r["df"] for r in run["rows"]]
+    unst = [r for r in run["rows"] if r["re_ccx"] > 0]
+    dre = [r["dre"] for r in unst]
+    return (f"μ {run['mu']}: deck run vs hand-built model max |Δλ|/|λ| {run['deck_vs_hand_max_rel']:.1e}; "
+            "unstable "
+            f"ccx {run['unstable_ccx']}, fem {run['unstable_fem']}, the same pairs: {run['unstable_pairs_same']}; "
+            f"Δf/f {min(df):+.1e} … {max(df):+.1e}; ΔRe/Re (unstable) "
+            f"{min(dre, default=0):+.2%} … {max(dre, default=0):+.2%}")
+
+
+def deck_summary(res: dict) -> str:
+    lines = ["| μ | deck run vs hand-built: max abs(Δλ)/abs(λ) | unstable pairs ccx / fem (same) | Δf/f | "
+             "ΔRe(s)/Re(s), unstable |", "|---|---|---|---|---|"]
+    for run in res["runs"]:
+        df = [r["df"] for r in run["rows"]]
+        dre = [r["dre"] for r in run["rows"] if r["re_ccx"] > 0]
+        lines.append(f"| {run['mu']} | {run['deck_vs_hand_max_rel']:.1e} | {run['unstable_ccx']} / "
+                     f"{run['unstable_fem']} ({'yes' if run['unstable_pairs_same'] else 'NO'}) | {min(df):+.1e} … "
+                     f"{max(df):+.1e} | {min(dre, default=0):+.2%} … {max(dre, default=0):+.2%} |")
+    return "\n".join(lines)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
@@ -227,12 +311,17 @@ def main():
     ap.add_argument("--n-modes", type=int, default=24)
     ap.add_argument("--kn", type=float, default=KN)
     ap.add_argument("--stick-slope", type=float, default=0.1, help="λ/k_n (CalculiX's stick slope)")
+    ap.add_argument("--deck", action="store_true", help="run the ccx deck as it is with fem-squeal run")
     args = ap.parse_args()
     h = 0.003 if args.quick else 0.002
     folder = Path(args.workdir or tempfile.mkdtemp(prefix="cea_ccx_"))
     folder.mkdir(parents=True, exist_ok=True)
     mesh = make_mesh(folder, h)
     lam_st = args.stick_slope * args.kn
+    if args.deck:
+        main_deck(args, folder, mesh, lam_st)
+        print(folder)
+        return
     res = {"h": h, "nodes": mesh["nodes"], "elements": mesh["elements"], "kn": args.kn, "lambda": lam_st,
            "F": F_STATIC, "runs": []}
     for mu in args.mu:

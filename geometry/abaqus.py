@@ -50,6 +50,8 @@ MODEL_CHANGING = {
     "BEAM SECTION": "beams", "MEMBRANE SECTION": "membranes", "SHELL TO SOLID COUPLING": "a coupling constraint",
     "EMBEDDED ELEMENT": "embedded elements", "NODE TRANSFORM": "a nodal transformation",
 }
+#: The :data:`MODEL_CHANGING` keywords that the deck translation (:mod:`geometry.abaqus_model`) supports.
+MODEL_KEYWORDS = {"TIE"}
 ASSEMBLY = {"PART", "END PART", "INSTANCE", "END INSTANCE", "ASSEMBLY", "END ASSEMBLY"}
 
 
@@ -154,8 +156,10 @@ def _members(lines, params: dict, table: dict, kind: str, where: str) -> list[in
     return out
 
 
-def read_deck(path: str | Path) -> Deck:
-    """Read a flat deck (see the module text); raises :class:`AbaqusError`."""
+def read_deck(path: str | Path, model: bool = False) -> Deck:
+    """Read a flat deck (see the module text); raises :class:`AbaqusError`.  ``model``: the deck's model
+    keywords are translated elsewhere (:mod:`geometry.abaqus_model`), so the ones it supports
+    (:data:`MODEL_KEYWORDS`: ``*TIE``) are skipped here instead of refused."""
     path = Path(path)
     node_ids: list[int] = []
     coords: list[list[float]] = []
@@ -178,7 +182,7 @@ def read_deck(path: str | Path) -> Deck:
             assembly = assembly or f"*{kw} at {where}"
             nodes_seen += kw == "NODE"
             continue
-        if kw in MODEL_CHANGING:
+        if kw in MODEL_CHANGING and not (model and kw in MODEL_KEYWORDS):
             raise AbaqusError(f"{where}: *{kw} ({MODEL_CHANGING[kw]}) is not supported: it changes the model; "
                               "remove it or write the model without it")
         if kw == "SOLID SECTION" and "ORIENTATION" in params:

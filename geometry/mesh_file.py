@@ -145,13 +145,18 @@ def read_mesh_file(path: str | Path, fmt: str = "", id_field: str = "") -> MeshF
     return _split(path, fmt, raw)
 
 
-def _read_raw(path: str | Path, fmt: str = "", id_field: str = "") -> tuple[Path, str, _Raw]:
-    """The file's elements and sets as they are (before any split)."""
+def _read_raw(path: str | Path, fmt: str = "", id_field: str = "", skip_sets=(), deck: bool = False
+              ) -> tuple[Path, str, _Raw]:
+    """The file's elements and sets as they are (before any split), without the elements of
+    ``skip_sets`` (Abaqus decks: rigid parts that the scene gives as rigid_plate interfaces)."""
     path = Path(path)
     if not path.is_file():
         raise MeshImportError(f"geometry.file: {path} does not exist")
     fmt = file_format(path, fmt)
-    return path, fmt, _read_abaqus(path) if fmt == "abaqus" else _read_meshio(path, fmt, id_field)
+    if (skip_sets or deck) and fmt != "abaqus":
+        raise MeshImportError(f"geometry.{'skip_sets' if skip_sets else 'deck'}: only for Abaqus decks "
+                              f"(.inp); {path.name} is {fmt}")
+    return path, fmt, _read_abaqus(path, skip_sets, deck) if fmt == "abaqus" else _read_meshio(path, fmt, id_field)
 
 
 def _read_meshio(path: Path, fmt: str, id_field: str) -> _Raw:
@@ -260,12 +265,14 @@ def _teach_meshio() -> None:
         _mesh.topological_dimension.setdefault(t, 3)
 
 
-def _read_abaqus(path: Path) -> _Raw:
+def _read_abaqus(path: Path, skip_sets=(), model: bool = False) -> _Raw:
     """A flat Abaqus deck (:mod:`geometry.abaqus`): volume blocks, element sets (volume members),
-    surface elements in sets as skins, ``*SURFACE`` faces, node sets and node surfaces."""
+    surface elements in sets as skins, ``*SURFACE`` faces, node sets and node surfaces; the elements
+    of ``skip_sets`` left out (with the surfaces on them and their nodes); ``model``: the deck's model
+    keywords are the scene's (:func:`geometry.abaqus.read_deck`)."""
 
     try:
-        deck = read_deck(path)
+        deck = read_deck(path, model=model)
     except AbaqusSyntaxError as e:
         raise MeshImportError(f"geometry.file: cannot read {path.name} as abaqus: {e}") from None
     except AbaqusError as e:
@@ -276,6 +283,9 @@ def _read_abaqus(path: Path) -> _Raw:
     if not vol:
         raise MeshImportError(f"geometry.file: {path.name} has no volume elements; supported: {SUPPORTED}")
     ids = np.concatenate([b[2] for b in vol])
+    if skip_sets:
+        deck, vol, vol_types, skin = _without_sets(path, deck, vol, vol_types, skin, skip_sets)
+        ids = np.concatenate([b[2] for b in vol])
     raw = _Raw(deck.points, [(t, c) for t, c, _ in vol], ids.astype(np.int64), element_types=vol_types)
     vindex = {int(e): i for i, e in enumerate(ids)}
     sindex = {int(e): (k, i) for k, (_, _, sid) in enumerate(skin) for i, e in enumerate(sid)}
@@ -307,6 +317,39 @@ def _read_abaqus(path: Path) -> _Raw:
             out.append((vindex[e], label, where))
         raw.faces[name] = out
     return raw
+
+
+def _without_sets(path: Path, deck, vol, vol_types, skin, skip_sets):
+    """The deck without the elements of ``skip_sets``: their element sets, the surfaces on them and the
+    nodes no kept element uses (node sets keep their other nodes; one left empty is dropped)."""
+    skip: set[int] = set()
+    for s in skip_sets:
+        if s.upper() not in deck.elsets:
+            raise MeshImportError(f"geometry.skip_sets: no element set {s!r} in {path.name}")
+        skip |= set(deck.elsets[s.upper()])
+    keep = [(t, c[~np.isin(ids, list(skip))], ids[~np.isin(ids, list(skip))]) for t, c, ids in vol]
+    types = [e for (_, _, ids), e in zip(keep, vol_types) if len(ids)]
+    keep = [b for b in keep if len(b[2])]
+    if not keep:
+        raise MeshImportError(f"geometry.skip_sets: {list(skip_sets)} leave no volume element in {path.name}")
+    used = np.unique(np.concatenate([c.ravel() for _, c, _ in keep]))
+    new = np.full(len(deck.points), -1, dtype=np.int64)
+    new[used] = np.arange(len(used))
+    keep = [(t, new[c], ids) for t, c, ids in keep]
+    skin = [(t, new[c], ids) for t, c, ids in skin if np.all(new[c] >= 0)]
+    deck.points = deck.points[used]
+    deck.node_ids = deck.node_ids[used]
+    deck.elsets = {k: [e for e in v if e not in skip] for k, v in deck.elsets.items()}
+    deck.elsets = {k: v for k, v in deck.elsets.items() if v}
+    deck.surfaces = {k: v for k, v in deck.surfaces.items() if not any(e in skip for e, _, _ in v)}
+    for table in (deck.nsets, deck.node_surfaces):
+        for k in list(table):
+            n = new[table[k]]
+            if np.any(n >= 0):
+                table[k] = n[n >= 0]
+            else:
+                del table[k]
+    return deck, keep, types, skin
 
 
 def _split(path: Path, fmt: str, raw: _Raw) -> MeshFile:
@@ -557,12 +600,13 @@ MM_SUSPECT_EXTENT = 5.0
 
 def prepare(path: str | Path, *, parts: dict[str, list], faces: dict[str, list], fmt: str = "", scale: float = 1.0,
             center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), id_field: str = "",
-            max_aspect_ratio: float = 10.0, hexahedra: str = "split", blockers=()) -> tuple[MappedMesh, dict]:
+            max_aspect_ratio: float = 10.0, hexahedra: str = "split", blockers=(), skip_sets=(),
+            deck: bool = False) -> tuple[MappedMesh, dict]:
     """Read, scale and turn, check the elements and map the sets (one process).  Returns the mapped
     mesh and a summary (sizes, bounding box, quality, warnings) for the results.  ``hexahedra``
     ("auto", "native", "split") and the scene features that need tetrahedra (``blockers``) choose
     the path of hexahedral files (:func:`geometry.hexahedra.choose_path`); the summary records it."""
-    file, fmt, raw = _read_raw(path, fmt, id_field)
+    file, fmt, raw = _read_raw(path, fmt, id_field, skip_sets, deck)
     types = [t for t, _ in raw.blocks]
     try:
         route, reason = choose_path(hexahedra, types, list(blockers))
@@ -687,16 +731,17 @@ def _prepare_native(path: str, file: Path, fmt: str, raw: _Raw, parts, faces, sc
 def mesh_file_mesh(comm: MPI.Comm, *, file: str, parts: dict[str, list], faces: dict[str, list],
                    format: str = "", scale: float = 1.0, center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0),
                    id_field: str = "", max_aspect_ratio: float = 10.0, hexahedra: str = "split",
-                   blockers=()) -> MeshData:
+                   blockers=(), skip_sets=(), deck: bool = False) -> MeshData:
     """Distributed mesh of a mesh file (scene ``geometry.builder = "mesh_file"``); rank 0 reads it.
     Warnings (units, poorly shaped elements) are issued with :func:`warnings.warn` and kept in ``info``.
-    ``hexahedra``, ``blockers``: the path of hexahedral files (:func:`prepare`)."""
+    ``hexahedra``, ``blockers``: the path of hexahedral files; ``skip_sets``, ``deck``: Abaqus decks
+    (:func:`prepare`, :func:`_read_abaqus`)."""
     mapped, info, error = None, None, None
     if comm.rank == 0:
         try:
             mapped, info = prepare(file, parts=parts, faces=faces, fmt=format, scale=scale, center=center,
                                    axis=axis, id_field=id_field, max_aspect_ratio=max_aspect_ratio,
-                                   hexahedra=hexahedra, blockers=blockers)
+                                   hexahedra=hexahedra, blockers=blockers, skip_sets=skip_sets, deck=deck)
         except MeshImportError as e:
             error = str(e)
     error = comm.bcast(error, root=0)

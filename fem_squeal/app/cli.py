@@ -6,6 +6,11 @@
     fem-squeal cache [--verify]                            list the cache's entries; --verify: check every
                                                            file and remove the bad entries only
     fem-squeal convert IN OUT [--scale S]                  convert a mesh (.msh .inp .bdf .vtu), keeping its sets
+    fem-squeal convert MODEL.inp SCENE.toml                the scene of an Abaqus/CalculiX squeal deck (materials,
+                                                           contacts, boundary conditions, steps; the mesh stays
+                                                           the deck), each value commented with its keyword, line
+    fem-squeal run MODEL.inp [...]                         run an Abaqus/CalculiX squeal deck as it is (converted
+                                                           in memory; --set overrides the scene's keys)
     fem-squeal mesh SCENE.toml OUT [--set ...] [--scale S] write a scene's mesh (e.g. the gmsh brake as .inp)
     fem-squeal export SCENE.toml DIR [--set ...]           write the scene's operators (M, C, K and their
                                                            parametric terms, Matrix Market) and a
@@ -140,6 +145,15 @@ def _convert(args, comm, say) -> None:
 
     if comm.rank != 0:
         return
+    if args.input.suffix.lower() == ".inp" and args.output.suffix.lower() == ".toml":
+        from fem_squeal.app.deck import write_scene  # heavy: MPI (see the module docstring)
+
+        ds = write_scene(args.input, args.output)
+        for n in ds.notes:
+            say(f"[fem_squeal] note: {n}")
+        say(f"[fem_squeal] {args.output}: the scene of {args.input} (parts {sorted(ds.raw['geometry']['parts'])}, "
+            f"interfaces {sorted(ds.raw['interfaces'])}, analyses {sorted(ds.raw['analyses'])})")
+        return
     mf, warns = convert(args.input, args.output, scale=args.scale, fmt_in=args.input_format,
                         id_field=args.id_field)
     for w in warns:
@@ -175,6 +189,14 @@ def _load(args):
             raise SceneError(f"--petsc-option {item}: expected key=value")
         k, v = item.split("=", 1)
         overrides.append(f"solver.petsc_options.{k.lstrip('-')}={v}")
+    if args.scene.suffix.lower() == ".inp":     # an Abaqus/CalculiX squeal deck, converted in memory
+        from fem_squeal.app.deck import deck_scene  # heavy: MPI (see the module docstring)
+        from fem_squeal.app.scene import apply_overrides, validate  # heavy: MPI (see the module docstring)
+
+        ds = deck_scene(args.scene)
+        for n in ds.notes:
+            logging.getLogger("fem_squeal").info(f"[fem_squeal] note: {n}")
+        return validate(apply_overrides(ds.raw, overrides))
     return load_scene(args.scene, overrides)
 
 

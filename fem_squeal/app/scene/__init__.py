@@ -26,7 +26,9 @@ extends          another scene file (relative path) whose tables this one's are 
 title            free text
 geometry         builder = "mesh_file": file (relative to the scene file), format, scale, center, axis,
                  id_field, max_aspect_ratio, parts.<part> = [sets], faces.<face> = [sets]: a mesh from
-                 gmsh/Abaqus/Nastran/VTU (see geometry.mesh_file)
+                 gmsh/Abaqus/Nastran/VTU (see geometry.mesh_file); Abaqus decks: skip_sets (element
+                 sets left out: rigid parts), deck (the scene translates the deck's model keywords:
+                 fem-squeal convert model.inp scene.toml, fem_squeal.app.deck)
                  builder = "annular_disc": mean_radius, width, thickness [m], mesh_size [m],
                  order (1 or 2; 2 = curved second-order tetrahedra)
                  builder = "brake_corner": every field of ``geometry.brake_corner.BrakeCornerParams``

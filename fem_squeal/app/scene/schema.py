@@ -53,6 +53,12 @@ GEOMETRY = {
         "parts": Field(dict, check=lambda v: None if v else "must map at least one part",
                        doc="part -> [element sets / PSOLID IDs / physical groups / cell-data values]"),
         "faces": Field(dict, {}, None, "face -> [surfaces / node sets / surface PIDs / physical groups]"),
+        "skip_sets": Field(list, [], lambda v: None if all(isinstance(x, str) for x in v) else
+                           f"must be a list of element set names (got {v!r})",
+                           "Abaqus decks: element sets left out of the mesh (rigid parts given as "
+                           "rigid_plate interfaces), with their nodes and the surfaces on them"),
+        "deck": Field(bool, False, None, "Abaqus decks: this scene translates the deck's model keywords "
+                      "(fem-squeal convert), so the mesh reader skips *TIE instead of refusing it"),
     },
 }
 

@@ -14,6 +14,7 @@ operating_matrix.png (+ its .csv)."""
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -188,6 +189,14 @@ def check(scene, volumes) -> None:
     if speeds and why and terms:
         raise SceneError(f"{_KEY}.speed: other speeds than operating.speed need the speed as a parameter of the "
                          f"reduced model: {why}")
+    spec = scene.analyses[NAME]["friction"]
+    own = [n for n, t in scene.interfaces.items() if t.get("friction", "constant") != "constant"
+           and "default" not in spec and n not in spec]
+    if speeds and own:
+        law = scene.interfaces[own[0]]["friction"]
+        raise SceneError(f"{_KEY}.friction: interfaces.{own[0]} has a μ(V) law ({law!r}) that the reduced model "
+                         f"holds at operating.speed only; give its law at the conditions "
+                         f"({_KEY}.friction.{own[0]} or .default)")
     if terms and np.any(cond.speed <= 0):
         raise SceneError(f"{_KEY}.speed: must be > 0 with gyroscopic or friction-damping terms")
 
@@ -348,5 +357,15 @@ def report(res: dict) -> str:
     return txt
 
 
-STAGE = Stage(NAME, ("reduced", "preload"), run, "operating matrix (pressure, temperature, speed, direction) "
-              "on the reduced model: the noise matrix", section=SECTION, check=check, report=report)
+@dataclass(frozen=True)
+class _OperatingMatrixStage(Stage):
+    """The stage needs the preload's in-memory operators only for its corner checks (``verify``)."""
+
+    def needs_of(self, scene) -> tuple[str, ...]:
+        needs = super().needs_of(scene)
+        return needs if scene.analyses[self.name]["verify"] else tuple(n for n in needs if n != "preload")
+
+
+STAGE = _OperatingMatrixStage(NAME, ("reduced", "preload"), run, "operating matrix (pressure, temperature, speed, "
+                              "direction) on the reduced model: the noise matrix", section=SECTION, check=check,
+                              report=report)

@@ -84,3 +84,14 @@ def test_report_section_from_results():
                                                        "n_unstable_full": 1, "n_unstable_reduced": 0}]}, 1e-3) == [
         "operating matrix: reduced vs full at condition 3 (300 °C, 0 rad/s, reverse): 2.0e-03 > tol 0.001",
         "operating matrix: 0 unstable reduced vs 1 full at condition 3 (300 °C, 0 rad/s, reverse)"]
+
+
+def test_a_scene_speed_law_needs_its_law_at_the_conditions():
+    stribeck = ["interfaces.pad_inner.friction='stribeck'", "interfaces.pad_outer.friction='stribeck'",
+                "operating.gyroscopic=false", "analyses.operating_matrix.friction={}"]
+    with pytest.raises(SceneError, match=r"^analyses\.operating_matrix\.friction: interfaces\.pad_inner has a "
+                                         r"μ\(V\) law \('stribeck'\) that the reduced model holds at "
+                                         r"operating\.speed only; .*"
+                                         r"\(analyses\.operating_matrix\.friction\.pad_inner"):
+        load_scene(SCENE, stribeck)
+    load_scene(SCENE, stribeck + ["analyses.operating_matrix.speed=[60.0]"])   # the scene's speed: fine

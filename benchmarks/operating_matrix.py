@@ -36,7 +36,8 @@ def table(res: dict, ranks: int) -> tuple[list[str], dict]:
            "reduced_size": res["reduced"]["size"], "matrix_s": om["seconds"],
            "s_per_condition": om["seconds_per_condition"], "unstable_conditions": om["unstable_conditions"],
            "corners": len(ver), "max_rel_error": max((v["max_rel_error"] for v in ver), default=None),
-           "unstable_counts_match": all(v["n_unstable_full"] == v["n_unstable_reduced"] for v in ver),
+           "unstable_counts_match": (all(v["n_unstable_full"] == v["n_unstable_reduced"] for v in ver)
+                                     if ver else None),
            "full_cea_s": [v["full_cea_s"] for v in ver]}
     lines = [f"# Operating matrix, brake corner ({row['dofs']} DOFs, {ranks} ranks)", "",
              "| conditions | preload [s] | basis [s] (size) | matrix [s] | per condition [ms] | ≤ 10 min | "

@@ -60,6 +60,8 @@ SUITE: tuple[Bench, ...] = (
           "mpi_scaling.py", ((),), (("--quick",),)),
     Bench("reduced_brake", "reduced vs full CEA: basis size vs error vs time per point",
           "reduced_brake.py", (("mpirun:2",),), (("--quick",),)),
+    Bench("operating_matrix", "120 conditions (T, |Ω|, direction) on the reduced brake; corners vs full CEA",
+          "operating_matrix.py", (("mpirun:2", "--mesh-size", "0.008"),), (("mpirun:2",),)),
     Bench("masa_aft", "MASA: AFT samples per period vs error in K1; sweep cost",
           "masa_aft.py", ((),), (("--quick",),)),
     Bench("masa_brake", "MASA on the reduced brake: cost vs contact elements",

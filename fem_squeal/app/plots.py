@@ -554,3 +554,42 @@ def merging_pairs(path: Path, values: np.ndarray, lam: np.ndarray, unstable: np.
     fig.tight_layout()
     save_figure_atomic(fig, path)
     plt.close(fig)
+
+
+def noise_matrix(path: Path, noise: dict, frequencies: np.ndarray, growth: np.ndarray, condition: np.ndarray,
+                 title: str = "") -> None:
+    """The operating matrix as a dynamometer squeal summary (SAE J2521 style): occurrence of instability
+    per 1/3-octave band [% of conditions], the unstable modes' frequencies per condition coloured by
+    growth rate, and the occurrence against each condition variable that takes several values."""
+    plt = pyplot()
+    varying = [v for v, rows in noise["by_variable"].items() if len(rows) > 1]
+    n = 2 + len(varying)
+    cols = min(n, 3)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 3.5 * rows), squeeze=False)
+    ax = axes.ravel()
+    b = noise["third_octave"]
+    ax[0].bar(range(len(b)), [100.0 * r["occurrence"] for r in b], color="C3")
+    ax[0].set_xticks(range(len(b)), [f"{r['band_hz'] / 1000:g}" for r in b], rotation=60, fontsize=7)
+    ax[0].set_xlabel("1/3-octave band [kHz]")
+    ax[0].set_ylabel("conditions with instability [%]")
+    ax[0].set_ylim(0, 100)
+    sc = ax[1].scatter(condition, np.asarray(frequencies) / 1000.0, c=growth, cmap="plasma", s=14)
+    if len(condition):
+        fig.colorbar(sc, ax=ax[1], label="growth rate Re λ [1/s]")
+    ax[1].set_xlabel("condition")
+    ax[1].set_ylabel("unstable mode [kHz]")
+    ax[1].set_xlim(-0.5, noise["n_conditions"] - 0.5)
+    for a, v in zip(ax[2:], varying):
+        r = noise["by_variable"][v]
+        a.bar(range(len(r)), [100.0 * x["occurrence"] for x in r], color="C0")
+        a.set_xticks(range(len(r)), [x["value"] if isinstance(x["value"], str) else f"{x['value']:g}" for x in r])
+        a.set_xlabel(v)
+        a.set_ylabel("conditions with instability [%]")
+        a.set_ylim(0, 100)
+    for a in ax[n:]:
+        a.axis("off")
+    fig.suptitle(title or "operating matrix")
+    fig.tight_layout()
+    save(fig, path)
+    plt.close(fig)

@@ -83,6 +83,13 @@ robustness       n_samples, seed, ranks, seconds, seconds_per_sample, parameters
                  median, q95, max}, drivers}], drivers {parameter: Spearman ρ and its 95 % interval},
                  sobol {parameter: first-order Sobol' index and its bootstrap interval},
                  family_assignment, spot_checks [{point, max_rel_error, ...}] (full CEA)
+operating_matrix conditions [{pressure, temperature, speed, direction}], n_conditions, band_hz, mu {law:
+                 |μ| per condition}, n_unstable, max_growth_rate (per condition), unstable_conditions,
+                 occurrence, third_octave [{band_hz, lower_hz, upper_hz, conditions, occurrence,
+                 in_model_band}], by_variable {variable: [{value, conditions, unstable, occurrence}]},
+                 modes [{condition, frequency_hz, growth_rate, damping_ratio}], squeal_index (why
+                 not), seconds, seconds_per_condition, verification [{condition, point,
+                 max_rel_error, n_unstable_full, n_unstable_reduced, full_cea_s, ...}] (corners)
 masa             cases [{mu, equilibrium, elements, basis, instabilities [{freq_hz, real_part,
                  stationary_amplitudes, stationary_in_unit, broke_at, steps}], seconds}]
 transient        basis, contact_elements, steps, steps_computed (fewer when resumed), dt, t_end,

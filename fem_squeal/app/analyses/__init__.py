@@ -9,7 +9,8 @@ part of the report.  The scene loader, the pipeline, the runner and the report l
     mesh → operators → preload → real_modes
                                → cea
                                → reduced → sweep, map, sensitivity, masa, transient → limit_cycle
-                               → reduced + preload → robustness (its spot checks solve the full CEA)
+                               → reduced + preload → robustness (its spot checks solve the full CEA),
+                                                     operating_matrix (its corner checks too)
     segmented_pad (no mesh: a lumped model)
     matrices → real_modes, cea (a model given as matrices: ``Stage.on_matrices``, in place of mesh,
                operators and preload)
@@ -22,6 +23,7 @@ from fem_squeal.app.analyses import (
     masa,
     matrices,
     mesh,
+    operating_matrix,
     operators,
     preload,
     real_modes,
@@ -37,7 +39,7 @@ from fem_squeal.app.stage import Stage
 
 STAGES: dict[str, Stage] = {m.STAGE.name: m.STAGE for m in (
     matrices, mesh, operators, preload, real_modes, cea, reduced, sweep, stability_map, sensitivity, robustness,
-    masa, transient, limit_cycle, segmented_pad,
+    operating_matrix, masa, transient, limit_cycle, segmented_pad,
 )}
 
 #: the analyses a scene can ask for (stages with a section ``analyses.<name>``)

@@ -42,7 +42,8 @@ from geometry.brake_corner import BrakeCornerParams
 from geometry.mesh_file import MeshImportError, file_format
 
 #: the analyses that include the rotation terms (operating.gyroscopic, preload.geometric_stiffness)
-ROTATION_ANALYSES = ("cea", "real_modes", "reduced", "sweep", "map", "sensitivity", "robustness")
+ROTATION_ANALYSES = ("cea", "real_modes", "reduced", "sweep", "map", "sensitivity", "robustness",
+                     "operating_matrix")
 
 
 class Scene(Section):

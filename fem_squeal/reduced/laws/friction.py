@@ -12,6 +12,9 @@ relative displacement increment Δs of the step (None where it does not depend o
   an elastic stick spring and return mapping (below).
 - :class:`StribeckFriction`: μ(|w|) of seed 004 eq. 4 with the static and dynamic levels μ_s, μ_d
   and the transition velocities v_s < v_d, f = −μ(|w|) F w/|w|.
+- :class:`TableFriction`: μ(T, Ω) of an operating condition (disc temperature T, disc speed Ω),
+  interpolated bilinearly in a table (the operating matrix's friction law; :func:`operating_mu`
+  evaluates the constant and Stribeck laws at a condition too).
 """
 from __future__ import annotations
 
@@ -24,7 +27,7 @@ import numpy as np
 from fem_squeal.util.errors import ModelError
 
 __all__ = ["FRICTION_LAWS", "ConstantFriction", "CoulombState", "ElasticCoulomb", "FrictionLaw", "FrictionState",
-           "StribeckFriction", "smooth_step"]
+           "StribeckFriction", "TableFriction", "operating_mu", "smooth_step"]
 
 
 def _check(name: str, value, positive: bool = False) -> None:
@@ -221,3 +224,92 @@ FRICTION_LAWS: dict[str, FrictionLawEntry] = {
                                 ElasticCoulomb(mu_s or mu, mu_d or mu, k_t, c_t)),
 }
 
+
+
+def _interp_weights(axis: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(lower index i, weight t of i + 1) of linear interpolation on an increasing ``axis`` (one value:
+    i = 0, t = 0: the table does not depend on this variable)."""
+    if axis.size == 1:
+        return np.zeros(x.shape, int), np.zeros(x.shape)
+    i = np.clip(np.searchsorted(axis, x, side="right") - 1, 0, axis.size - 2)
+    return i, (x - axis[i]) / (axis[i + 1] - axis[i])
+
+
+@dataclass(frozen=True)
+class TableFriction:
+    """μ(T, Ω) at an operating condition, bilinear in a table over the disc temperature T and the disc
+    speed |Ω| [rad/s] (the operating matrix's variables, not the local slip velocity):
+
+        μ(T, Ω) = μ₀₀ + s(μ₁₀ − μ₀₀) + t(μ₀₁ − μ₀₀) + st(μ₁₁ − μ₁₀ − μ₀₁ + μ₀₀)
+        s = (T − T_i)/(T_{i+1} − T_i),  t = (|Ω| − Ω_j)/(Ω_{j+1} − Ω_j),  μ_ab = μ[i+a, j+b]
+
+(the bilinear interpolant written in differences, so that a constant table returns its value exactly).
+
+    An axis of one value means "independent of this variable" (any value is accepted); a condition
+    outside an axis of two or more values is a :class:`ModelError` naming the variable and the range
+    (no extrapolation).  ``name`` prefixes the messages (the scene key)."""
+
+    temperature: np.ndarray
+    speed: np.ndarray
+    mu: np.ndarray
+    name: str = "friction table"
+
+    def __post_init__(self):
+        T, V = (np.atleast_1d(np.asarray(a, float)) for a in (self.temperature, self.speed))
+        mu = np.asarray(self.mu, float)
+        for key, a in (("temperature", T), ("speed", V)):
+            if a.ndim != 1 or a.size == 0 or not np.all(np.isfinite(a)):
+                raise ModelError(f"{self.name}.{key}: must be a non-empty list of finite numbers "
+                                 f"(got {a.tolist()})")
+            if np.any(np.diff(a) <= 0):
+                raise ModelError(f"{self.name}.{key}: must be strictly increasing (got {a.tolist()})")
+        if np.any(V < 0):
+            raise ModelError(f"{self.name}.speed: must be >= 0 (the disc speed |Ω|; got {V.tolist()})")
+        if mu.ndim == 1 and 1 in (T.size, V.size):
+            mu = mu.reshape(T.size, V.size) if mu.size == T.size * V.size else mu
+        if mu.shape != (T.size, V.size):
+            raise ModelError(f"{self.name}.mu: must have one row per temperature and one column per speed, "
+                             f"shape ({T.size}, {V.size}) (got {mu.shape})")
+        _check(f"{self.name}.mu", mu)
+        object.__setattr__(self, "temperature", T)
+        object.__setattr__(self, "speed", V)
+        object.__setattr__(self, "mu", mu)
+
+    def check_range(self, temperature, speed) -> None:
+        """Refuse conditions outside the table (ModelError naming the variable, the value and the range)."""
+        for key, axis, x in (("temperature", self.temperature, np.asarray(temperature, float)),
+                             ("speed", self.speed, np.abs(np.asarray(speed, float)))):
+            if axis.size > 1:
+                out = (x < axis[0]) | (x > axis[-1]) | ~np.isfinite(x)
+                if np.any(out):
+                    raise ModelError(f"{self.name}: {key} {x[out].ravel()[0]:g} is outside the table's range "
+                                     f"[{axis[0]:g}, {axis[-1]:g}]")
+
+    def coefficient(self, temperature, speed) -> np.ndarray:
+        """μ at the conditions (T, Ω) (arrays broadcast together); the range is checked first."""
+        T, V = np.broadcast_arrays(np.asarray(temperature, float), np.abs(np.asarray(speed, float)))
+        self.check_range(T, V)
+        i, s = _interp_weights(self.temperature, T)
+        j, t = _interp_weights(self.speed, V)
+        mu = self.mu
+        i1 = np.minimum(i + 1, mu.shape[0] - 1)
+        j1 = np.minimum(j + 1, mu.shape[1] - 1)
+        m00, m10, m01, m11 = mu[i, j], mu[i1, j], mu[i, j1], mu[i1, j1]
+        # in differences from the corner: a constant table gives its value bit for bit
+        return m00 + s * (m10 - m00) + t * (m01 - m00) + s * t * (m11 - m10 - m01 + m00)
+
+
+def operating_mu(law, temperature, speed, radius: float = 0.0) -> np.ndarray:
+    """|μ| of a friction law at operating conditions (T, Ω): a :class:`ConstantFriction`'s μ, a
+    :class:`StribeckFriction`'s μ(V) at the sliding speed V = |Ω| r (``radius`` r [m] > 0), a
+    :class:`TableFriction`'s μ(T, Ω) (range checked)."""
+    T, V = np.broadcast_arrays(np.asarray(temperature, float), np.abs(np.asarray(speed, float)))
+    if isinstance(law, TableFriction):
+        return law.coefficient(T, V)
+    if isinstance(law, ConstantFriction):
+        return np.broadcast_to(np.asarray(law.mu, float), T.shape).copy()
+    if isinstance(law, StribeckFriction):
+        if not radius > 0:
+            raise ModelError(f"friction law radius: must be > 0 for a Stribeck law at a disc speed (got {radius})")
+        return law.coefficient(V * radius)[0]
+    raise ModelError(f"friction law: {type(law).__name__} has no coefficient at an operating condition")

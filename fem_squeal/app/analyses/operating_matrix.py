@@ -1,0 +1,371 @@
+"""The ``operating_matrix`` analysis (issue 39, first part): brake conditions swept like a dynamometer
+squeal test (SAE J2521) on the reduced model, with friction laws μ(T, Ω) per interface, and the
+noise-matrix report (occurrence of instability against 1/3-octave band and against each condition
+variable, the unstable modes per condition with their growth rates).
+
+The physics of a condition is in :mod:`fem_squeal.reduced.operating_matrix`: temperature and speed act
+through the friction laws (and the speed through the model's gyroscopic, centrifugal and friction-damping
+terms where Ω is a parameter), the direction turns the friction and gyroscopic terms.  The pressure is
+the scale of ``loads.pressure``; only the scene's pressure (1) is possible: the reduced model holds one
+contact state and preload (pressure continuation is not done).  ``verify``: full CEAs at the corner
+conditions, compared as analyses.reduced compares its check points.
+Files: operating_matrix_conditions.csv, operating_matrix_modes.csv, operating_matrix_bands.csv,
+operating_matrix.png (+ its .csv)."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fem_squeal.app import plots
+from fem_squeal.app.analyses.reduced import (
+    band_and_growth_tol,
+    full_cea,
+    mismatches,
+    parametric_operators,
+    speed_not_a_parameter,
+)
+from fem_squeal.app.fields import Field, one_of
+from fem_squeal.app.html import escape as _e
+from fem_squeal.app.html import num as _num
+from fem_squeal.app.html import table as _table
+from fem_squeal.app.stage import Context, Stage
+from fem_squeal.reduced.eigensolve import TWO_PI, unstable
+from fem_squeal.reduced.laws.friction import ConstantFriction, StribeckFriction, TableFriction
+from fem_squeal.reduced.operating_matrix import (
+    DIRECTIONS,
+    UNITS,
+    VARIABLES,
+    Conditions,
+    InterfaceLaw,
+    evaluate,
+    factorial,
+    from_table,
+    noise_matrix,
+    parameter_points,
+)
+from fem_squeal.util.atomic import write_csv_atomic
+from fem_squeal.util.errors import ModelError, SceneError
+
+NAME = "operating_matrix"
+_KEY = f"analyses.{NAME}"
+_VALUES = "a list of numbers or a range {start, stop, n}"
+SECTION = {
+    "pressure": Field((list, dict), [1.0], None, "scales of loads.pressure (" + _VALUES + "); only 1 (the "
+                      "scene's pressure) for now: other pressures need their own preload"),
+    "temperature": Field((list, dict), [20.0], None, f"disc temperatures [°C] ({_VALUES}); they act through "
+                         "the friction laws"),
+    "speed": Field((list, dict), [], None, f"disc speeds |Ω| [rad/s] ({_VALUES}); [] = operating.speed"),
+    "direction": Field(list, ["forward", "reverse"], None, "'forward' (the scene's sliding direction) and/or "
+                       "'reverse' (the disc turning the other way)"),
+    "design": Field(str, "factorial", one_of("factorial", "table"), "factorial: every combination of the "
+                    "lists; table: the rows of conditions"),
+    "conditions": Field(list, [], None, "design = 'table': [{pressure, temperature, speed, direction}, ...]"),
+    "friction": Field(dict, {}, None, "friction laws μ(T, Ω): default = {...} (every frictional interface "
+                      "without its own) and <interface> = {...}; a law is {law = 'constant', mu}, {law = "
+                      "'stribeck', mu_s, mu_d, v_s, v_d, radius [m]} (V = |Ω| radius) or {law = 'table', "
+                      "temperature = [...], speed = [...], mu = [[...], ...]} (bilinear, one row per temperature, "
+                      "no extrapolation); {} = the scene's μ everywhere"),
+    "verify": Field(bool, False, None, "full CEAs at the corner conditions, compared with the reduced"),
+}
+
+
+def _values(v, key: str) -> list[float]:
+    """A list of numbers, or the range {start, stop, n} (n ≥ 1 values, linspace)."""
+    if isinstance(v, dict):
+        unknown = sorted(set(v) - {"start", "stop", "n"})
+        if unknown or not {"start", "stop", "n"} <= set(v):
+            raise SceneError(f"{key}: a range is {{start, stop, n}} (got {v!r})")
+        n = v["n"]
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise SceneError(f"{key}.n: must be an integer >= 1 (got {n!r})")
+        return np.linspace(float(v["start"]), float(v["stop"]), n).tolist()
+    if not v or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in v):
+        raise SceneError(f"{key}: must be {_VALUES} (got {v!r})")
+    return [float(x) for x in v]
+
+
+def conditions(scene) -> Conditions:
+    """The conditions of the section (factorial design or table); speed [] = operating.speed."""
+    a = scene.analyses[NAME]
+    try:
+        if a["design"] == "table":
+            if not a["conditions"]:
+                raise SceneError(f"{_KEY}.conditions: design = 'table' needs at least one condition")
+            rows = [dict(r) for r in a["conditions"]]
+            for i, r in enumerate(rows):
+                if not isinstance(r, dict):
+                    raise SceneError(f"{_KEY}.conditions[{i}]: must be a table {{{', '.join(VARIABLES)}}}")
+                r.setdefault("pressure", 1.0)
+                r.setdefault("speed", scene.operating.speed)
+            return from_table(rows)
+        speed = _values(a["speed"], f"{_KEY}.speed") if a["speed"] else [float(scene.operating.speed)]
+        for d in a["direction"]:
+            if d not in DIRECTIONS:
+                raise SceneError(f"{_KEY}.direction: must be a list of {list(DIRECTIONS)} (got {d!r})")
+        if not a["direction"]:
+            raise SceneError(f"{_KEY}.direction: must not be empty")
+        return factorial(_values(a["pressure"], f"{_KEY}.pressure"),
+                         _values(a["temperature"], f"{_KEY}.temperature"), speed, a["direction"])
+    except ModelError as e:
+        raise SceneError(f"{_KEY}.{e}") from None
+
+
+def _law(spec, key: str) -> InterfaceLaw:
+    """One friction law of the section (SceneError naming the key)."""
+    if not isinstance(spec, dict):
+        raise SceneError(f"{key}: must be a table {{law = ..., ...}}")
+    kind = spec.get("law", "table")
+    allowed = {"constant": {"law", "mu"}, "stribeck": {"law", "mu_s", "mu_d", "v_s", "v_d", "radius"},
+               "table": {"law", "temperature", "speed", "mu"}}
+    if kind not in allowed:
+        raise SceneError(f"{key}.law: must be one of {list(allowed)} (got {kind!r})")
+    unknown = sorted(set(spec) - allowed[kind])
+    if unknown:
+        raise SceneError(f"{key}.{unknown[0]}: unknown key for law = {kind!r}; allowed: {sorted(allowed[kind])}")
+    missing = sorted(allowed[kind] - set(spec) - {"law"})
+    if missing:
+        raise SceneError(f"{key}.{missing[0]}: required for law = {kind!r}")
+    try:
+        if kind == "constant":
+            return InterfaceLaw(ConstantFriction(float(spec["mu"])))
+        if kind == "stribeck":
+            law = StribeckFriction(*(float(spec[k]) for k in ("mu_s", "mu_d", "v_s", "v_d")))
+            if not float(spec["radius"]) > 0:
+                raise SceneError(f"{key}.radius: must be > 0 (got {spec['radius']})")
+            return InterfaceLaw(law, float(spec["radius"]))
+        return InterfaceLaw(TableFriction(spec["temperature"], spec["speed"], spec["mu"], name=key))
+    except (TypeError, ValueError) as e:
+        msg = str(e)
+        if isinstance(e, ModelError) and msg.startswith(key):
+            raise SceneError(msg) from None
+        raise SceneError(f"{key}: {msg}") from None
+
+
+def friction_laws(scene) -> tuple[InterfaceLaw | None, dict[str, InterfaceLaw]]:
+    """(the default law or None, the laws by interface name) of the section."""
+    spec = scene.analyses[NAME]["friction"]
+    default = _law(spec["default"], f"{_KEY}.friction.default") if "default" in spec else None
+    sliding = sorted(n for n, u in scene.interfaces.items() if u.get("sliding", 0) and u.get("mu", 0))
+    laws = {}
+    for name, s in spec.items():
+        if name == "default":
+            continue
+        t = scene.interfaces.get(name)
+        if name not in sliding or t["type"] not in ("contact", "rigid_plate"):
+            raise SceneError(f"{_KEY}.friction.{name}: not a sliding interface with friction; those: {sliding}")
+        laws[name] = _law(s, f"{_KEY}.friction.{name}")
+    return default, laws
+
+
+def friction_values(scene, cond: Conditions) -> dict[str, np.ndarray]:
+    """|μ| of every law at every condition (the range checks: a named error before any computation)."""
+    default, laws = friction_laws(scene)
+    out = {}
+    try:
+        for name, law in {**({"default": default} if default is not None else {}), **laws}.items():
+            out[name] = law.mu(cond.temperature, cond.speed)
+    except ModelError as e:
+        raise SceneError(f"{_KEY}.friction: {e}" if not str(e).startswith(_KEY) else str(e)) from None
+    return dict(sorted(out.items()))
+
+
+def check(scene, volumes) -> None:
+    """The conditions, the friction laws and their ranges, the pressure (only the scene's) and the speed
+    (other speeds need Ω as a parameter of the reduced model, unless nothing but μ depends on it)."""
+    cond = conditions(scene)
+    friction_values(scene, cond)
+    other = sorted(set(cond.pressure.tolist()) - {1.0})
+    if other:
+        raise SceneError(f"{_KEY}.pressure: only 1 (the scene's loads.pressure) is possible: the reduced model "
+                         f"is built about one preload and contact state, and the pressure continuation is not "
+                         f"implemented; run one scene per pressure (got {other})")
+    speeds = set(cond.speed.tolist()) - {float(scene.operating.speed)}
+    why = speed_not_a_parameter(scene)
+    terms = scene.operating.gyroscopic or any(t.get("friction_damping") for t in scene.interfaces.values())
+    if speeds and why and terms:
+        raise SceneError(f"{_KEY}.speed: other speeds than operating.speed need the speed as a parameter of the "
+                         f"reduced model: {why}")
+    spec = scene.analyses[NAME]["friction"]
+    own = [n for n, t in scene.interfaces.items() if t.get("friction", "constant") != "constant"
+           and "default" not in spec and n not in spec]
+    if speeds and own:
+        law = scene.interfaces[own[0]]["friction"]
+        raise SceneError(f"{_KEY}.friction: interfaces.{own[0]} has a μ(V) law ({law!r}) that the reduced model "
+                         f"holds at operating.speed only; give its law at the conditions "
+                         f"({_KEY}.friction.{own[0]} or .default)")
+    if terms and np.any(cond.speed <= 0):
+        raise SceneError(f"{_KEY}.speed: must be > 0 with gyroscopic or friction-damping terms")
+
+
+def _full_cea(par, point: dict, reverse: bool, band, nev: int, options) -> tuple[np.ndarray, float]:
+    """The full CEA's eigenvalues at ``point`` (:func:`~fem_squeal.app.analyses.reduced.full_cea`),
+    with the gyroscopic term turned for the reverse direction (C(−Ω) = C(|Ω|) − 2|Ω|G)."""
+    G = par.operating.G if par.operating is not None else None
+    if not reverse or G is None:
+        return full_cea(par, point, band, nev, options)
+    from fem_squeal.fe.assembly import combination  # heavy: FE stack
+    from fem_squeal.fe.eigen import solve_complex_modes  # heavy: FE stack
+
+    Ki = par.loss_stiffness(point)
+    if Ki is not None:
+        Ki.destroy()
+        raise ModelError("verify: the reverse direction with a gyroscopic term and a loss factor is not checked "
+                         "(the full problem of twice the size has no turned gyroscopic term here)")
+    t = time.perf_counter()
+    Kt, Ct = par.terms(point)
+    Ct = [(A, -c if A is G else c) for A, c in Ct]
+    K, C = combination(Kt), combination(Ct)
+    target = np.sqrt(0.5 * (band[0] ** 2 + band[1] ** 2))
+    cm = solve_complex_modes(K, par.ops.M, C, nev, target, band_hz=tuple(band), options=options,
+                             prefix="verify_", progress=True)
+    lam = cm.eigenvalues
+    for A in (K, C, *cm.vectors_re, *cm.vectors_im):
+        A.destroy()
+    return lam, time.perf_counter() - t
+
+
+def verify_corners(ctx: Context, model, res, points: dict, band, gt: float) -> list[dict]:
+    """Full CEAs at the corner conditions against the reduced eigenvalues (as analyses.reduced.verify:
+    worst relative error of the unstable full eigenvalues, of all in the band when none is unstable)."""
+    from fem_squeal.fe.projection import relative_change  # heavy: FE stack
+
+    cond = res.conditions
+    par = parametric_operators(ctx, model.mu0, sorted(model.K_parts))
+    rows = []
+    try:
+        for k in cond.corners():
+            point = {n: float(v[k]) for n, v in points.items()}
+            lam_r = res.eigenvalues[k]
+            f = lam_r.imag / TWO_PI
+            lam_r = lam_r[(f >= band[0]) & (f <= band[1])]
+            full, seconds = _full_cea(par, point, cond.direction[k] < 0, band, len(lam_r) + 2,
+                                      ctx.scene.solver.petsc_options)
+            bad = unstable(full, gt)
+            watched = full[bad] if bad.any() else full
+            rows.append({"condition": k, **cond.row(k), "point": point, "n_full": int(full.size),
+                         "n_unstable_full": int(bad.sum()), "n_unstable_reduced": int(unstable(lam_r, gt).sum()),
+                         "max_rel_error": relative_change(watched, lam_r), "full_cea_s": seconds})
+            ctx.say(f"[fem_squeal] operating matrix corner {k}: reduced vs full {rows[-1]['max_rel_error']:.1e}, "
+                    f"unstable {rows[-1]['n_unstable_reduced']}/{rows[-1]['n_unstable_full']}")
+    finally:
+        par.destroy()
+    return rows
+
+
+def _write_tables(work: Path, res, mus: dict, noise: dict) -> None:
+    cond = res.conditions
+    head = ["condition", *VARIABLES, *(f"mu_{n}" for n in mus), "n_unstable", "max_growth_rate"]
+    cols = [np.arange(cond.size), cond.pressure, cond.temperature, cond.speed,
+            np.where(cond.direction > 0, "forward", "reverse"), *mus.values(), np.array(noise["n_unstable"]),
+            np.array([np.nan if g is None else g for g in noise["max_growth_rate"]])]
+    write_csv_atomic(work / "operating_matrix_conditions.csv", head, cols)
+    m = noise["modes"]
+    write_csv_atomic(work / "operating_matrix_modes.csv",
+                     ["condition", "frequency_hz", "growth_rate", "damping_ratio"],
+                     [np.array([r[k] for r in m], float) for k in ("condition", "frequency_hz", "growth_rate",
+                                                                    "damping_ratio")])
+    b = noise["third_octave"]
+    write_csv_atomic(work / "operating_matrix_bands.csv",
+                     ["band_hz", "lower_hz", "upper_hz", "conditions", "occurrence", "in_model_band"],
+                     [np.array([r[k] for r in b], float) for k in ("band_hz", "lower_hz", "upper_hz", "conditions",
+                                                                    "occurrence", "in_model_band")])
+
+
+def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
+    """analyses.operating_matrix: every condition on the reduced model, the noise matrix, its tables and
+    plot, and the corner checks against full CEAs when asked."""
+    scene, model = ctx.scene, ctx.reduced_model()
+    a = scene.analyses[NAME]
+    band, gt = band_and_growth_tol(scene)
+    cond = conditions(scene)
+    mus = friction_values(scene, cond)
+    default, laws = friction_laws(scene)
+    try:
+        points = parameter_points(model, cond, laws, default)
+    except ModelError as e:
+        raise SceneError(f"{_KEY}.{e}") from None
+    res = evaluate(model, cond, points, ctx.comm)
+    timings[NAME] = res.seconds
+    noise = noise_matrix(res, band, gt)
+    out: dict[str, Any] = {"conditions": [cond.row(k) for k in range(cond.size)], "band_hz": list(band),
+                           "seconds": res.seconds, "seconds_per_condition": res.seconds * res.ranks / cond.size,
+                           "mu": {n: v.tolist() for n, v in mus.items()}, **noise,
+                           "squeal_index": "not available: the reduced model carries no radiation (ERP); "
+                                           "the CEA's nvh section ranks the nominal point's modes"}
+    ctx.say(f"[fem_squeal] operating matrix: {cond.size} conditions in {res.seconds:.2f} s, "
+            f"{noise['unstable_conditions']} with instability")
+    if a["verify"]:
+        t = time.perf_counter()
+        out["verification"] = verify_corners(ctx, model, res, points, band, gt)
+        timings[f"{NAME}_verify"] = time.perf_counter() - t
+    if ctx.comm.rank == 0:
+        _write_tables(work, res, mus, noise)
+        m = noise["modes"]
+        plots.noise_matrix(work / "operating_matrix.png", noise, np.array([r["frequency_hz"] for r in m]),
+                           np.array([r["growth_rate"] for r in m]), np.array([r["condition"] for r in m]),
+                           scene.title)
+    return {NAME: out}
+
+
+def verification_failures(res: dict, tol: float) -> list[str]:
+    """Corner conditions where the reduced model misses the full CEA (relative error above ``tol`` or a
+    different number of unstable modes)."""
+    return mismatches(res.get("verification", []), tol, "operating matrix: ",
+                      where=lambda r: f"condition {r['condition']} ({r['temperature']:g} °C, "
+                                      f"{r['speed']:g} rad/s, {r['direction']})")
+
+
+def report(res: dict) -> str:
+    """The report section (HTML): the summary, the 1/3-octave occurrence, the occurrence per variable,
+    the unstable modes per condition and the corner checks."""
+    if NAME not in res:
+        return ""
+    r = res[NAME]
+    txt = (f"<h2>Operating matrix</h2><p>{r['n_conditions']} conditions on the reduced model in "
+           f"{_num(r['seconds'])} s; {r['unstable_conditions']} ({100 * r['occurrence']:.0f} %) with an unstable "
+           f"mode in {_num(r['band_hz'][0])}–{_num(r['band_hz'][1])} Hz. "
+           f"Squeal index: {_e(r['squeal_index'])}.</p>"
+           '<p><img src="operating_matrix.png" alt="noise matrix" style="max-width:100%"></p>')
+    txt += "<h3>Occurrence per 1/3-octave band</h3>" + _table(
+        ["band [Hz]", "conditions", "occurrence [%]", "inside the model's band"],
+        [[b["band_hz"], b["conditions"], 100 * b["occurrence"], b["in_model_band"]] for b in r["third_octave"]])
+    rows = [[v, f"{x['value']} {UNITS[v]}".strip() if not isinstance(x["value"], str) else x["value"],
+             x["conditions"], x["unstable"], 100 * x["occurrence"]]
+            for v, xs in r["by_variable"].items() for x in xs]
+    txt += "<h3>Occurrence per condition variable</h3>" + _table(
+        ["variable", "value", "conditions", "with instability", "occurrence [%]"], rows)
+    modes: dict[int, list] = {}
+    for m in r["modes"]:
+        modes.setdefault(m["condition"], []).append(m)
+    crow = []
+    for k, c in enumerate(r["conditions"]):
+        ms = modes.get(k, [])
+        crow.append([k, c["temperature"], c["speed"], c["direction"], len(ms),
+                     ", ".join(f"{m['frequency_hz']:.0f} Hz ({m['growth_rate']:.3g}/s)" for m in ms) or "—"])
+    txt += "<h3>Unstable modes per condition</h3>" + _table(
+        ["condition", "T [°C]", "|Ω| [rad/s]", "direction", "unstable", "f (growth rate Re λ)"], crow)
+    if r.get("verification"):
+        txt += "<h3>Reduced vs full CEA at the corners</h3>" + _table(
+            ["condition", "T [°C]", "|Ω| [rad/s]", "direction", "max rel. error", "unstable full",
+             "unstable reduced"],
+            [[v["condition"], v["temperature"], v["speed"], v["direction"], v["max_rel_error"],
+              v["n_unstable_full"], v["n_unstable_reduced"]] for v in r["verification"]])
+    return txt
+
+
+@dataclass(frozen=True)
+class _OperatingMatrixStage(Stage):
+    """The stage needs the preload's in-memory operators only for its corner checks (``verify``)."""
+
+    def needs_of(self, scene) -> tuple[str, ...]:
+        needs = super().needs_of(scene)
+        return needs if scene.analyses[self.name]["verify"] else tuple(n for n in needs if n != "preload")
+
+
+STAGE = _OperatingMatrixStage(NAME, ("reduced", "preload"), run, "operating matrix (pressure, temperature, speed, "
+                              "direction) on the reduced model: the noise matrix", section=SECTION, check=check,
+                              report=report)

@@ -1,0 +1,97 @@
+"""The scene keys of analyses.operating_matrix: the conditions and friction laws it makes, bad values named
+by their key before any computation (a condition outside a friction table, a pressure other than the
+scene's), and its report section."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from support.paths import ROOT
+
+from fem_squeal.app.analyses import operating_matrix as om
+from fem_squeal.app.scene import load_scene
+from fem_squeal.reduced.laws.friction import TableFriction
+from fem_squeal.reduced.model import ReducedModel
+from fem_squeal.reduced.operating_matrix import (
+    InterfaceLaw,
+    MatrixResult,
+    evaluate,
+    noise_matrix,
+    parameter_points,
+)
+from fem_squeal.util.errors import SceneError
+
+SCENE = ROOT / "scenes" / "brake_operating_matrix.toml"
+
+
+def test_bundled_scene_conditions_and_laws():
+    scene = load_scene(SCENE)
+    cond = om.conditions(scene)
+    assert cond.size == 24 and len(cond.corners()) == 8
+    mus = om.friction_values(scene, cond)
+    assert list(mus) == ["default"] and mus["default"][0] == pytest.approx(  # 50 °C, 10 rad/s
+        0.45 + 0.25 * (0.40 - 0.45) + (10 / 150) * (0.42 - 0.45) + 0.25 * (10 / 150) * (0.38 - 0.40 - 0.42 + 0.45))
+    ranged = load_scene(SCENE, ["analyses.operating_matrix.temperature={start = 50.0, stop = 350.0, n = 7}"])
+    c = om.conditions(ranged)
+    assert c.size == 42 and np.unique(c.temperature).tolist() == [50.0, 100.0, 150.0, 200.0, 250.0, 300.0, 350.0]
+
+
+@pytest.mark.parametrize("override, message", [
+    ("analyses.operating_matrix.pressure=[1.0, 2.0]",
+     r"^analyses\.operating_matrix\.pressure: only 1 \(the scene's loads\.pressure\) is possible"
+     r".*\(got \[2\.0\]\)"),
+    ("analyses.operating_matrix.pressure=[-1.0]",
+     r"^analyses\.operating_matrix\.conditions\.pressure: must be > 0"),
+    ("analyses.operating_matrix.temperature=[50.0, 450.0]",
+     r"^analyses\.operating_matrix\.friction\.default: temperature 450 is outside the table's range \[0, 400\]"),
+    ("analyses.operating_matrix.speed=[10.0, 200.0]",
+     r"^analyses\.operating_matrix\.friction\.default: speed 200 is outside the table's range \[0, 150\]"),
+    ("analyses.operating_matrix.direction=['backward']",
+     r"^analyses\.operating_matrix\.direction: must be a list of \['forward', 'reverse'\]"),
+    ("analyses.operating_matrix.temperature={start = 1.0, n = 3}",
+     r"^analyses\.operating_matrix\.temperature: a range is \{start, stop, n\}"),
+    ("analyses.operating_matrix.friction.default.law='polynomial'",
+     r"^analyses\.operating_matrix\.friction\.default\.law: must be one of \['constant', 'stribeck', 'table'\]"),
+    ("analyses.operating_matrix.friction.default.mu=[[0.4, 0.4]]",
+     r"^analyses\.operating_matrix\.friction\.default\.mu: must have one row per temperature"),
+    ("analyses.operating_matrix.friction.piston_seal={law = 'constant', mu = 0.3}",
+     r"^analyses\.operating_matrix\.friction\.piston_seal: not a sliding interface with friction; those: "
+     r"\['pad_inner', 'pad_outer'\]"),
+    ("analyses.operating_matrix.friction.pad_inner="
+     "{law = 'stribeck', mu_s = 0.5, mu_d = 0.4, v_s = 0.1, v_d = 1.0}",
+     r"^analyses\.operating_matrix\.friction\.pad_inner\.radius: required for law = 'stribeck'"),
+])
+def test_bad_values_name_the_key(override, message):
+    with pytest.raises(SceneError, match=message):
+        load_scene(SCENE, [override])
+
+
+def test_report_section_from_results():
+    a = 2 * np.pi ** 2 * (1100.0 ** 2 - 1000.0 ** 2) * 2
+    model = ReducedModel(K0=np.diag([(2 * np.pi * 1000.0) ** 2, (2 * np.pi * 1100.0) ** 2]),
+                         Kf1=np.array([[0.0, a], [-a, 0.0]]), mu0=0.3)
+    law = InterfaceLaw(TableFriction([0.0, 300.0], [0.0], [[0.7], [0.3]]))
+    cond = om.factorial([1.0], [0.0, 300.0], [0.0], ["forward", "reverse"])
+    res: MatrixResult = evaluate(model, cond, parameter_points(model, cond, {}, law))
+    noise = noise_matrix(res, (0.0, 10000.0), 1e-6)
+    html = om.report({"operating_matrix": {"conditions": [cond.row(k) for k in range(cond.size)],
+                                           "band_hz": [0.0, 10000.0], "seconds": res.seconds,
+                                           "squeal_index": "not available", **noise,
+                                           "verification": [{"condition": 0, **cond.row(0), "max_rel_error": 1e-5,
+                                                             "n_unstable_full": 1, "n_unstable_reduced": 1}]}})
+    assert "<h2>Operating matrix</h2>" in html and "2 (50 %) with an unstable mode" in html
+    assert "Reduced vs full CEA at the corners" in html and html.count("<tr>") > 13 + 4 + 4
+    assert om.verification_failures({"verification": [{"condition": 3, **cond.row(3), "max_rel_error": 2e-3,
+                                                       "n_unstable_full": 1, "n_unstable_reduced": 0}]}, 1e-3) == [
+        "operating matrix: reduced vs full at condition 3 (300 °C, 0 rad/s, reverse): 2.0e-03 > tol 0.001",
+        "operating matrix: 0 unstable reduced vs 1 full at condition 3 (300 °C, 0 rad/s, reverse)"]
+
+
+def test_a_scene_speed_law_needs_its_law_at_the_conditions():
+    stribeck = ["interfaces.pad_inner.friction='stribeck'", "interfaces.pad_outer.friction='stribeck'",
+                "operating.gyroscopic=false", "analyses.operating_matrix.friction={}"]
+    with pytest.raises(SceneError, match=r"^analyses\.operating_matrix\.friction: interfaces\.pad_inner has a "
+                                         r"μ\(V\) law \('stribeck'\) that the reduced model holds at "
+                                         r"operating\.speed only; .*"
+                                         r"\(analyses\.operating_matrix\.friction\.pad_inner"):
+        load_scene(SCENE, stribeck)
+    load_scene(SCENE, stribeck + ["analyses.operating_matrix.speed=[60.0]"])   # the scene's speed: fine

@@ -70,6 +70,8 @@ class Stage:
     #: :mod:`fem_squeal.app.analyses.matrices`): it then needs the ``matrices`` stage alone; None: the
     #: analysis is not available there
     on_matrices: StageFunction | None = None
+    #: its section ``analyses.<name>`` on a model given as matrices, where it differs (None: :attr:`section`)
+    section_on_matrices: dict[str, Field] | None = None
 
     def needs_of(self, scene) -> tuple[str, ...]:
         """The stages this one needs in ``scene``: ``("matrices",)`` where the model is given as matrices

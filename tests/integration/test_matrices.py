@@ -1,6 +1,7 @@
 """A parametric QEP given only as matrices and expressions (scenes/matrices_brake.toml): the CEA and the
 real modes of the scene run equal a direct dense solve of the assembled problem with SciPy (1e-10
-relative), at two points of the parameter W, and 1 and 2 ranks give the same results."""
+relative), at two points of the parameter W, and 1 and 2 ranks give the same results; the sweep of W on
+the reduced model (real modes + static corrections, or snapshots) against the full problem (1e-6)."""
 from __future__ import annotations
 
 import json
@@ -14,7 +15,11 @@ from support.paths import ROOT
 from support.processes import clean_env
 
 from fem_squeal.app.run import run_scene
-from fem_squeal.app.scene import load_scene
+from fem_squeal.app.scene import apply_overrides, load_scene, read_scene, validate
+from fem_squeal.reduced.matrix_model import matrix_model
+from fem_squeal.reduced.matrix_reduction import reduce_matrix_model
+from fem_squeal.reduced.sweep import solve_points
+from fem_squeal.util.errors import SceneError
 
 SCENE = ROOT / "scenes" / "matrices_brake.toml"
 sys.path.insert(0, str(ROOT / "scenes" / "matrices"))
@@ -33,17 +38,24 @@ def dense_reference(W: float) -> tuple[np.ndarray, np.ndarray]:
     return lam[lam.imag > 0], sl.eigh(0.5 * (K + K.T), M, eigvals_only=True)
 
 
+OUT = {}
+
+
 def eigenvalues(res: dict) -> np.ndarray:
     return np.array([c["real_part"] + 2j * np.pi * c["freq_hz"] for c in res["complex_modes"]])
 
 
 @pytest.fixture(scope="module")
 def serial(tmp_path_factory):
-    """The scene run at W = 1 and W = 2.5 (one rank, in this process)."""
+    """The scene run at W = 1 and W = 2.5 (one rank, in this process; the output folders in OUT)."""
     out = {}
     for W in (1.0, 2.5):
         tmp = tmp_path_factory.mktemp(f"w{W}")
-        scene = load_scene(SCENE, [f"matrices.parameters.W.value={W}"])
+        OUT[W] = tmp / "out"
+        raw = apply_overrides(read_scene(SCENE), [f"matrices.parameters.W.value={W}"])
+        if W != 1.0:
+            del raw["analyses"]["sweep"]        # the sweep: at W = 1 only
+        scene = validate(raw)
         out[W] = run_scene(scene, tmp / "out", write_fields=False, log=lambda *a, **k: None, cache=tmp / "cache",
                            report=False)
     return out
@@ -74,6 +86,7 @@ def test_parameter_moves_the_unstable_pair(serial):
 def test_two_ranks_equal_one(serial, mpirun, tmp_path):
     p = subprocess.run(mpirun + [sys.executable, "-m", "fem_squeal.cli", "--cache-dir", str(tmp_path / "cache"),
                                  "--log-level", "warning", "run", str(SCENE), "-o", str(tmp_path / "out"),
+                                 "--set", "analyses.sweep.n=11", "--set", "analyses.sweep.check_points=0",
                                  "--no-report"], capture_output=True, text=True, env=clean_env(), cwd=ROOT,
                        timeout=300)
     assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
@@ -85,3 +98,66 @@ def test_two_ranks_equal_one(serial, mpirun, tmp_path):
     fa, fb = (np.array([r["freq_hz"] for r in x["real_modes"]]) for x in (one, two))
     assert np.max(np.abs(fa - fb) / fa) <= 1e-10
     assert [c["unstable"] for c in one["complex_modes"]] == [c["unstable"] for c in two["complex_modes"]]
+    la, sa = _sweep_branches(OUT[1.0])         # the same sweep (the basis is built on rank 0): 11 of its
+    lb, sb = _sweep_branches(tmp_path / "out")  # 51 values on 2 ranks, the same eigenvalues there
+    assert np.allclose(sa["values"][::5], sb["values"], rtol=1e-14)
+    la, lb = np.sort_complex(la[:, ::5].T), np.sort_complex(lb.T)
+    assert la.shape == lb.shape and np.max(np.abs(la - lb) / np.abs(la)) <= 1e-8
+    assert np.allclose([c["value"] for c in sa["critical"]], [c["value"] for c in sb["critical"]], rtol=1e-8)
+
+
+def _sweep_branches(folder) -> tuple[np.ndarray, dict]:
+    s = json.loads((folder / "sweep.json").read_text())
+    lam = np.array([np.array(b["real_part"]) + 2j * np.pi * np.array(b["freq_hz"]) for b in s["branches"]])
+    return lam, s
+
+
+def test_sweep_on_the_reduced_model_equals_the_full_problem(serial):
+    """The sweep's tracked eigenvalues (every 10th value) equal the dense solve of the full problem within
+    1e-6, its check against the full sparse CEA passed, and at each critical value the full problem has a
+    root on the imaginary axis (|Re λ| <= growth_tol |λ|) near the reported frequency (that of the grid value
+    next to it on its unstable side)."""
+    res = serial[1.0]
+    red = res["sweep_reduction"]
+    assert red["basis"] == "modes" and red["passed"] and len(red["verification"]) == 3
+    assert red["max_rel_error"] <= 1e-6
+    lam, s = _sweep_branches(OUT[1.0])
+    for k in range(0, len(s["values"]), 10):
+        ref, _ = dense_reference(s["values"][k])
+        assert np.max(np.min(np.abs(lam[:, k, None] - ref[None, :]), axis=1) / np.abs(lam[:, k])) <= 1e-6
+    crit = res["sweep"]["critical"]
+    assert [round(c["value"], 3) for c in crit] == [0.578, 1.911]
+    for c in crit:
+        ref, _ = dense_reference(c["value"])
+        near = ref[np.argmin(np.abs(ref.imag / (2 * np.pi) - c["freq_hz"]))]
+        assert abs(near.real) <= 1e-6 * abs(near)
+        assert abs(near.imag / (2 * np.pi) - c["freq_hz"]) < 1e-3 * c["freq_hz"]
+
+
+def test_snapshot_basis_of_the_non_symmetric_problem():
+    """Eigenvectors of the non-symmetric problem at 5 values of W (14 each, near 600 Hz) span a basis
+    that gives the eigenvalues in 400-700 Hz over the range within 1e-6."""
+    mats = matrices()
+    model = matrix_model({"M": "M", "C": "D1 + W*DG + (1/W - 1)*DR + D4/(2*pi*1600)",
+                          "K": "K1 + KR + (W**2 - 1)*KGEO"}, list(mats), {"W": 1.0}, {"W": (0.5, 3.0)})
+    r = reduce_matrix_model(model, mats, basis="snapshots", snapshot_modes=14, target_hz=600.0,
+                            snapshot_points=[{"W": w} for w in np.linspace(0.5, 3.0, 5)])
+    assert r.info["basis"] == "snapshots" and r.size < 48
+    for W in (0.7, 2.2):
+        lam = solve_points(r, {"W": np.array([W])})[0]
+        ref, _ = dense_reference(W)
+        ref = ref[(ref.imag / (2 * np.pi) > 400) & (ref.imag / (2 * np.pi) < 700)]
+        assert np.max(np.min(np.abs(ref[:, None] - lam[None, :]), axis=1) / np.abs(ref)) <= 1e-6
+
+
+@pytest.mark.parametrize("sets, message", [
+    (["analyses.sweep.parameter='X'"], "analyses.sweep.parameter: 'X' is not a parameter"),
+    (["analyses.sweep.points=[0.5, 1.0]", "analyses.sweep.range=[0.5, 1.0]"],
+     "analyses.sweep.points: give points or range, not both"),
+    (["analyses.sweep.points=[0.0, 1.0]"],
+     "analyses.sweep.points: matrices.C: the coefficient 1.0 / W - 1.0 of DR is not a finite"),
+    (["analyses.sweep.basis='pod'"], "analyses.sweep.basis: must be one of"),
+])
+def test_sweep_bad_input_is_a_named_error(sets, message):
+    with pytest.raises(SceneError, match=message.replace("[", r"\[")):
+        load_scene(SCENE, sets)

@@ -3,7 +3,8 @@ every branch tracked by MAC continuation (:func:`fem_squeal.reduced.tracking.tra
 critical values refined (by default only as far as the reduced model's estimated error warrants:
 the parameter step over which the eigenvalue moves by that error; ``refine_tol`` asks for more).
 Files: sweep.json, root_locus.png, complex_plane.png and sweep_coupling.png (the real modes of the basis
-that merge at each change of stability: :func:`fem_squeal.reduced.mode_coupling.coupling_at`)."""
+that merge at each change of stability: :func:`fem_squeal.reduced.mode_coupling.coupling_at`).  On a model
+given as matrices: :mod:`fem_squeal.app.analyses.matrix_sweep`."""
 from __future__ import annotations
 
 import time
@@ -13,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from fem_squeal.app import plots
+from fem_squeal.app.analyses import matrix_sweep
 from fem_squeal.app.analyses.reduced import band_and_growth_tol, speed_not_a_parameter
 from fem_squeal.app.fields import REAL, Field, at_least, increasing, positive
 from fem_squeal.app.html import escape as _e
@@ -103,7 +105,10 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
 
 
 def check(scene: dict, volumes) -> None:
-    """The swept parameter is μ or the Young's modulus of a part of the model (> 0)."""
+    """The swept parameter is μ or the Young's modulus of a part of the model (> 0); on a model given as
+    matrices: :func:`fem_squeal.app.analyses.matrix_sweep.check`."""
+    if "matrices" in scene:
+        return matrix_sweep.check(scene, volumes)
     s = scene.analyses["sweep"]
     par = s["parameter"]
     if par == SPEED:
@@ -128,7 +133,13 @@ def report(res: dict) -> str:
     if "sweep" not in res:
         return ""
     s = res["sweep"]
-    return (f"<h2>Sweep of {_e(s['parameter'])}</h2><p>{len(s['values'])} values, {s['solves']} reduced "
+    r = res.get("sweep_reduction")          # a model given as matrices: its reduced model and its check
+    how = "" if r is None else (
+        f"<p>Reduced model of the matrices: {r['basis']} basis of size {r['size']}; against the full sparse CEA "
+        f"at {len(r['verification'])} values the worst relative eigenvalue error is "
+        + (f"{r['max_rel_error']:.1e} (tol {r['tol']:g})." if r["max_rel_error"] is not None else "not checked.")
+        + "</p>")
+    return (f"<h2>Sweep of {_e(s['parameter'])}</h2>{how}<p>{len(s['values'])} values, {s['solves']} reduced "
                "solves; real modes: the modes of the reduced basis (nominal, frictionless) in the unstable "
                "eigenvector at the grid value next to the critical value on its unstable side.</p>" + _table(
                    ["value", "f [Hz]", "kind", "branches", "real modes"],
@@ -137,4 +148,4 @@ def report(res: dict) -> str:
 
 
 STAGE = Stage("sweep", ("reduced",), run, "one-parameter sweep with mode tracking", section=SECTION, check=check,
-              report=report)
+              report=report, on_matrices=matrix_sweep.run, section_on_matrices=matrix_sweep.SECTION)

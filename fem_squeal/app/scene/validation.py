@@ -137,7 +137,7 @@ def _matrix_scene(raw: dict, title: str) -> Scene:
     matrices = matrices_section(raw["matrices"])
     scene = freeze({"title": title, "matrices": matrices,
                     "solver": section(raw.get("solver", {}), SECTIONS["solver"], "solver"),
-                    "analyses": _analyses(raw["analyses"])}, None, "scene", base=Scene)
+                    "analyses": _analyses(raw["analyses"], on_matrices=True)}, None, "scene", base=Scene)
     cross_check(scene, {})
     return scene
 
@@ -309,15 +309,20 @@ def _plain_section(table: Any, sec: str, known_face: Callable[[str, str], None])
 _SECTION_READERS = {"boundary": _boundary, "loads": _loads}
 
 
-def _analyses(ana: dict) -> dict[str, Section]:
+def _analyses(ana: dict, on_matrices: bool = False) -> dict[str, Section]:
     """Each requested analysis checked against its section (from the registry
-    :mod:`fem_squeal.app.analyses`); the analyses they need added with their defaults where the
-    needed one says so (``Stage.pulled``: analyses.reduced), else required."""
+    :mod:`fem_squeal.app.analyses`; ``on_matrices``: a model given as matrices, ``Stage.section_on_matrices``
+    where a stage has one, and no needed analyses: they need the ``matrices`` stage alone); the analyses
+    they need added with their defaults where the needed one says so (``Stage.pulled``: analyses.reduced),
+    else required."""
     out = {}
     for name, table in ana.items():
         if name not in ANALYSES:
             raise SceneError(f"analyses.{name}: unknown analysis; available: {sorted(ANALYSES)}")
-        out[name] = section(table, ANALYSES[name].section, f"analyses.{name}")
+        fields = (on_matrices and ANALYSES[name].section_on_matrices) or ANALYSES[name].section
+        out[name] = section(table, fields, f"analyses.{name}")
+    if on_matrices:
+        return out
     pending = list(out)
     while pending:
         for dep in STAGES[pending.pop()].needs:

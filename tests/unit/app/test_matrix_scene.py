@@ -40,7 +40,7 @@ def test_example_scene_validates():
     assert s.matrices.dofs == 48
     assert s.matrices.files["DG"].variable == "DG" and s.matrices.files["DR"].variable == ""
     assert s.matrices.parameters["W"].range == [0.5, 3.0]
-    assert required(s) == ["matrices", "real_modes", "cea"]
+    assert required(s) == ["matrices", "real_modes", "cea", "sweep"]
     assert "geometry" not in s and s.spec is None
 
 
@@ -53,7 +53,8 @@ def test_cache_key_follows_the_content_not_the_path(scene_dir, tmp_path):
     c = stage_keys(load_scene(scene_dir / "scene.toml"), ["matrices", "cea"], version="v")
     assert c["matrices"] != a["matrices"] and c["cea"] != a["cea"]
     plan = make_plan(load_scene(SCENE), Cache(tmp_path / "cache"))
-    assert [(p.stage, p.status) for p in plan] == [("matrices", "run"), ("real_modes", "run"), ("cea", "run")]
+    assert [(p.stage, p.status) for p in plan] == [("matrices", "run"), ("real_modes", "run"), ("cea", "run"),
+                                                   ("sweep", "run")]
 
 
 def _bad(folder, change):
@@ -101,7 +102,8 @@ BAD = [
     ("geometry", lambda r: r.update(geometry={"builder": "annular_disc"}), SceneError,
      r"geometry: not used by a model given as matrices"),
     ("analysis", lambda r: r["analyses"].update(transient={}), SceneError,
-     r"analyses.transient: not available for a model given as matrices; available: \['cea', 'real_modes'\]"),
+     r"analyses.transient: not available for a model given as matrices; available: "
+     r"\['cea', 'real_modes', 'sweep'\]"),
 ]
 
 

@@ -626,6 +626,18 @@ def prepare(path: str | Path, *, parts: dict[str, list], faces: dict[str, list],
     return mapped, info
 
 
+def _bounding_box(points: np.ndarray, scale: float, info: dict) -> None:
+    """The bounding box into ``info``, and the millimetre warning when it spans more than
+    :data:`MM_SUSPECT_EXTENT` after scaling."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    info["bounding_box"] = [lo.tolist(), hi.tolist()]
+    extent = float(np.max(hi - lo))
+    if extent > MM_SUSPECT_EXTENT:
+        info["warnings"].append(
+            f"geometry.scale: the mesh spans {extent:.4g} m after scaling by {scale:g}; a brake is well under "
+            f"{MM_SUSPECT_EXTENT:g} m, so the file is probably in millimetres: set geometry.scale = 0.001")
+
+
 def _mapped(mf: MeshFile, parts, faces, info: dict) -> tuple[MappedMesh, dict]:
     """The sets of ``mf`` mapped to the scene's parts and faces, with their sizes in ``info``."""
     mapped = map_sets(mf, parts, faces)
@@ -641,13 +653,7 @@ def _prepare_split(path: str, mf: MeshFile, parts, faces, scale, center, axis, m
     if mf.split:
         info["file_elements"] = dict(mf.split["file_elements"])
         info["split"] = {k: v for k, v in mf.split.items() if k != "file_elements"}
-    lo, hi = mf.points.min(axis=0), mf.points.max(axis=0)
-    info["bounding_box"] = [lo.tolist(), hi.tolist()]
-    extent = float(np.max(hi - lo))
-    if extent > MM_SUSPECT_EXTENT:
-        info["warnings"].append(
-            f"geometry.scale: the mesh spans {extent:.4g} m after scaling by {scale:g}; a brake is well under "
-            f"{MM_SUSPECT_EXTENT:g} m, so the file is probably in millimetres: set geometry.scale = 0.001")
+    _bounding_box(mf.points, scale, info)
     q = tet_quality(mf.points, mf.cells, max_aspect_ratio)
     info["quality"] = {"worst_aspect_ratio": float(np.max(q.aspect_ratio)),
                        "worst_aspect_element": int(mf.cell_ids[np.argmax(q.aspect_ratio)]),
@@ -700,13 +706,7 @@ def _prepare_native(path: str, file: Path, fmt: str, raw: _Raw, parts, faces, sc
     info: dict = {"file": path, "format": fmt, "nodes": len(np.unique(conn)), "elements": len(conn),
                   "element": "hexahedron27" if conn.shape[1] == 27 else "hexahedron", "scale": scale,
                   "warnings": [], "file_elements": {mtype: len(conn)}}
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    info["bounding_box"] = [lo.tolist(), hi.tolist()]
-    extent = float(np.max(hi - lo))
-    if extent > MM_SUSPECT_EXTENT:
-        info["warnings"].append(
-            f"geometry.scale: the mesh spans {extent:.4g} m after scaling by {scale:g}; a brake is well under "
-            f"{MM_SUSPECT_EXTENT:g} m, so the file is probably in millimetres: set geometry.scale = 0.001")
+    _bounding_box(points, scale, info)
     ratio, aspect = hex_quality(points, conn)
     info["quality"] = {"worst_aspect_ratio": float(np.max(aspect)),
                        "worst_aspect_element": int(raw.ids[np.argmax(aspect)]),

@@ -83,7 +83,6 @@ class KeptFactorisation:
         self.factor_seconds = 0.0
         self.column_seconds: float | None = None
         self.columns_computed = 0
-        self.updated_solves = 0
         self._reference: dict[str, np.ndarray] = {}
         self._clear()
 
@@ -228,7 +227,6 @@ class KeptFactorisation:
             except np.linalg.LinAlgError:
                 return False
             x.array[:] -= self._Z[:, order] @ s
-        self.updated_solves += 1
         return self._residual(changes, x, b) <= UPDATE_RESIDUAL
 
     def _residual(self, changes, x: PETSc.Vec, b: PETSc.Vec) -> float:

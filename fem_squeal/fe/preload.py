@@ -133,8 +133,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
                     gn.array[:] *= it.friction_coefficient(op.x)
                     op.Gt1.multTransposeAdd(gn, R, R)
             if it.kt > 0:   # tangential penalty on the closed points: G_t₂ᵀ W k_t (G_t₂ u) (+ t₁ if stuck)
-                rows = [op.Gt2] if it.sliding != 0 else [op.Gt2, op.Gt1]
-                for Gt in rows:
+                for _, Gt in _penalty_tangents(it, op):
                     gt = Gt.createVecLeft()
                     Gt.mult(u, gt)
                     gt.array[:] *= op.weight * it.kt * (dsig > 0)
@@ -159,7 +158,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
                                f"(closed points, ‖R‖/‖f‖) per iteration: {history}")
         prev = closed
         R.scale(-1.0)
-        values = _family_values(ops, tangents, friction) if jacobian == "update" else {}
+        values = _family_values(ops, tangents) if jacobian == "update" else {}
         t_step = time.perf_counter()
         if kept is not None and kept.prepare(values) and kept.solve(R, du):
             u.axpy(1.0, du)
@@ -227,19 +226,25 @@ def _families(ops: Operators, friction: bool) -> list[RankOneFamily]:
             left.append((op.Gt1, it.mu if it.law is None else it.friction_coefficient(op.x)))
         out.append(RankOneFamily(f"{it.name}/normal", tuple(left), op.Gn))
         if it.kt > 0:
-            for name, Gt in ((("t2", op.Gt2),) if it.sliding != 0 else (("t2", op.Gt2), ("t1", op.Gt1))):
+            for name, Gt in _penalty_tangents(it, op):
                 out.append(RankOneFamily(f"{it.name}/{name}", ((Gt, 1.0),), Gt))
     return out
 
 
-def _family_values(ops: Operators, tangents: dict[str, np.ndarray], friction: bool) -> dict[str, np.ndarray]:
+def _penalty_tangents(it, op) -> list[tuple[str, PETSc.Mat]]:
+    """The tangents the penalty k_t acts along: t₂ (across the sliding direction) for a sliding
+    contact, t₂ and t₁ for a sticking one (sliding = 0); the residual, the families and their values."""
+    return [("t2", op.Gt2)] if it.sliding != 0 else [("t2", op.Gt2), ("t1", op.Gt1)]
+
+
+def _family_values(ops: Operators, tangents: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The families' d per point at this step: w σ' (normal) and w k_t χ (tangential, χ = closed)."""
     out = {}
     for it, op in ops.contacts:
         dsig = tangents[it.name]
         out[f"{it.name}/normal"] = op.weight * dsig
         if it.kt > 0:
-            for name in ("t2",) if it.sliding != 0 else ("t2", "t1"):
+            for name, _ in _penalty_tangents(it, op):
                 out[f"{it.name}/{name}"] = op.weight * it.kt * (dsig > 0)
     return out
 

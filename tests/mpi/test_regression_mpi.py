@@ -68,7 +68,9 @@ def test_two_ranks_give_the_same_eigenvalues(serial, mpirun, tmp_path):
     assert (out / "complex_modes.xdmf").exists() and (out / "complex_modes.h5").exists()
 
 
-@pytest.mark.parametrize("ranks", [1, 2])
+# serial behind the slow marker (13 s): the 2-rank run makes the same self-checks, and the scene's
+# rank independence is test_two_ranks_give_the_same_eigenvalues
+@pytest.mark.parametrize("ranks", [pytest.param(1, marks=pytest.mark.slow), 2])
 def test_ryzhik_demo_runs_and_checks_itself(ranks, mpirun, tmp_path):
     cmd = [sys.executable, str(ROOT / "demos" / "ryzhik_ring.py"), str(tmp_path)]
     if ranks == 2:

@@ -75,6 +75,9 @@ def test_transient_and_limit_cycle_in_the_linear_regime(results):
     assert any(f.startswith("run/chunk_") for f in out_files)
 
 
+# slow: 14 s; a changed option re-running its stage alone is the pipeline's rule, tested on the ring
+# (test_pipeline.py::test_ring_cache_recomputes_only_what_changed)
+@pytest.mark.slow
 @pytest.mark.mpi
 def test_changing_a_limit_cycle_option_reruns_that_stage_only(results):
     base, mpirun, first = results
@@ -135,6 +138,9 @@ def test_exponential_law_carries_the_preload(results):
         assert F.sum() == pytest.approx(full, rel=0.02)
 
 
+# slow: 15 s; the resume itself is tested on the reduced model (tests/unit/reduced/test_transient.py::
+# test_checkpoint_resume_and_failure) and a killed pipeline run's recovery on the pad (test_pipeline.py)
+@pytest.mark.slow
 @pytest.mark.mpi
 def test_killed_transient_resumes_from_its_checkpoint(results):
     """SIGKILL during the transient stage (reduced model cached, 3000 steps, checkpoints every

@@ -37,7 +37,7 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
                      max_residual: float = 1e-8, options: dict | None = None,
                      prefix: str = "real_", progress: bool = False, f_max_hz: float | None = None,
                      positive_definite: bool | None = None) -> RealModes:
-    """Real modes nearest ``target_hz``: K φ = ω² M φ, shift-and-invert at ω_t², by block Lanczos
+    """Real modes nearest ``target_hz``: K φ = ω² M φ, shift-and-invert at σ = ω_t², by block Lanczos
     on the factor's block solves (:func:`_block_lanczos`; ``<prefix>block_size``, 0: off), else, or
     where it does not converge within its vector budget or misses ``max_residual``, by SLEPc's
     Krylov–Schur on the same factorisation.  On one rank, unless a factorisation is named
@@ -51,15 +51,19 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     over, returns ``nev``.  ``positive_definite``: False where K − σM is known not to be (an earlier
     solve of these K, M at this or a lower σ came back from MUMPS: ``RealModes.solver``), so that
     CHOLMOD's LLᵀ is not tried again; None: not known.  The user's PETSc options (``options``, the
-    command line) apply for this solve only (:func:`fem_squeal.fe.factorisation.scoped_options`)."""
+    command line) apply for this solve only (:func:`fem_squeal.fe.factorisation.scoped_options`).
+    A negative ``target_hz`` shifts to σ = −(2π target)²: K − σM = K + |σ|M is positive definite
+    wherever K is semi-definite (free bodies), so CHOLMOD factorises it and every 1/(λ − σ) of the
+    modes from 0 up is positive (a small positive σ makes it indefinite there)."""
     if nev < 1:
         raise ModelError(f"n_modes: must be >= 1 (got {nev})")
     for A in (K, M):
         A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
     with scoped_options(eps_defaults(prefix, REAL_MODE_FACTOR, REAL_MODE_EPS), options):
         lam_max = None if f_max_hz is None else (TWO_PI * f_max_hz) ** 2
-        return _solve_real_modes(K, M, nev, (TWO_PI * target_hz) ** 2, tol, max_residual, prefix, progress,
-                                 lam_max, positive_definite is not False)
+        sigma = np.sign(target_hz) * (TWO_PI * target_hz) ** 2
+        return _solve_real_modes(K, M, nev, sigma, tol, max_residual, prefix, progress, lam_max,
+                                 positive_definite is not False)
 
 
 def _solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: float, max_residual: float,

@@ -50,7 +50,13 @@ def modes_below(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, *, n_start: int = 2
         for v in rm.vectors if rm is not None else ():
             v.destroy()
     nev = n_start
-    target = 1e-3 * f_cut_hz  # a small positive shift: K may be singular (free bodies)
+    # a negative shift σ = −(2π·0.05 f_cut)²: K may be singular (free bodies), and K + |σ|M is then
+    # still positive definite (CHOLMOD's LLᵀ).  The ring between plates (3 rigid-body modes, f_cut
+    # 8 kHz, 128 pairs asked): σ = +(2π·1e-3 f_cut)² was indefinite (MUMPS, and Krylov–Schur for all
+    # 128 pairs: 41 s); −(2π·1e-3 f_cut)² left the rigid modes' 1/(λ − σ) 2000× the others' and block
+    # Lanczos missed its residuals (Krylov–Schur: 30 s); −(2π·{0.01 … 0.3} f_cut)²: block Lanczos,
+    # 23 modes, 3.9–4.6 s (a loaded machine)
+    target = -0.05 * f_cut_hz
     definite = None           # K − σM: not known; False once a solve fell back from CHOLMOD to MUMPS
     while True:
         rm = solve_real_modes(K, M, nev, target, options=options, prefix=prefix, progress=True, f_max_hz=f_cut_hz,

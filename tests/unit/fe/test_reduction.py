@@ -100,7 +100,15 @@ def test_reduced_layer_does_not_import_dolfinx():
 
 @pytest.mark.mpi
 def test_ring_sweep_1_vs_2_ranks(tmp_path, mpirun):
-    """The reduced sweep and map of the ring scene do not depend on the rank count (1e-8)."""
+    """The reduced sweep and map of the ring scene on 1 and 2 ranks, each run on its own empty cache
+    (support.processes.clean_env; with a shared cache, as before 2026-11-28, the 2-rank run read the
+    1-rank results and this test could not fail).  The map's unstable counts are equal.  The
+    critical μ are not equal to 1e-8: the map's E-parametric basis samples modes at other E, whose
+    double eigenvalues (the ring's cos/sin pairs) have any basis of their eigenspace, different per
+    rank count, and the rank-revealing orthonormalisation then keeps a different span (within the
+    model's estimated error, 1e-7 to 6e-7 here).  The critical μ of a pair split by the mesh alone
+    (δ/ω ≈ 2.6e-7 for the 359 Hz pair) is μ_c ≈ δ/2b and moves by the change of δ: measured 0.85 %
+    (the 359 Hz pair), 0.16 % and 0.10 % (the next two), 7e-6 for a pair split by friction; bound 2 %."""
     sets = ["--set", "analyses.reduced.band_hz=[100.0,5000.0]", "--set", "analyses.sweep.n=21",
             "--set", "analyses.map.part=\"disc\"", "--set", "analyses.map.n_mu=11", "--set", "analyses.map.n_E=3",
             "--set", "geometry.mesh_size=0.0025", "--no-fields"]
@@ -114,8 +122,7 @@ def test_ring_sweep_1_vs_2_ranks(tmp_path, mpirun):
     c1 = np.array([c["value"] for c in out[1]["sweep"]["critical"]])
     c2 = np.array([c["value"] for c in out[2]["sweep"]["critical"]])
     assert c1.size == c2.size > 0
-    # critical μ of a mesh-split pair is ~1e-5..1e-3: compare absolutely at 1e-8 of the range
-    assert np.max(np.abs(c1 - c2)) < 2e-8
+    assert np.max(np.abs(c1 - c2) / np.abs(c1)) < 0.02
     assert np.array_equal(np.array(out[1]["map"]["total"]), np.array(out[2]["map"]["total"]))
 
 

@@ -17,6 +17,12 @@ step its friction traction is that of the scene's direction).  The pressure p is
 scene's ``loads.pressure``; the reduced model is built about one preload, so only p = 1 is evaluated
 here (other pressures need their own preload: the pressure continuation of issue 39 is not done).
 
+A part's loss factor η(f, T) (a shim's table, :class:`LossFactors`) enters at the condition's temperature:
+as the parameter ``eta.<part>`` where the table does not vary with f (then exactly the constant-η model),
+else as i·η(f, T)·K_part at each band mode's own frequency, by the fixed point in frequency of
+:mod:`fem_squeal.reduced.loss_fixed_point` (:func:`condition_fixed_point`; its iterations and the modes
+that did not converge are in :attr:`MatrixResult.fixed_point`).
+
 Each condition is solved alone (one eigenproblem per condition, the same arithmetic on any rank), the
 conditions dealt round-robin over the ranks and gathered: results do not depend on the rank count.
 """

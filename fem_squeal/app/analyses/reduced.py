@@ -22,6 +22,7 @@ from fem_squeal.app.stage import Context, Stage
 from fem_squeal.fe.model import common_mu
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
 from fem_squeal.reduced.model import MU, SPEED, e_param, format_point
+from fem_squeal.reduced.operating_matrix import LossFactors, condition_fixed_point
 from fem_squeal.reduced.sweep import solve_points
 from fem_squeal.util.errors import ModelError, SceneError
 
@@ -282,8 +283,6 @@ def loss_factor_fixed_point(spec, model, band) -> dict | None:
     """With a part's loss factor η(f, T) that varies with f: the nominal point's band modes solved at their
     own frequency (the fixed point of :func:`fem_squeal.reduced.operating_matrix.condition_fixed_point`) at
     the tables' reference temperature: the summary and the eigenvalues [re, im]; None otherwise."""
-    from fem_squeal.reduced.operating_matrix import LossFactors, condition_fixed_point
-
     tables = {p: m.eta_table for p, m in spec.materials.items() if getattr(m, "eta_table", None) is not None}
     varying = {p: t for p, t in tables.items() if t.varies_with_frequency}
     if not varying:

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from fem_squeal.reduced.laws.loss_factor import loss_table
 from fem_squeal.util.errors import ModelError
 
 
@@ -62,6 +63,8 @@ class Material:
     nu_axial: float | None = None
     G_axial: float | None = None
     eta: float = 0.0      # loss factor η: structural damping K(1 + iη) (reduced model; fe.projection.full_modes)
+    # η(f, T) (a reduced.laws.loss_factor.LossTable or its scene table); eta is then its nominal value
+    eta_table: Any = None
 
     @property
     def transversely_isotropic(self) -> bool:
@@ -92,6 +95,13 @@ class Material:
             raise ModelError("rayleigh_alpha, rayleigh_beta: must be >= 0")
         if not self.eta >= 0:
             raise ModelError(f"eta: must be >= 0 (got {self.eta})")
+        if self.eta_table is not None:
+            if self.eta != 0:
+                raise ModelError("eta_table: give eta or eta_table, not both (eta is then the table's value at "
+                                 "its reference point)")
+            table = loss_table(self.eta_table, "eta_table")
+            object.__setattr__(self, "eta_table", table)
+            object.__setattr__(self, "eta", table.nominal)
         ti = (self.E_axial, self.nu_axial, self.G_axial)
         if any(v is not None for v in ti):
             if any(v is None for v in ti):

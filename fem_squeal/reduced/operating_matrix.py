@@ -17,6 +17,12 @@ step its friction traction is that of the scene's direction).  The pressure p is
 scene's ``loads.pressure``; the reduced model is built about one preload, so only p = 1 is evaluated
 here (other pressures need their own preload: the pressure continuation of issue 39 is not done).
 
+A part's loss factor η(f, T) (a shim's table, :class:`LossFactors`) enters at the condition's temperature:
+as the parameter ``eta.<part>`` where the table does not vary with f (then exactly the constant-η model),
+else as i·η(f, T)·K_part at each band mode's own frequency, by the fixed point in frequency of
+:mod:`fem_squeal.reduced.loss_fixed_point` (:func:`condition_fixed_point`; its iterations and the modes
+that did not converge are in :attr:`MatrixResult.fixed_point`).
+
 Each condition is solved alone (one eigenproblem per condition, the same arithmetic on any rank), the
 conditions dealt round-robin over the ranks and gathered: results do not depend on the rank count.
 """
@@ -29,9 +35,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fem_squeal.reduced.affine import MU, SPEED
+from fem_squeal.reduced.affine import MU, SPEED, eta_param
 from fem_squeal.reduced.eigensolve import TWO_PI, quadratic_eigs, unstable
 from fem_squeal.reduced.laws.friction import operating_mu
+from fem_squeal.reduced.laws.loss_factor import LossTable
+from fem_squeal.reduced.loss_fixed_point import FixedPointResult, fixed_point
 from fem_squeal.reduced.model import ReducedModel
 from fem_squeal.reduced.squeal_index import third_octave_bands
 from fem_squeal.util.errors import ModelError
@@ -177,34 +185,109 @@ def matrices_at(model: ReducedModel, point: Mapping[str, np.ndarray], direction:
 
 @dataclass
 class MatrixResult:
-    """Eigenvalues (n_conditions, m) of every condition and the wall time [s] (slowest rank)."""
+    """Eigenvalues (n_conditions, m) of every condition and the wall time [s] (slowest rank); with
+    frequency-dependent loss factors the fixed point's summary of every condition (else None)."""
 
     conditions: Conditions
     eigenvalues: np.ndarray
     seconds: float
     ranks: int
+    fixed_point: list[dict] | None = None
 
 
-def evaluate(model: ReducedModel, cond: Conditions, points: Mapping[str, np.ndarray], comm=None
-             ) -> MatrixResult:
+@dataclass(frozen=True)
+class LossFactors:
+    """The loss-factor tables η_p(f, T) of parts the reduced model carries (``eta.<part>`` parameters),
+    the band [Hz] whose modes the fixed point follows, its tolerance and iteration limit
+    (:mod:`fem_squeal.reduced.loss_fixed_point`)."""
+
+    tables: Mapping[str, LossTable]
+    band_hz: tuple[float, float]
+    tol: float = 1e-10
+    max_iterations: int = 50
+
+    def check(self, model: ReducedModel, temperature: np.ndarray) -> None:
+        """Named errors before any computation: a part the model has no ``eta.<part>`` for, a temperature
+        outside a table, a band outside the frequency range of a table that varies with f."""
+        for part, table in self.tables.items():
+            if eta_param(part) not in model.parameters:
+                raise ModelError(f"{table.name}: the reduced model has no loss-factor parameter of part "
+                                 f"{part!r} (its stiffness is not carried)")
+            table.check_range(temperature=temperature)
+            if table.varies_with_frequency:
+                table.check_range(frequency=np.asarray(self.band_hz))
+
+    def constant_in_frequency(self, temperature: np.ndarray) -> dict[str, np.ndarray]:
+        """``eta.<part>`` at every condition for the tables that do not vary with f (plain parameters)."""
+        return {eta_param(p): t.value(t.frequency[0], temperature) for p, t in self.tables.items()
+                if not t.varies_with_frequency}
+
+    def in_frequency(self) -> dict[str, LossTable]:
+        return {p: t for p, t in self.tables.items() if t.varies_with_frequency}
+
+
+def condition_fixed_point(model: ReducedModel, point: Mapping[str, float], direction: float,
+                          loss: LossFactors, temperature: float) -> tuple[np.ndarray, FixedPointResult]:
+    """One condition with frequency-dependent loss factors (the tables that do not vary with f: η_p(T),
+    plain parameters): the start solve with every other table at its reference frequency (η_p(f_ref, T)),
+    then the fixed point in frequency of the modes in the band
+    (:func:`~fem_squeal.reduced.loss_fixed_point.fixed_point`).  Returns the m eigenvalues (those of the
+    band at their fixed point, the others from the start solve) and the fixed point's result."""
+    varying = loss.in_frequency()
+    point = {**point, **{k: float(v) for k, v in loss.constant_in_frequency(np.asarray(temperature)).items()}}
+
+    def matrices(eta: Mapping[str, float]):
+        return matrices_at(model, {**point, **{eta_param(p): v for p, v in eta.items()}}, direction)
+
+    laws = {p: t.at_temperature(temperature) for p, t in varying.items()}
+    ref = {p: float(t.value(t.frequency[0] if t.reference_frequency is None else t.reference_frequency,
+                            temperature)) for p, t in varying.items()}
+    K, C = matrices(ref)
+    lam, Y = quadratic_eigs(K[None], None if C is None else C[None], vectors=True)
+    lam, Y = lam[0], Y[0]
+    f = lam.imag / TWO_PI
+    modes = np.flatnonzero((f >= loss.band_hz[0]) & (f <= loss.band_hz[1]))
+    res = fixed_point(matrices, laws, lam, Y, modes, tol=loss.tol, max_iterations=loss.max_iterations)
+    out = lam.copy()
+    out[modes] = res.eigenvalues
+    order = np.lexsort((out.real, np.round(out.imag, 9)))
+    return out[order], res
+
+
+def evaluate(model: ReducedModel, cond: Conditions, points: Mapping[str, np.ndarray], comm=None,
+             loss: LossFactors | None = None) -> MatrixResult:
     """The eigenvalues of every condition (one eigenproblem each), conditions dealt round-robin over the
-    ranks of ``comm`` (None: serial) and gathered on every rank."""
+    ranks of ``comm`` (None: serial) and gathered on every rank.  ``loss``: parts' loss factors η(f, T)
+    at each condition's temperature, a plain parameter where a table does not vary with f, else the
+    fixed point in frequency per mode (:func:`condition_fixed_point`)."""
     t = time.perf_counter()
     size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
     mine = np.arange(rank, cond.size, size)
     lam = np.empty((mine.size, model.size), complex)
+    fps: list = []
+    if loss is not None:
+        loss.check(model, cond.temperature)
+        points = {**points, **loss.constant_in_frequency(cond.temperature)}
     for j, k in enumerate(mine):
-        K, C = matrices_at(model, {n: v[k] for n, v in points.items()}, cond.direction[k])
+        point = {n: v[k] for n, v in points.items()}
+        if loss is not None and loss.in_frequency():
+            lam[j], res = condition_fixed_point(model, point, cond.direction[k], loss, cond.temperature[k])
+            fps.append(res.summary())
+            continue
+        K, C = matrices_at(model, point, cond.direction[k])
         lam[j] = quadratic_eigs(K[None], None if C is None else C[None])[0]
     if comm is not None and size > 1:
         full = np.empty((cond.size, model.size), complex)
-        for idx, val in comm.allgather((mine, lam)):
+        fp_all: list = [None] * cond.size
+        for idx, val, fp in comm.allgather((mine, lam, fps)):
             full[idx] = val
-        lam = full
+            for i, r in zip(idx, fp):
+                fp_all[i] = r
+        lam, fps = full, (fp_all if fps or any(fp_all) else [])
     seconds = time.perf_counter() - t
     if comm is not None and size > 1:
         seconds = comm.allreduce(seconds, op=_max_op())
-    return MatrixResult(cond, lam, seconds, size)
+    return MatrixResult(cond, lam, seconds, size, fps or None)
 
 
 def _max_op():

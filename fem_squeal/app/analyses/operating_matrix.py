@@ -7,8 +7,10 @@ The physics of a condition is in :mod:`fem_squeal.reduced.operating_matrix`: tem
 through the friction laws (and the speed through the model's gyroscopic, centrifugal and friction-damping
 terms where Ω is a parameter), the direction turns the friction and gyroscopic terms.  The pressure is
 the scale of ``loads.pressure``; only the scene's pressure (1) is possible: the reduced model holds one
-contact state and preload (pressure continuation is not done).  ``verify``: full CEAs at the corner
-conditions, compared as analyses.reduced compares its check points.
+contact state and preload (pressure continuation is not done).  Parts with a loss-factor table
+``materials.<part>.eta_table`` η(f, T): at each condition's temperature, per band mode at its own frequency
+(fixed point; ``loss_factor_fixed_point`` in results.json: iterations, modes not converged).
+``verify``: full CEAs at the corner conditions, compared as analyses.reduced compares its check points.
 Files: operating_matrix_conditions.csv, operating_matrix_modes.csv, operating_matrix_bands.csv,
 operating_matrix.png (+ its .csv)."""
 from __future__ import annotations
@@ -35,12 +37,14 @@ from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
 from fem_squeal.reduced.laws.friction import ConstantFriction, StribeckFriction, TableFriction
+from fem_squeal.reduced.laws.loss_factor import loss_table
 from fem_squeal.reduced.operating_matrix import (
     DIRECTIONS,
     UNITS,
     VARIABLES,
     Conditions,
     InterfaceLaw,
+    LossFactors,
     evaluate,
     factorial,
     from_table,
@@ -71,6 +75,38 @@ SECTION = {
                       "no extrapolation); {} = the scene's μ everywhere"),
     "verify": Field(bool, False, None, "full CEAs at the corner conditions, compared with the reduced"),
 }
+
+
+def loss_factors(scene, spec) -> LossFactors | None:
+    """The parts' loss-factor tables (materials.<part>.eta_table) at the conditions' temperatures, the band
+    whose modes a table in frequency follows (fixed point per mode), or None without a table."""
+    if spec is not None:
+        tables = {p: m.eta_table for p, m in spec.materials.items() if getattr(m, "eta_table", None) is not None}
+    else:       # while the scene is validated (its spec is built after the cross-checks)
+        tables = {p: loss_table(m["eta_table"], f"materials.{p}.eta_table")
+                  for p, m in scene.get("materials", {}).items() if m.get("eta_table") is not None}
+    return LossFactors(tables, band_and_growth_tol(scene)[0]) if tables else None
+
+
+def check_loss_factors(scene, spec, cond: Conditions) -> None:
+    """Named errors before any computation: a condition's temperature outside a part's η(f, T) table, the
+    band outside a table that varies with f, corner checks (``verify``) with such a table."""
+    loss = loss_factors(scene, spec)
+    if loss is None:
+        return
+    for part, table in loss.tables.items():
+        try:
+            table.check_range(temperature=cond.temperature)
+            if table.varies_with_frequency:
+                table.check_range(frequency=np.asarray(loss.band_hz))
+        except ModelError as e:
+            why = str(e).split(": ", 1)[-1]
+            raise SceneError(f"materials.{part}.eta_table: {why} (conditions of {_KEY} / its band_hz)") from None
+    varying = sorted(loss.in_frequency())
+    if varying and scene.analyses[NAME]["verify"]:
+        raise SceneError(f"{_KEY}.verify: materials.{varying[0]}.eta_table varies with the frequency; the corner "
+                         "checks would need the full nonlinear eigenproblem per mode (fem_squeal.fe.projection."
+                         "loss_nep, benchmarks/loss_factor_nep.py), which this stage does not run")
 
 
 def _values(v, key: str) -> list[float]:
@@ -178,6 +214,7 @@ def check(scene, volumes) -> None:
     (other speeds need Ω as a parameter of the reduced model, unless nothing but μ depends on it)."""
     cond = conditions(scene)
     friction_values(scene, cond)
+    check_loss_factors(scene, scene.spec, cond)
     other = sorted(set(cond.pressure.tolist()) - {1.0})
     if other:
         raise SceneError(f"{_KEY}.pressure: only 1 (the scene's loads.pressure) is possible: the reduced model "
@@ -288,7 +325,10 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
         points = parameter_points(model, cond, laws, default)
     except ModelError as e:
         raise SceneError(f"{_KEY}.{e}") from None
-    res = evaluate(model, cond, points, ctx.comm)
+    loss = loss_factors(scene, ctx.spec)
+    if loss is not None:      # η(T) of the tables that do not vary with f: parameters (the corner checks too)
+        points = {**points, **loss.constant_in_frequency(cond.temperature)}
+    res = evaluate(model, cond, points, ctx.comm, loss=loss)
     timings[NAME] = res.seconds
     noise = noise_matrix(res, band, gt)
     out: dict[str, Any] = {"conditions": [cond.row(k) for k in range(cond.size)], "band_hz": list(band),
@@ -298,6 +338,12 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
                                            "the CEA's nvh section ranks the nominal point's modes"}
     ctx.say(f"[fem_squeal] operating matrix: {cond.size} conditions in {res.seconds:.2f} s, "
             f"{noise['unstable_conditions']} with instability")
+    if res.fixed_point is not None:
+        out["loss_factor_fixed_point"] = res.fixed_point
+        bad = sum(r["modes"] - r["converged"] for r in res.fixed_point)
+        most = max(r["max_iterations_used"] for r in res.fixed_point)
+        ctx.say(f"[fem_squeal] operating matrix: η(f) fixed point, at most {most} iterations, {bad} mode(s) "
+                "not converged")
     if a["verify"]:
         t = time.perf_counter()
         out["verification"] = verify_corners(ctx, model, res, points, band, gt)

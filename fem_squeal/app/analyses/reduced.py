@@ -22,8 +22,9 @@ from fem_squeal.app.stage import Context, Stage
 from fem_squeal.fe.model import common_mu
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
 from fem_squeal.reduced.model import MU, SPEED, e_param, format_point
+from fem_squeal.reduced.operating_matrix import LossFactors, condition_fixed_point
 from fem_squeal.reduced.sweep import solve_points
-from fem_squeal.util.errors import SceneError
+from fem_squeal.util.errors import ModelError, SceneError
 
 SECTION = {
     "band_hz": Field(list, [0.0, 10000.0], band, "band of interest of the reduced model"),
@@ -150,7 +151,8 @@ def basis_design(scene: dict, spec) -> tuple[float, list[dict], list[dict], list
     checks, samples, parts = design_points(scene, spec, mu0)
     if "transient" in scene.analyses:
         parts = sorted(spec.materials)
-    parts = sorted(set(parts) | {p for p, m in spec.materials.items() if getattr(m, "eta", 0.0) > 0})
+    parts = sorted(set(parts) | {p for p, m in spec.materials.items()
+                                 if getattr(m, "eta", 0.0) > 0 or getattr(m, "eta_table", None) is not None})
     return mu0, checks, samples, parts
 
 
@@ -268,8 +270,36 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
         say("[fem_squeal] reduced vs full CEA: " + ", ".join(
             f"{format_point(r['point'])}: {r['max_rel_error']:.1e}" for r in rows))
     par.destroy()
+    fp = loss_factor_fixed_point(spec, model, band)
+    if fp is not None:
+        out["loss_factor_fixed_point"] = fp
+        say(f"[fem_squeal] reduced model, η(f) fixed point: {fp['converged']}/{fp['modes']} modes converged, "
+            f"at most {fp['max_iterations_used']} iterations")
     ctx.products["reduced"] = model
     return {"reduced": out}
+
+
+def loss_factor_fixed_point(spec, model, band) -> dict | None:
+    """With a part's loss factor η(f, T) that varies with f: the nominal point's band modes solved at their
+    own frequency (the fixed point of :func:`fem_squeal.reduced.operating_matrix.condition_fixed_point`) at
+    the tables' reference temperature: the summary and the eigenvalues [re, im]; None otherwise."""
+    tables = {p: m.eta_table for p, m in spec.materials.items() if getattr(m, "eta_table", None) is not None}
+    varying = {p: t for p, t in tables.items() if t.varies_with_frequency}
+    if not varying:
+        return None
+    temps = sorted({float(t.reference_temperature) for t in tables.values()
+                    if t.reference_temperature is not None})
+    if len(temps) > 1:
+        raise SceneError(f"materials: the η(f, T) tables have different reference temperatures {temps}; "
+                         "the reduced stage solves at one temperature")
+    T = temps[0] if temps else float(next(iter(tables.values())).temperature[0])
+    try:
+        lam, res = condition_fixed_point(model, {}, 1.0, LossFactors(tables, tuple(band)), T)
+    except ModelError as e:
+        raise SceneError(f"materials: {e}") from None
+    return {"temperature": float(T), **res.summary(),
+            "eigenvalues": [[float(x.real), float(x.imag)] for x in res.eigenvalues],
+            "iterations": res.iterations.tolist(), "converged_per_mode": res.converged.tolist()}
 
 
 def mismatches(rows: list[dict], tol: float, what: str = "",

@@ -19,6 +19,8 @@ from fem_squeal.app.fields import (
     poisson,
     positive,
 )
+from fem_squeal.reduced.laws.loss_factor import loss_table
+from fem_squeal.util.errors import ModelError
 from fem_squeal.util.matrix_files import FORMATS
 from geometry.brake_corner import BrakeCornerParams
 from geometry.tags import GEOMETRY_TAGS, mesh_file_tags
@@ -71,6 +73,15 @@ def geometry_tags(geo: Mapping) -> tuple[dict[str, int], dict[str, int]]:
     return dict(GEOMETRY_TAGS[geo["builder"]][0]), dict(GEOMETRY_TAGS[geo["builder"]][1])
 
 
+def _loss_table(v: dict) -> str | None:
+    """A valid η(f, T) table (:class:`fem_squeal.reduced.laws.loss_factor.LossTable`)."""
+    try:
+        loss_table(v, "")
+    except ModelError as e:
+        return str(e).lstrip(".: ")
+    return None
+
+
 MATERIAL = {
     "E": Field(REAL, check=positive, doc="Young's modulus [Pa]"),
     "nu": Field(REAL, check=poisson, doc="Poisson's ratio"),
@@ -83,6 +94,14 @@ MATERIAL = {
     "eta": Field(REAL, 0.0, non_negative, "loss factor η: structural damping K(1 + iη) of the part, in the "
                  "reduced model (whose basis then carries the part's stiffness) and its full-order checks (the "
                  "real problem of twice the size); analyses.cea, with real arithmetic, leaves it out"),
+    "eta_table": Field(dict, None, _loss_table,
+                       "loss factor as a table η(f, T) (a shim, an insulator): {frequency = [Hz...], "
+                       "temperature = [°C...], eta = [[one row per temperature, one column per frequency]], "
+                       "reference_frequency, reference_temperature}, interpolated bilinearly; an axis of one "
+                       "value (or left out): independent of it.  Constant-η analyses use η at the reference "
+                       "point (a constant table: its value, exactly as eta); the reduced stage and "
+                       "analyses.operating_matrix solve each mode at its own frequency (fixed point) and "
+                       "temperature.  Not with eta"),
 }
 _TYPE = Field(str, "rigid_plate", one_of("rigid_plate", "contact", "spring", "bonded"))
 _PAIR = {"slave": Field(str, check=nonempty_str, doc="slave face (quadrature side: the lining)"),

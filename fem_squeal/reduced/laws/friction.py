@@ -27,7 +27,7 @@ import numpy as np
 from fem_squeal.util.errors import ModelError
 
 __all__ = ["FRICTION_LAWS", "ConstantFriction", "CoulombState", "ElasticCoulomb", "FrictionLaw", "FrictionState",
-           "StribeckFriction", "TableFriction", "operating_mu", "smooth_step"]
+           "StribeckFriction", "TableFriction", "bilinear", "operating_mu", "smooth_step"]
 
 
 def _check(name: str, value, positive: bool = False) -> None:
@@ -235,6 +235,20 @@ def _interp_weights(axis: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.nda
     return i, (x - axis[i]) / (axis[i + 1] - axis[i])
 
 
+def bilinear(axis0: np.ndarray, axis1: np.ndarray, table: np.ndarray, x0: np.ndarray, x1: np.ndarray
+             ) -> np.ndarray:
+    """The bilinear interpolant of ``table`` (len(axis0), len(axis1)) at (x0, x1), written in differences
+    from the lower corner, v₀₀ + s(v₁₀ − v₀₀) + t(v₀₁ − v₀₀) + st(v₁₁ − v₁₀ − v₀₁ + v₀₀), so that a constant
+    table returns its value bit for bit (an axis of one value: independent of that variable; no range
+    check here)."""
+    i, s = _interp_weights(axis0, x0)
+    j, t = _interp_weights(axis1, x1)
+    i1 = np.minimum(i + 1, table.shape[0] - 1)
+    j1 = np.minimum(j + 1, table.shape[1] - 1)
+    m00, m10, m01, m11 = table[i, j], table[i1, j], table[i, j1], table[i1, j1]
+    return m00 + s * (m10 - m00) + t * (m01 - m00) + s * t * (m11 - m10 - m01 + m00)
+
+
 @dataclass(frozen=True)
 class TableFriction:
     """μ(T, Ω) at an operating condition, bilinear in a table over the disc temperature T and the disc
@@ -289,14 +303,7 @@ class TableFriction:
         """μ at the conditions (T, Ω) (arrays broadcast together); the range is checked first."""
         T, V = np.broadcast_arrays(np.asarray(temperature, float), np.abs(np.asarray(speed, float)))
         self.check_range(T, V)
-        i, s = _interp_weights(self.temperature, T)
-        j, t = _interp_weights(self.speed, V)
-        mu = self.mu
-        i1 = np.minimum(i + 1, mu.shape[0] - 1)
-        j1 = np.minimum(j + 1, mu.shape[1] - 1)
-        m00, m10, m01, m11 = mu[i, j], mu[i1, j], mu[i, j1], mu[i1, j1]
-        # in differences from the corner: a constant table gives its value bit for bit
-        return m00 + s * (m10 - m00) + t * (m01 - m00) + s * t * (m11 - m10 - m01 + m00)
+        return bilinear(self.temperature, self.speed, self.mu, T, V)
 
 
 def operating_mu(law, temperature, speed, radius: float = 0.0) -> np.ndarray:

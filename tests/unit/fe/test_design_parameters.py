@@ -215,3 +215,39 @@ def test_full_order_sensitivities_match_finite_differences_of_full_ceas():
     # the reduced derivatives converge more slowly than the eigenvalues (measured 5e-3 for kn, 4e-3 for E
     # on this 1500 Hz basis, which samples neither): the reduction error of dλ/dp, not a mismatch of terms
     assert max(worst_red.values()) < 2e-2
+
+
+def test_full_nonlinear_eigenproblem_of_a_loss_factor_table_from_the_reduced_fixed_point():
+    """η(f) on 'lower' (issue 39, shims): the full NEP T(λ) = λ²M + λC + K + iη(|Im λ|/2π)K_lower by residual
+    inverse iteration on the real form of twice the size, started from the lifted reduced fixed point,
+    converges to a backward error at round-off; with a constant law it is the linear QEP, whose eigenvalue
+    SLEPc's real-equivalent CEA (full_modes) gives too; the reduced fixed point lies within this 1500 Hz
+    basis' tolerance (1e-6 with a richer basis: benchmarks/loss_factor_nep.py)."""
+    from fem_squeal.fe.dense import matmul_f
+    from fem_squeal.fe.projection import full_modes
+    from fem_squeal.fe.projection.loss_nep import full_loss_nep
+    from fem_squeal.reduced.eigensolve import quadratic_eigs
+    from fem_squeal.reduced.laws.loss_factor import LossTable
+    from fem_squeal.reduced.operating_matrix import LossFactors, condition_fixed_point, matrices_at
+
+    par, basis, model = reduced_blocks()
+    band = (200.0, 330.0)
+    table = LossTable([100.0, 2000.0], [20.0], [[0.01, 0.2]], reference_frequency=300.0)
+    law = table.at_temperature(20.0)
+    _, res = condition_fixed_point(model, {}, 1.0, LossFactors({"lower": table}, band, tol=1e-13), 20.0)
+    assert res.converged.all() and res.eigenvalues.size >= 1
+    lr = res.eigenvalues[0]
+    K, C = matrices_at(model, {"eta.lower": float(law(lr.imag / (2 * np.pi)))}, 1.0)
+    ls, Y = quadratic_eigs(K[None], None if C is None else C[None], vectors=True)
+    y = Y[0][:, np.argmin(np.abs(ls[0] - lr))]
+    X = matmul_f(basis.Phi, np.column_stack([y.real, y.imag]))
+    x0 = X[:, 0] + 1j * X[:, 1]
+    nep = full_loss_nep(par, {}, {"lower": law}, lr, x0)
+    print(f"η(f): reduced {lr:.9e}, full NEP {nep.eigenvalue:.9e} ({nep.iterations} it., backward error "
+          f"{nep.backward_error:.1e}), rel. diff {abs(nep.eigenvalue - lr) / abs(lr):.1e}")
+    assert nep.converged and nep.backward_error < 1e-14
+    assert abs(nep.eigenvalue - lr) <= 1e-3 * abs(lr)
+    assert abs(nep.eigenvalue.imag / (2 * np.pi) - lr.imag / (2 * np.pi)) < 1.0
+    const = full_loss_nep(par, {}, {"lower": lambda f: 0.05}, lr, x0)
+    ref = full_modes(par, {"eta.lower": 0.05}, 4, lr.imag / (2 * np.pi), band_hz=band)
+    assert const.converged and np.min(np.abs(ref - const.eigenvalue)) <= 1e-9 * abs(const.eigenvalue)

@@ -273,6 +273,8 @@ def locking_warnings(spec: ModelSpec) -> list[str]:
     K/G = 2(1+ν)/(3(1−2ν)): 9.7 at ν = 0.45, 25 at 0.49, 250 at 0.499)."""
     out = []
     for part, m in spec.materials.items():
+        if m.anisotropic:       # ν = −S₁₂/S₁₁ of the material frame says nothing of the bulk/shear ratio
+            continue
         nus = [m.nu] + ([m.nu_axial] if m.nu_axial is not None else [])
         nu = max(nus)
         limit = LOCKING_NU.get(spec.degree, 1.0)

@@ -116,7 +116,8 @@ MATERIAL["D"] = Field(list, None, _numbers((9, 21)), "anisotropic stiffness in t
                       " or the 21 of TYPE=ANISO")
 MATERIAL["orientation"] = Field(dict, None, _orientation, "material frame of E1 … G23 or D (*ORIENTATION): "
                                 "{system = 'rectangular' | 'cylindrical', a = [x, y, z], b = [x, y, z], c = "
-                                "origin (rectangular)}; cylindrical: 1 radial, 2 tangential, 3 along a → b")
+                                "origin (rectangular)} [m, in the model's frame: after geometry's scaling]; "
+                                "cylindrical: 1 radial, 2 tangential, 3 along a → b")
 _TYPE = Field(str, "rigid_plate", one_of("rigid_plate", "contact", "spring", "bonded"))
 _PAIR = {"slave": Field(str, check=nonempty_str, doc="slave face (quadrature side: the lining)"),
          "master": Field(str, check=nonempty_str, doc="master face (the disc)")}

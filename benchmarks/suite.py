@@ -85,6 +85,8 @@ SUITE: tuple[Bench, ...] = (
           "hex_native.py", ((),), (("--quick",),), needs=("ccx",)),
     Bench("cea_calculix", "frictional CEA with tangential slip stiffness kt vs CalculiX 2.20 on the same mesh",
           "cea_calculix.py", ((),), (("--quick",),), needs=("ccx",)),
+    Bench("deck_orthotropic", "orthotropic/anisotropic decks with *ORIENTATION, *CLOAD, *MOTION vs CalculiX 2.20",
+          "deck_orthotropic.py", ((),), (("--quick",),), needs=("ccx",)),
 )
 
 

@@ -51,7 +51,7 @@ MODEL_CHANGING = {
     "EMBEDDED ELEMENT": "embedded elements", "NODE TRANSFORM": "a nodal transformation",
 }
 #: The :data:`MODEL_CHANGING` keywords that the deck translation (:mod:`geometry.abaqus_model`) supports.
-MODEL_KEYWORDS = {"TIE"}
+MODEL_KEYWORDS = {"TIE", "ORIENTATION"}
 ASSEMBLY = {"PART", "END PART", "INSTANCE", "END INSTANCE", "ASSEMBLY", "END ASSEMBLY"}
 
 
@@ -159,7 +159,7 @@ def _members(lines, params: dict, table: dict, kind: str, where: str) -> list[in
 def read_deck(path: str | Path, model: bool = False) -> Deck:
     """Read a flat deck (see the module text); raises :class:`AbaqusError`.  ``model``: the deck's model
     keywords are translated elsewhere (:mod:`geometry.abaqus_model`), so the ones it supports
-    (:data:`MODEL_KEYWORDS`: ``*TIE``) are skipped here instead of refused."""
+    (:data:`MODEL_KEYWORDS`: ``*TIE``, ``*ORIENTATION``) are skipped here instead of refused."""
     path = Path(path)
     node_ids: list[int] = []
     coords: list[list[float]] = []
@@ -185,7 +185,7 @@ def read_deck(path: str | Path, model: bool = False) -> Deck:
         if kw in MODEL_CHANGING and not (model and kw in MODEL_KEYWORDS):
             raise AbaqusError(f"{where}: *{kw} ({MODEL_CHANGING[kw]}) is not supported: it changes the model; "
                               "remove it or write the model without it")
-        if kw == "SOLID SECTION" and "ORIENTATION" in params:
+        if kw == "SOLID SECTION" and "ORIENTATION" in params and not model:
             raise AbaqusError(f"{where}: *SOLID SECTION, ORIENTATION={params['ORIENTATION']}: local material "
                               "orientations are not supported")
         if kw == "NODE":

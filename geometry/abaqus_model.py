@@ -8,10 +8,16 @@ output requests are kept as notes.  The translation into a scene is the applicat
 (:mod:`fem_squeal.app.deck`); here the deck is only read and its rigid parts and motions recognised.
 
 - ``*MATERIAL, NAME=`` with ``*ELASTIC`` (``TYPE=ISOTROPIC``: E, ν; ``TYPE=ENGINEERING CONSTANTS``: E1 E2
-  E3 ν12 ν13 ν23 G12 G13 G23), ``*DENSITY``, ``*DAMPING, ALPHA=, BETA=``;
-- ``*SOLID SECTION, ELSET=, MATERIAL=``;
+  E3 ν12 ν13 ν23 G12 G13 G23; ``TYPE=ORTHOTROPIC``: D1111 D1122 D2222 D1133 D2233 D3333 D1212 D1313 D2323;
+  ``TYPE=ANISOTROPIC``: the 21 D_ijkl), ``*DENSITY``, ``*DAMPING, ALPHA=, BETA=``;
+- ``*ORIENTATION, NAME=, SYSTEM=RECTANGULAR|CYLINDRICAL`` (a, b[, c]; an optional second line of a
+  zero additional rotation);
+- ``*SOLID SECTION, ELSET=, MATERIAL=[, ORIENTATION=]``;
 - ``*BOUNDARY`` (node or node set, first, last[, value]) in the model or a step;
-- ``*DLOAD`` (element set, Pn, p; or surface, P, p), ``*CLOAD`` (refused: no point forces);
+- ``*DLOAD`` (element set, Pn, p; or surface, P, p), ``*CLOAD`` (node or node set, degree of freedom 1-3,
+  force);
+- ``*MOTION, ROTATION, TYPE=VELOCITY`` (node set, ω, a, b: a rigid rotation rate about the axis a → b) in
+  a static step: the disc's sliding motion, as a prescribed rotation gives it;
 - ``*TIE, NAME=`` (slave, master), ``*SURFACE INTERACTION, NAME=`` with ``*SURFACE BEHAVIOR,
   PRESSURE-OVERCLOSURE=LINEAR`` (slope, σ∞) and ``*FRICTION`` (μ, stick slope λ), ``*CONTACT PAIR,
   INTERACTION=`` (slave, master);
@@ -38,7 +44,9 @@ OPTIONS = {"ELASTIC": "MATERIAL", "DENSITY": "MATERIAL", "DAMPING": "MATERIAL",
 #: The parameters each model keyword may have (any other is refused: it would change what the keyword means).
 PARAMETERS = {
     "MATERIAL": {"NAME"}, "ELASTIC": {"TYPE"}, "DENSITY": set(), "DAMPING": {"ALPHA", "BETA"},
-    "SOLID SECTION": {"ELSET", "MATERIAL"}, "BOUNDARY": {"OP", "TYPE"}, "DLOAD": {"OP"}, "CLOAD": {"OP"},
+    "SOLID SECTION": {"ELSET", "MATERIAL", "ORIENTATION"},
+    "ORIENTATION": {"NAME", "SYSTEM", "DEFINITION"}, "MOTION": {"ROTATION", "TYPE"},
+    "BOUNDARY": {"OP", "TYPE"}, "DLOAD": {"OP"}, "CLOAD": {"OP"},
     "TIE": {"NAME", "POSITION TOLERANCE", "ADJUST"}, "SURFACE INTERACTION": {"NAME"},
     "SURFACE BEHAVIOR": {"PRESSURE-OVERCLOSURE"}, "FRICTION": set(),
     "CONTACT PAIR": {"INTERACTION", "TYPE", "SMALL SLIDING", "ADJUST"},
@@ -46,7 +54,8 @@ PARAMETERS = {
     "FREQUENCY": {"SOLVER", "STORAGE", "EIGENSOLVER", "NORMALIZATION"}, "COMPLEX FREQUENCY": set(),
     "CHANGE FRICTION": {"INTERACTION"}, "END STEP": set(), "HEADING": set(),
 }
-SUPPORTED = sorted(MESH | set(OPTIONS) | {"MATERIAL", "SOLID SECTION", "BOUNDARY", "DLOAD", "TIE",
+SUPPORTED = sorted(MESH | set(OPTIONS) | {"MATERIAL", "SOLID SECTION", "BOUNDARY", "DLOAD", "CLOAD", "TIE",
+                                          "ORIENTATION", "MOTION",
                                           "SURFACE INTERACTION", "CONTACT PAIR", "STEP", "STATIC", "FREQUENCY",
                                           "COMPLEX FREQUENCY", "CHANGE FRICTION", "END STEP", "HEADING"})
 
@@ -78,6 +87,8 @@ class Step:
     data: list = field(default_factory=list)       # the procedure's data line (numbers)
     boundary: list = field(default_factory=list)   # (node or set, first, last, value, where)
     dload: list = field(default_factory=list)      # (element set or surface, label, p, where)
+    cload: list = field(default_factory=list)      # (node or set, degree of freedom 1-3, force, where)
+    motion: list = field(default_factory=list)     # (node or set, ω [rad/s], a, b, where)
     friction: dict = field(default_factory=dict)   # interaction -> (μ Value, λ Value | None)
 
 
@@ -89,6 +100,9 @@ class DeckModel:
     mesh: Deck
     materials: dict = field(default_factory=dict)    # name -> {key: Value}
     sections: dict = field(default_factory=dict)     # element set (upper) -> Value(material)
+    section_orientation: dict = field(default_factory=dict)  # element set (upper) -> Value(orientation name)
+    orientations: dict = field(default_factory=dict)  # name (upper) -> Value({system, a, b, c})
+    cload: list = field(default_factory=list)         # model-level (node or set, dof, force, where)
     boundary: list = field(default_factory=list)     # model-level (node or set, first, last, value, where)
     dload: list = field(default_factory=list)
     ties: list = field(default_factory=list)         # (name, slave, master, where)
@@ -182,19 +196,26 @@ def read_model(path: str | Path) -> DeckModel:
                 raise AbaqusError(f"{at}: NAME= is required")
             material = model.materials.setdefault(name.upper(), {"name": Value(name, where)})
         elif kw == "ELASTIC":
-            kind = params.get("TYPE", "ISOTROPIC").upper()
-            if kind == "ISOTROPIC":
-                e, nu = _floats(lines, 2, where, f"*ELASTIC of {material['name'].value}")[:2]
-                material.update(E=Value(e, where), nu=Value(nu, where))
-            elif kind in ("ENGINEERING CONSTANTS", "ENGINEERING_CONSTANTS"):
-                c = _floats(lines, 9, where, f"*ELASTIC, TYPE=ENGINEERING CONSTANTS of {material['name'].value}")
-                material.update(_transversely_isotropic(c[:9], at))
-            else:
-                raise AbaqusError(f"{at}, TYPE={params['TYPE']}: not supported (isotropic, or engineering "
-                                  "constants "
-                                  "transversely isotropic about z)")
-            if "DEPENDENCIES" in params or len(lines) > (1 if kind == "ISOTROPIC" else 2):
+            kind = params.get("TYPE", "ISOTROPIC").upper().replace("_", " ")
+            name = material["name"].value
+            n_lines = {"ISOTROPIC": 1, "ENGINEERING CONSTANTS": 2, "ORTHOTROPIC": 2, "ORTHO": 2,
+                       "ANISOTROPIC": 3, "ANISO": 3}.get(kind)
+            if n_lines is None:
+                raise AbaqusError(f"{at}, TYPE={params['TYPE']}: not supported (ISOTROPIC, ENGINEERING CONSTANTS, "
+                                  "ORTHOTROPIC, ANISOTROPIC)")
+            if "DEPENDENCIES" in params or len(lines) > n_lines:
                 raise AbaqusError(f"{at}: temperature or field dependent constants are not supported")
+            if kind == "ISOTROPIC":
+                e, nu = _floats(lines, 2, where, f"*ELASTIC of {name}")[:2]
+                material.update(E=Value(e, where), nu=Value(nu, where))
+            elif kind == "ENGINEERING CONSTANTS":
+                c = _floats(lines, 9, where, f"*ELASTIC, TYPE=ENGINEERING CONSTANTS of {name}")[:9]
+                material["engineering"] = Value(c, where)
+                material.update(_transversely_isotropic(c, at) or {})
+            else:
+                n = 9 if kind.startswith("ORTHO") else 21
+                d = _floats(lines, n, where, f"*ELASTIC, TYPE={params['TYPE']} of {name}")[:n]
+                material["D"] = Value(d, where)
         elif kw == "DENSITY":
             material["rho"] = Value(_floats(lines, 1, where, "*DENSITY")[0], where)
         elif kw == "DAMPING":
@@ -208,11 +229,41 @@ def read_model(path: str | Path) -> DeckModel:
             if other:
                 raise AbaqusError(f"{at}, {other[0]}: not supported (Rayleigh ALPHA, BETA only)")
         elif kw == "SOLID SECTION":
-            if "ORIENTATION" in params:
-                raise AbaqusError(f"{at}, ORIENTATION: local material orientations are not supported")
             if "ELSET" not in params or "MATERIAL" not in params:
                 raise AbaqusError(f"{at}: ELSET= and MATERIAL= are required")
             model.sections[params["ELSET"].upper()] = Value(params["MATERIAL"], where)
+            if params.get("ORIENTATION"):
+                model.section_orientation[params["ELSET"].upper()] = Value(params["ORIENTATION"], where)
+        elif kw == "ORIENTATION":
+            model.orientations[_orientation_name(params, at)] = Value(_orientation(params, lines, at), where)
+        elif kw == "CLOAD":
+            rows = []
+            for ln, w in lines:
+                f = [v for v in _fields(ln) if v != ""]
+                try:
+                    row = (f[0], int(f[1]), float(f[2]), w)
+                except (ValueError, IndexError):
+                    raise AbaqusError(f"{w}: *CLOAD: expected node or node set, degree of freedom, force "
+                                      f"(got {ln.strip()!r})") from None
+                if row[1] not in (1, 2, 3):
+                    raise AbaqusError(f"{w}: *CLOAD, {f[1]}: only forces (degrees of freedom 1-3)")
+                rows.append(row)
+            (step.cload if step else model.cload).extend(rows)
+        elif kw == "MOTION":
+            if step is None:
+                raise AbaqusError(f"{at}: must be in a *STEP (history data)")
+            if "ROTATION" not in params or params.get("TYPE", "").upper() != "VELOCITY":
+                raise AbaqusError(f"{at}: only ROTATION, TYPE=VELOCITY (the disc's rotation rate) is supported")
+            for ln, w in lines:
+                f = [v for v in _fields(ln) if v != ""]
+                try:
+                    vals = [float(v) for v in f[1:8]]
+                except ValueError:
+                    vals = []
+                if len(f) < 8 or len(vals) != 7:
+                    raise AbaqusError(f"{w}: *MOTION, ROTATION: expected node set, ω, a_x, a_y, a_z, b_x, b_y, "
+                                      f"b_z (got {ln.strip()!r})")
+                step.motion.append((f[0], vals[0], tuple(vals[1:4]), tuple(vals[4:7]), w))
         elif kw == "BOUNDARY":
             if params.get("TYPE", "DISPLACEMENT").upper() != "DISPLACEMENT" or "AMPLITUDE" in params:
                 raise AbaqusError(f"{at}: only displacement boundary conditions without amplitude are supported")
@@ -298,12 +349,57 @@ def read_model(path: str | Path) -> DeckModel:
                               "and output requests (ignored)")
     if step is not None:
         raise AbaqusError(f"{step.where}: *STEP without *END STEP")
+    for o in model.section_orientation.values():
+        if o.value.upper() not in model.orientations:
+            raise AbaqusError(f"{o.where}: *SOLID SECTION, ORIENTATION={o.value}: no such *ORIENTATION (defined: "
+                              f"{', '.join(v.value['name'] for v in model.orientations.values()) or 'none'})")
     return model
 
 
-def _transversely_isotropic(c: list[float], at: str) -> dict:
+def _orientation_name(params: dict, at: str) -> str:
+    if not params.get("NAME"):
+        raise AbaqusError(f"{at}: NAME= is required")
+    return params["NAME"].upper()
+
+
+def _orientation(params: dict, lines, at: str) -> dict:
+    """{name, system, a, b, c} of an ``*ORIENTATION`` (``DEFINITION=COORDINATES``)."""
+    system = params.get("SYSTEM", "RECTANGULAR").upper()
+    if system not in ("RECTANGULAR", "CYLINDRICAL"):
+        raise AbaqusError(f"{at}, SYSTEM={params['SYSTEM']}: only RECTANGULAR and CYLINDRICAL")
+    if params.get("DEFINITION", "COORDINATES").upper() != "COORDINATES":
+        raise AbaqusError(f"{at}, DEFINITION={params['DEFINITION']}: only COORDINATES (points a, b[, c])")
+    if not lines:
+        raise AbaqusError(f"{at}: needs a data line (a_x, a_y, a_z, b_x, b_y, b_z[, c_x, c_y, c_z])")
+    v = _floats(lines[:1], 6, lines[0][1], f"*ORIENTATION {params['NAME']}")
+    if len(v) not in (6, 9):
+        raise AbaqusError(f"{lines[0][1]}: *ORIENTATION {params['NAME']}: 6 or 9 coordinates (got {len(v)})")
+    for ln, w in lines[1:]:
+        f = [x for x in _fields(ln) if x != ""]
+        try:
+            angle = float(f[1]) if len(f) > 1 else 0.0
+        except ValueError:
+            raise AbaqusError(f"{w}: *ORIENTATION: expected local axis, angle (got {ln.strip()!r})") from None
+        if angle != 0.0 or len(lines) > 2:
+            raise AbaqusError(f"{w}: *ORIENTATION {params['NAME']}: an additional rotation ({angle:g} degrees) "
+                              "is not supported; give the rotated points a, b")
+    a, b = v[0:3], v[3:6]
+    c = v[6:9] if len(v) == 9 else [0.0, 0.0, 0.0]
+    pa, pb, pc = (np.asarray(p) for p in (a, b, c))
+    if system == "RECTANGULAR" and (np.linalg.norm(pa - pc) == 0 or np.linalg.norm(np.cross(pa - pc, pb - pc))
+                                    <= 1e-12 * np.linalg.norm(pa - pc) * np.linalg.norm(pb - pc)):
+        raise AbaqusError(f"{lines[0][1]}: *ORIENTATION {params['NAME']}: point a must differ from the origin and "
+                          "b must not lie on the local 1 axis")
+    if system == "CYLINDRICAL" and np.linalg.norm(pb - pa) == 0:
+        raise AbaqusError(f"{lines[0][1]}: *ORIENTATION {params['NAME']}: a and b (two points of the axis) "
+                          "coincide")
+    return {"name": params["NAME"], "system": system.lower(), "a": a, "b": b, "c": c}
+
+
+def _transversely_isotropic(c: list[float], at: str) -> dict | None:
     """E, ν, E_axial, ν_axial, G_axial of engineering constants transversely isotropic about z:
-    E1 = E2, ν13 = ν23, G13 = G23 and G12 = E1/(2(1 + ν12)); ν_axial = ν31 = ν13 E3/E1."""
+    E1 = E2, ν13 = ν23, G13 = G23 and G12 = E1/(2(1 + ν12)); ν_axial = ν31 = ν13 E3/E1.  None when they are
+    not (orthotropic: the scene's E1 … G23)."""
     e1, e2, e3, n12, n13, n23, g12, g13, g23 = c
     where = at.split(": *")[0]
 
@@ -311,9 +407,7 @@ def _transversely_isotropic(c: list[float], at: str) -> dict:
         return abs(a - b) <= 1e-6 * max(abs(a), abs(b), 1e-300)
 
     if not (close(e1, e2) and close(n13, n23) and close(g13, g23) and close(g12, e1 / (2 * (1 + n12)))):
-        raise AbaqusError(f"{at}, TYPE=ENGINEERING CONSTANTS: not transversely isotropic about z (needs E1 = E2, "
-                          "nu13 = nu23, G13 = G23, G12 = E1/(2(1 + nu12))); orthotropic materials are not "
-                          "supported")
+        return None
     return {"E": Value(e1, where), "nu": Value(n12, where), "E_axial": Value(e3, where),
             "nu_axial": Value(n13 * e3 / e1, where), "G_axial": Value(g13, where)}
 

@@ -6,17 +6,21 @@ the deck itself (``geometry.builder = "mesh_file"``, ``deck = true``), each valu
 it came from:
 
 - ``*SOLID SECTION`` of a part that is not rigid -> ``geometry.parts.<elset>`` and ``materials.<elset>``
-  (``*ELASTIC`` E, ν or transversely isotropic engineering constants; ``*DENSITY``; ``*DAMPING`` α, β);
+  (``*ELASTIC`` E, ν; engineering constants transversely isotropic about z without an orientation as
+  E_axial, ν_axial, G_axial; other engineering constants as E1 … G23, ``TYPE=ORTHOTROPIC``/``ANISOTROPIC``
+  as D; the section's ``*ORIENTATION`` as ``orientation``; ``*DENSITY``; ``*DAMPING`` α, β);
 - a part whose every node has all three displacements prescribed is rigid: left out of the mesh
   (``geometry.skip_sets``);
 - ``*BOUNDARY`` of zero values on a node set of a deformable part -> ``boundary.fixed.<set>`` (all three:
   ``boundary.clamped``); on a rigid part it defines the part (press, rotation);
-- ``*DLOAD`` surface, P, p -> ``loads.pressure.<surface>``;
+- ``*DLOAD`` surface, P, p -> ``loads.pressure.<surface>``; ``*CLOAD`` in a static step (or the model) ->
+  ``loads.point.n<node>``, the node's force components summed;
 - ``*TIE`` -> a ``bonded`` interface; ``*CONTACT PAIR`` -> a ``contact`` interface, or a ``rigid_plate``
   on the slave face when the master surface lies on a rigid part: kn = the LINEAR overclosure slope,
   μ = the perturbation step's ``*CHANGE FRICTION`` μ (else ``*FRICTION``'s), kt = λ μ/μ_static (CalculiX's
   slip-state tangent across the sliding direction: λ/F with F = μ_static/μ, benchmarks/cea_calculix.py),
-  sliding = the sign of the master part's prescribed rigid rotation about z in a static step;
+  sliding = the sign of the master part's prescribed rigid rotation about z in a static step, or of its
+  ``*MOTION, ROTATION, TYPE=VELOCITY`` rate about the z axis (the same direction: u = θ e_z × x);
 - a ``*STATIC`` step -> ``preload`` (NLGEOM: ``geometric_stiffness``); ``*STEP, PERTURBATION`` with
   ``*COMPLEX FREQUENCY``, or with ``*FREQUENCY`` on a sliding frictional contact (CalculiX then solves the
   non-symmetric problem), -> ``analyses.cea``; ``*FREQUENCY`` otherwise -> ``analyses.real_modes``.
@@ -32,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fem_squeal.fe.model import ENGINEERING_CONSTANTS, Material
 from fem_squeal.util.atomic import atomic_path
 from fem_squeal.util.errors import MeshError
 from geometry.abaqus import AbaqusError
@@ -86,15 +91,21 @@ def _scene(m: DeckModel) -> DeckScene:
         if mat is None:
             raise AbaqusError(f"{sec.where}: *SOLID SECTION, MATERIAL={sec.value}: no such *MATERIAL")
         for need, kw in (("E", "*ELASTIC"), ("rho", "*DENSITY")):
-            if need not in mat:
+            if need not in mat and not (need == "E" and ("engineering" in mat or "D" in mat)):
                 raise AbaqusError(f"{mat['name'].where}: *MATERIAL {sec.value}: no {kw}")
         mats[p] = {}
-        for key in ("E", "nu", "rho", "rayleigh_alpha", "rayleigh_beta", "E_axial", "nu_axial", "G_axial"):
+        orient = m.section_orientation.get(k)
+        general = orient is not None or "D" in mat or ("engineering" in mat and "E_axial" not in mat)
+        keys = ["rho", "rayleigh_alpha", "rayleigh_beta"] + (["E", "nu", "E_axial", "nu_axial", "G_axial"]
+                                                            if not general else [])
+        for key in keys:
             if key in mat:
                 mats[p][key] = mat[key].value
                 kw = {"rho": "DENSITY", "rayleigh_alpha": "DAMPING",
                       "rayleigh_beta": "DAMPING"}.get(key, "ELASTIC")
                 origin[f"materials.{p}.{key}"] = f"{mat[key].where}: *{kw} of *MATERIAL {sec.value}"
+        if general:
+            _general_material(m, mats[p], origin, p, mat, orient, sec.value)
     out.raw["materials"] = mats
 
     def part_of_surface(surf: str, where: str) -> str:
@@ -158,6 +169,9 @@ def _scene(m: DeckModel) -> DeckScene:
         pressure[f] = {"face": f, "p": p}
         origin[f"loads.pressure.{f}"] = f"{w}: *DLOAD"
     out.raw["loads"] = {"pressure": pressure}
+    points = _point_loads(m, origin, out.notes)
+    if points:
+        out.raw["loads"]["point"] = points
 
     # the eigenvalue steps (one of each kind) and the friction in force in each step
     eig = [s for s in m.steps if s.procedure in ("FREQUENCY", "COMPLEX FREQUENCY")]
@@ -203,6 +217,7 @@ def _scene(m: DeckModel) -> DeckScene:
         kt = float(lam.value) * mu / static_mu if lam is not None and static_mu > 0 else 0.0
         mpart = part_of_surface(master, w)
         turn = rotation(m, m.elset_nodes(mpart)) if mpart else []
+        turn = turn or (_motion(m, m.elset_nodes(mpart)) if mpart else [])
         sliding = int(np.sign(turn[-1][0])) if turn else 0
         sl = face(slave, w, "CONTACT PAIR")
         key = f"{sl}_{names.get(master.upper(), master)}"
@@ -222,7 +237,9 @@ def _scene(m: DeckModel) -> DeckScene:
                                           if lam is not None else "no stick slope: 0")
         origin[f"interfaces.{key}.sliding"] = (f"{turn[-1][1]}: *BOUNDARY, rigid rotation θ = "
                                                f"{turn[-1][0]:.4g} rad "
-                                               "about z of the master part" if turn else
+                                               "about z of the master part" if turn and len(turn[-1]) == 2 else
+                                               f"{turn[-1][1]}: *MOTION, ROTATION, TYPE=VELOCITY, ω = "
+                                               f"{turn[-1][0]:.4g} rad/s about z of the master part" if turn else
                                                "no prescribed rotation of the master part: no sliding")
         sliding_friction |= mu > 0 and sliding != 0
         if not turn and mu > 0:
@@ -265,6 +282,79 @@ def _scene(m: DeckModel) -> DeckScene:
                                          if st.procedure == "FREQUENCY" and cea else "")
                                       + ("; no frequency range: the lowest modes" if hi == OPEN_BAND_TOP_HZ
                                          else ""))
+    return out
+
+
+def _general_material(m: DeckModel, out: dict, origin: dict, p: str, mat: dict, orient, name: str) -> None:
+    """``materials.<p>`` of an orthotropic or anisotropic ``*ELASTIC`` (E1 … G23 or D) with the section's
+    ``*ORIENTATION``; constants the physics refuses (not positive definite) name the ``*ELASTIC`` line."""
+    if "D" in mat:
+        src = mat["D"]
+        out["D"] = list(src.value)
+        origin[f"materials.{p}.D"] = f"{src.where}: *ELASTIC, TYPE=ORTHOTROPIC/ANISOTROPIC of *MATERIAL {name}"
+    elif "engineering" in mat:
+        src = mat["engineering"]
+        out.update(zip(ENGINEERING_CONSTANTS, src.value))
+        origin[f"materials.{p}.E1"] = f"{src.where}: *ELASTIC, TYPE=ENGINEERING CONSTANTS of *MATERIAL {name}"
+    else:
+        src = mat["E"]
+        e, nu = mat["E"].value, mat["nu"].value
+        out.update(E1=e, E2=e, E3=e, nu12=nu, nu13=nu, nu23=nu, G12=e / (2 * (1 + nu)), G13=e / (2 * (1 + nu)),
+                   G23=e / (2 * (1 + nu)))
+        origin[f"materials.{p}.E1"] = f"{src.where}: *ELASTIC (isotropic, written as engineering constants)"
+    if orient is not None:
+        o = m.orientations[orient.value.upper()]
+        out["orientation"] = {k: o.value[k] for k in ("system", "a", "b", "c")}
+        origin[f"materials.{p}.orientation"] = (f"{o.where}: *ORIENTATION {o.value['name']} "
+                                                f"(*SOLID SECTION at {orient.where})")
+    try:
+        Material(**{"E": None, "nu": None, **out})
+    except ValueError as e:
+        raise AbaqusError(f"{src.where}: *ELASTIC of *MATERIAL {name}: {e}") from None
+
+
+def _point_loads(m: DeckModel, origin: dict, notes: list) -> dict:
+    """``loads.point.n<node>`` of the ``*CLOAD`` rows of the model and of its static steps (the force
+    components of each node summed, in the node's coordinates)."""
+    rows = list(m.cload) + [r for s in m.steps if s.procedure == "STATIC" for r in s.cload]
+    for s in m.steps:
+        if s.procedure != "STATIC" and s.cload:
+            notes.append(f"{s.cload[0][3]}: *CLOAD in a *{s.procedure} step ignored (an eigenvalue step takes "
+                         "no loads)")
+    force: dict[int, np.ndarray] = {}
+    where: dict[int, str] = {}
+    for name, dof, value, w in rows:
+        for n in m.set_nodes(name, f"{w}: *CLOAD").tolist():
+            force.setdefault(n, np.zeros(3))[dof - 1] += value
+            where.setdefault(n, w)
+    out = {}
+    for n, fv in force.items():
+        key = f"n{int(m.mesh.node_ids[n])}"
+        out[key] = {"point": [float(c) for c in m.mesh.points[n]], "force": [float(c) for c in fv]}
+        origin[f"loads.point.{key}"] = f"{where[n]}: *CLOAD"
+    return out
+
+
+def _motion(m: DeckModel, nodes: np.ndarray) -> list[tuple[float, str, str]]:
+    """(ω about +z, where, "MOTION") of the ``*MOTION, ROTATION, TYPE=VELOCITY`` rows of static steps on
+    ``nodes`` (a rate about the z axis: the sliding direction of a rigid rotation of the same sign)."""
+    out = []
+    node_set = set(nodes.tolist())
+    for s in m.steps:
+        if s.procedure != "STATIC":
+            continue
+        for name, omega, a, b, w in s.motion:
+            if not node_set & set(m.set_nodes(name, f"{w}: *MOTION").tolist()):
+                continue
+            pa, d = np.asarray(a), np.asarray(b) - np.asarray(a)
+            if not np.linalg.norm(d) > 0:
+                raise AbaqusError(f"{w}: *MOTION, ROTATION: the axis points a and b coincide")
+            d = d / np.linalg.norm(d)
+            if np.linalg.norm(d[:2]) > 1e-9 or np.linalg.norm(pa[:2]) > 1e-9 * max(1.0, np.linalg.norm(pa)):
+                raise AbaqusError(f"{w}: *MOTION, ROTATION: the axis must be the z axis (the disc axis; got "
+                                  f"{list(a)} -> {list(b)})")
+            if omega != 0.0:
+                out.append((float(omega * np.sign(d[2])), w, "MOTION"))
     return out
 
 

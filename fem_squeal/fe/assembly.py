@@ -19,8 +19,9 @@ from typing import NamedTuple
 
 import numpy as np
 import ufl
-from dolfinx import fem
+from dolfinx import fem, la
 from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
 from petsc4py import PETSc
 from ufl.algorithms.map_integrands import map_integrand_dags
 from ufl.corealg.multifunction import MultiFunction
@@ -272,6 +273,8 @@ def locking_warnings(spec: ModelSpec) -> list[str]:
     K/G = 2(1+ν)/(3(1−2ν)): 9.7 at ν = 0.45, 25 at 0.49, 250 at 0.499)."""
     out = []
     for part, m in spec.materials.items():
+        if m.anisotropic:       # ν = −S₁₂/S₁₁ of the material frame says nothing of the bulk/shear ratio
+            continue
         nus = [m.nu] + ([m.nu_axial] if m.nu_axial is not None else [])
         nu = max(nus)
         limit = LOCKING_NU.get(spec.degree, 1.0)
@@ -360,7 +363,7 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
         if tag not in present_cells:
             raise ModelError(f"materials.{part}: mesh has no cells tagged {tag}")
         dxp = dx(tag)
-        k = forms.material_stiffness_form(u, v, mat, dxp)
+        k = forms.material_stiffness_form(u, v, mat, dxp, spec.quadrature_degree)
         m = forms.mass_form(u, v, mat.rho, dxp)
         mz = forms.axial_mass_form(u, v, mat.rho, dxp, axis_c)
         a_K = k if a_K is None else a_K + k
@@ -368,7 +371,7 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
         a_Mz = mz if a_Mz is None else a_Mz + mz
         if mat.rayleigh_alpha > 0 or mat.rayleigh_beta > 0:
             c = mat.rayleigh_alpha * forms.mass_form(u, v, mat.rho, dxp) + \
-                mat.rayleigh_beta * forms.material_stiffness_form(u, v, mat, dxp)
+                mat.rayleigh_beta * forms.material_stiffness_form(u, v, mat, dxp, spec.quadrature_degree)
             a_C = c if a_C is None else a_C + c
     missing = sorted(set(mesh_data.volumes) - set(spec.materials))
     if missing:
@@ -421,6 +424,12 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
         f = fem_petsc.assemble_vector(fL)
         f.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         fem_petsc.set_bc(f, bcs)
+    if spec.point_loads:
+        if f is None:
+            f = la.create_petsc_vector(V.dofmap.index_map, V.dofmap.index_map_bs)
+            f.set(0.0)
+        add_point_loads(f, V, spec.point_loads)
+        fem_petsc.set_bc(f, bcs)
 
     t1 = time.perf_counter()
     contacts = []
@@ -442,7 +451,7 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
     if parts:
         K_parts = {}
         for part, mat in spec.materials.items():
-            fp = _compile(forms.material_stiffness_form(u, v, mat, dx(mesh_data.volumes[part])), qd)
+            fp = _compile(forms.material_stiffness_form(u, v, mat, dx(mesh_data.volumes[part]), qd), qd)
             K_parts[part] = _assemble(fp, fp, [], 0.0)
         plate_parts = {}
         for plate in spec.plates:
@@ -538,6 +547,49 @@ def rotation_matrices(ops: Operators, mesh_data, spec: ModelSpec, parts, frame: 
     return RotationMatrices(mats[0], mats[1], f)
 
 
+def point_load_nodes(V, loads) -> list[np.ndarray]:
+    """Per load, the local (owned) block index of the DOF node at its point (empty on the ranks that do not
+    own it); a point that is no node of V's on any rank is a :class:`ModelError` naming the load.  Nodes of an
+    element whose DOFs are not all point values (serendipity hexahedra: edge moments) are its vertices only."""
+    x = hexahedra.dof_coordinates(V)
+    n_owned = V.dofmap.index_map.size_local
+    candidates = np.arange(n_owned)
+    if not hexahedra.point_evaluation(V):
+        mesh = V.mesh
+        mesh.topology.create_connectivity(0, mesh.topology.dim)
+        nv = mesh.topology.index_map(0).size_local + mesh.topology.index_map(0).num_ghosts
+        vert = fem.locate_dofs_topological(V, 0, np.arange(nv, dtype=np.int32))
+        candidates = np.intersect1d(candidates, vert)
+    comm = V.mesh.comm
+    lo = comm.allreduce(float(np.min(x[:n_owned])) if n_owned else np.inf, op=MPI.MIN)
+    hi = comm.allreduce(float(np.max(x[:n_owned])) if n_owned else -np.inf, op=MPI.MAX)
+    tol = 1e-9 * max(hi - lo, 1e-300)
+    out = []
+    for load in loads:
+        d = np.linalg.norm(x[candidates] - np.asarray(load.point), axis=1) if len(candidates) else np.zeros(0)
+        hit = candidates[d <= tol] if len(d) else candidates[:0]
+        found = comm.allreduce(len(hit), op=MPI.SUM)
+        if found == 0:
+            near = comm.allreduce(float(d.min()) if len(d) else np.inf, op=MPI.MIN)
+            raise ModelError(f"loads.point.{load.name}: no node of the mesh at {list(load.point)} (nearest "
+                             f"{near:.3g} m away" + ("; the DOFs of serendipity hexahedra on edges are moments: "
+                                                     "load a corner node" if not hexahedra.point_evaluation(V)
+                                                     else "") + ")")
+        out.append(hit[:1])
+    return out
+
+
+def add_point_loads(f: PETSc.Vec, V, loads) -> None:
+    """f += F at the three DOFs of each load's node (:func:`point_load_nodes`; global rows)."""
+    lo = f.getOwnershipRange()[0]
+    bs = V.dofmap.index_map_bs
+    for load, nodes in zip(loads, point_load_nodes(V, loads)):
+        for node in nodes:
+            rows = (lo + bs * int(node) + np.arange(3)).astype(PETSc.IntType)
+            f.setValues(rows, np.asarray(load.force), addv=PETSc.InsertMode.ADD_VALUES)
+    f.assemble()
+
+
 def direct_solver(A: PETSc.Mat, options: dict | None, prefix: str) -> PETSc.KSP:
     """A direct solver of A, factorised (:func:`fem_squeal.fe.factorisation.factor_solver`: MUMPS LU
     by default; PETSc options under ``prefix`` override it)."""
@@ -584,7 +636,8 @@ def geometric_stiffness(ops: Operators, mesh_data, spec: ModelSpec, u0: PETSc.Ve
     u0h.x.scatter_forward()
     a = None
     for mat, dxp in _part_measure(mesh_data, spec, list(spec.materials), "materials"):
-        k = forms.geometric_stiffness_form(u, v, forms.material_stress(u0h, mat), dxp)
+        k = forms.geometric_stiffness_form(u, v, forms.material_stress(u0h, mat), forms.varying_frame_measure(
+            dxp, u, mat, spec.quadrature_degree))
         a = k if a is None else a + k
     c = _compile(a, spec.quadrature_degree)
     A = _assemble(c, c, [], 0.0)

@@ -3,6 +3,7 @@
 Notation: u trial, v test, n outward unit normal of the body's face, s unit sliding direction.
 
 * stiffness      a_K(u, v) = ∫ σ(u) : ε(v) dx,  σ = λ tr ε I + 2G ε            (isotropic)
+                 a_K(u, v) = ∫ (C ε'(u))·ε'(v) dx, ε' = Q ε Qᵀ   (anisotropic C in the frame Q)
 * mass           a_M(u, v) = ∫ ρ u·v dx     (axial part ∫ ρ (u·a)(v·a) dx for energy shares)
 * contact        a_c(u, v) = ∫ k_n (u·n)(v·n) ds        (penalty to a rigid plate, symmetric)
 * friction       a_f(u, v) = ∫ μ k_n (u·n)(s·v) ds      (asymmetric)
@@ -35,6 +36,7 @@ the closed-contact stiffness K (with a_c), not to K_f.  k_t = 0 is the seed 001 
 """
 from __future__ import annotations
 
+import numpy as np
 import ufl
 
 from fem_squeal.util.errors import ModelError
@@ -127,8 +129,79 @@ def voigt_strain(u):
     return ufl.as_vector([e[0, 0], e[1, 1], e[2, 2], 2 * e[1, 2], 2 * e[0, 2], 2 * e[0, 1]])
 
 
-def material_stiffness_form(u, v, mat, dx):
-    """a_K(u, v) = ∫ (C ε(u))·ε(v) dx: isotropic form, or Voigt form of an anisotropic C (6×6)."""
+def voigt(e):
+    """Engineering Voigt vector (e_xx, e_yy, e_zz, 2e_yz, 2e_xz, 2e_xy) of a symmetric tensor."""
+    return ufl.as_vector([e[0, 0], e[1, 1], e[2, 2], 2 * e[1, 2], 2 * e[0, 2], 2 * e[0, 1]])
+
+
+def tensor_of_voigt(s):
+    """The symmetric tensor of a Voigt stress vector (s_xx, s_yy, s_zz, s_yz, s_xz, s_xy)."""
+    return ufl.as_matrix([[s[0], s[5], s[4]], [s[5], s[1], s[3]], [s[4], s[3], s[2]]])
+
+
+def rotated_voigt(C: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """The 6×6 stiffness in global axes of C (6×6, the material frame whose unit vectors are the rows of Q):
+    C_ijkl = Q_pi Q_qj Q_rk Q_sl C'_pqrs (ε' = Q ε Qᵀ; with engineering shear strains the Voigt entries are
+    the tensor components)."""
+    pairs = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
+    T = np.zeros((3, 3, 3, 3))
+    for r, (i, j) in enumerate(pairs):
+        for c_, (k, m) in enumerate(pairs):
+            for a, b in {(i, j), (j, i)}:
+                for c, d in {(k, m), (m, k)}:
+                    T[a, b, c, d] = C[r, c_]
+    G = np.einsum("pi,qj,rk,sl,pqrs->ijkl", Q, Q, Q, Q, T)
+    return np.array([[G[i, j, k, m] for (k, m) in pairs] for (i, j) in pairs])
+
+
+def cylindrical_frame(x, point, axis):
+    """Q(x): rows e₁ = radial (from the axis through ``point`` along the unit ``axis``), e₂ = e₃ × e₁
+    (tangential), e₃ = axis, at the spatial coordinate x."""
+    a = ufl.as_vector([float(c) for c in axis])
+    d = x - ufl.as_vector([float(c) for c in point])
+    r = d - ufl.dot(d, a) * a
+    e1 = r / ufl.sqrt(ufl.dot(r, r))
+    e2 = ufl.cross(a, e1)
+    return ufl.as_matrix([[e1[i] for i in range(3)], [e2[i] for i in range(3)], [a[i] for i in range(3)]])
+
+
+def _anisotropic_parts(u, mat):
+    """(C, Q): the Voigt stiffness and the frame of an anisotropic material for ``u``'s mesh: C global and
+    Q None when the frame is constant (no orientation, or rectangular: C rotated here), else C in the
+    material frame and Q(x) (cylindrical)."""
+    C, o = mat.local_stiffness(), mat.orientation
+    if o is None:
+        return C, None
+    if o.system == "rectangular":
+        return rotated_voigt(C, o.frame()), None
+    return C, cylindrical_frame(ufl.SpatialCoordinate(u.ufl_function_space().mesh), *o.axis())
+
+
+def varying_frame_measure(dx, u, mat, quadrature_degree: int | None = None):
+    """``dx`` for a form of ``mat``: with a cylindrical material frame on simplices and no
+    ``quadrature_degree`` set, the rule of degree 2p + 2 (p the degree of ``u``'s element, as the interface
+    forms; UFL's estimate of the rational Q(x) is about 22, 1728 points per cell); hexahedra keep the
+    element's Gauss rule (:func:`fem_squeal.fe.hexahedra.with_cell_rule`, CalculiX's points), a set degree
+    goes in as always."""
+    o = getattr(mat, "orientation", None)
+    if o is None or o.system != "cylindrical" or quadrature_degree is not None:
+        return dx
+    if u.ufl_function_space().mesh.ufl_cell().cellname() == "hexahedron":
+        return dx
+    return dx.reconstruct(metadata={"quadrature_degree": 2 * u.ufl_element().degree() + 2})
+
+
+def material_stiffness_form(u, v, mat, dx, quadrature_degree: int | None = None):
+    """a_K(u, v) = ∫ (C ε(u))·ε(v) dx: isotropic form, or Voigt form of an anisotropic C (6×6); in a
+    cylindrical material frame Q(x) (rows e_r, e_θ, e_z): ∫ (C ε'(u))·ε'(v) dx with ε' = Q ε Qᵀ
+    (``quadrature_degree``: :func:`varying_frame_measure`)."""
+    if getattr(mat, "anisotropic", False):
+        C, Q = _anisotropic_parts(u, mat)
+        Cu = ufl.as_matrix(C.tolist())
+        if Q is None:
+            return ufl.dot(Cu * voigt_strain(u), voigt_strain(v)) * dx
+        return ufl.dot(Cu * voigt(Q * strain(u) * Q.T), voigt(Q * strain(v) * Q.T)) * \
+            varying_frame_measure(dx, u, mat, quadrature_degree)
     if not getattr(mat, "transversely_isotropic", False):
         return stiffness_form(u, v, mat.E, mat.nu, dx)
     C = ufl.as_matrix(mat.voigt_stiffness().tolist())
@@ -182,7 +255,14 @@ def centrifugal_load_form(v, rho, x, axis, dx):
 
 
 def material_stress(u, mat):
-    """σ(u) = C ε(u) as a tensor: isotropic, or the Voigt stiffness of a transversely isotropic material."""
+    """σ(u) = C ε(u) as a tensor: isotropic, the Voigt stiffness of a transversely isotropic material, or of
+    an anisotropic one (cylindrical frame Q(x): σ = Qᵀ σ'(Q ε Qᵀ) Q)."""
+    if getattr(mat, "anisotropic", False):
+        C, Q = _anisotropic_parts(u, mat)
+        Cu = ufl.as_matrix(C.tolist())
+        if Q is None:
+            return tensor_of_voigt(Cu * voigt_strain(u))
+        return Q.T * tensor_of_voigt(Cu * voigt(Q * strain(u) * Q.T)) * Q
     if not getattr(mat, "transversely_isotropic", False):
         return stress(u, mat.E, mat.nu)
     s = ufl.as_matrix(mat.voigt_stiffness().tolist()) * voigt_strain(u)

@@ -45,6 +45,84 @@ def _check_speed_terms(obj) -> None:
             raise ModelError("friction_damping: needs sliding = ±1 and mu > 0 or a μ(V) law")
 
 
+#: Abaqus/CalculiX order of the 21 anisotropic constants D_ijkl (TYPE=ANISO), as Voigt pairs of
+#: this module's order (xx, yy, zz, yz, xz, xy) = (11, 22, 33, 23, 13, 12)
+ANISO_ORDER = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2), (0, 5), (1, 5), (2, 5), (5, 5), (0, 4), (1, 4),
+               (2, 4), (4, 5), (4, 4), (0, 3), (1, 3), (2, 3), (3, 5), (3, 4), (3, 3))
+#: the nine orthotropic constants D1111 D1122 D2222 D1133 D2233 D3333 D1212 D1313 D2323 (TYPE=ORTHOTROPIC)
+ORTHO_ORDER = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2), (5, 5), (4, 4), (3, 3))
+ENGINEERING_CONSTANTS = ("E1", "E2", "E3", "nu12", "nu13", "nu23", "G12", "G13", "G23")
+
+
+def orthotropic_compliance(E1, E2, E3, nu12, nu13, nu23, G12, G13, G23) -> np.ndarray:
+    """6×6 compliance S (Voigt order xx, yy, zz, yz, xz, xy; engineering shear strains) of the engineering
+    constants in the material frame (Abaqus's convention, ν_ij/E_i = ν_ji/E_j):
+    S = [[1/E1, −ν12/E1, −ν13/E1], [−ν12/E1, 1/E2, −ν23/E2], [−ν13/E1, −ν23/E2, 1/E3]]
+        ⊕ diag(1/G23, 1/G13, 1/G12)."""
+    S = np.zeros((6, 6))
+    S[:3, :3] = [[1 / E1, -nu12 / E1, -nu13 / E1], [-nu12 / E1, 1 / E2, -nu23 / E2],
+                 [-nu13 / E1, -nu23 / E2, 1 / E3]]
+    S[3, 3], S[4, 4], S[5, 5] = 1 / G23, 1 / G13, 1 / G12
+    return S
+
+
+def voigt_from_d(d) -> np.ndarray:
+    """The symmetric 6×6 stiffness (this module's Voigt order) of the 21 Abaqus ANISO constants D_ijkl
+    (:data:`ANISO_ORDER`); 9 values: the orthotropic D's (:data:`ORTHO_ORDER`)."""
+    order = ANISO_ORDER if len(d) == 21 else ORTHO_ORDER
+    if len(d) != len(order):
+        raise ModelError(f"D: 9 (orthotropic) or 21 (anisotropic) constants (got {len(d)})")
+    C = np.zeros((6, 6))
+    for (i, j), v in zip(order, d):
+        C[i, j] = C[j, i] = float(v)
+    return C
+
+
+@dataclass(frozen=True)
+class Orientation:
+    """The material frame of a part (Abaqus/CalculiX ``*ORIENTATION``), as unit vectors (e₁, e₂, e₃) at x:
+
+    - ``rectangular``: e₁ along a − c, e₃ along (a − c) × (b − c), e₂ = e₃ × e₁ (a on the local 1 axis, b
+      in the local 1–2 plane, c the origin; constant);
+    - ``cylindrical``: a and b on the axis, e₃ = (b − a)/|b − a| (axial), e₁ radial from the axis through x,
+      e₂ = e₃ × e₁ (tangential); varies with x."""
+
+    system: str = "rectangular"
+    a: tuple = (1.0, 0.0, 0.0)
+    b: tuple = (0.0, 1.0, 0.0)
+    c: tuple = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        if self.system not in ("rectangular", "cylindrical"):
+            raise ModelError(f"orientation.system: must be 'rectangular' or 'cylindrical' (got {self.system!r})")
+        for k in ("a", "b", "c"):
+            v = getattr(self, k)
+            if len(v) != 3 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+                raise ModelError(f"orientation.{k}: must be three numbers (got {v!r})")
+            object.__setattr__(self, k, tuple(float(x) for x in v))
+        a, b, c = (np.asarray(getattr(self, k)) for k in "abc")
+        if self.system == "rectangular":
+            e1 = a - c
+            n3 = np.cross(e1, b - c)
+            if np.linalg.norm(e1) == 0 or np.linalg.norm(n3) <= 1e-12 * np.linalg.norm(e1) * np.linalg.norm(b - c):
+                raise ModelError("orientation: a must differ from c and b must not lie on the line c–a")
+        elif np.linalg.norm(b - a) == 0:
+            raise ModelError("orientation: a and b must differ (two points of the cylinder axis)")
+
+    def frame(self) -> np.ndarray:
+        """Q (3×3), rows e₁, e₂, e₃ in global components (rectangular only: constant)."""
+        a, b, c = (np.asarray(getattr(self, k)) for k in "abc")
+        e1 = (a - c) / np.linalg.norm(a - c)
+        e3 = np.cross(a - c, b - c)
+        e3 /= np.linalg.norm(e3)
+        return np.array([e1, np.cross(e3, e1), e3])
+
+    def axis(self) -> tuple[np.ndarray, np.ndarray]:
+        """(a point of the axis, the unit axial direction) of a cylindrical system."""
+        a, b = np.asarray(self.a), np.asarray(self.b)
+        return a, (b - a) / np.linalg.norm(b - a)
+
+
 @dataclass(frozen=True)
 class Material:
     """Linear-elastic material with Rayleigh damping C = αM + βK.
@@ -52,10 +130,16 @@ class Material:
     Isotropic (E, ν), or transversely isotropic about the model axis (a friction lining pressed
     through its thickness) when E_axial, nu_axial and G_axial are given: E, ν act in the plane
     normal to the axis, E_axial along it, nu_axial = −ε_plane/ε_axial under axial stress and
-    G_axial is the shear modulus of planes containing the axis."""
+    G_axial is the shear modulus of planes containing the axis.
 
-    E: float
-    nu: float
+    Orthotropic, in the material frame of ``orientation`` (global axes when None): the nine engineering
+    constants E1 … G23 (:func:`orthotropic_compliance`); or anisotropic: ``D``, the 9 orthotropic or 21
+    anisotropic stiffness constants D_ijkl of Abaqus/CalculiX (:func:`voigt_from_d`).  E and ν may then
+    be left out: they become the material frame's 1/S₁₁ and −S₁₂/S₁₁ (the part's nominal modulus, the one a
+    modulus parameter scales)."""
+
+    E: float | None
+    nu: float | None
     rho: float
     rayleigh_alpha: float = 0.0
     rayleigh_beta: float = 0.0
@@ -65,16 +149,41 @@ class Material:
     eta: float = 0.0      # loss factor η: structural damping K(1 + iη) (reduced model; fe.projection.full_modes)
     # η(f, T) (a reduced.laws.loss_factor.LossTable or its scene table); eta is then its nominal value
     eta_table: Any = None
+    E1: float | None = None
+    E2: float | None = None
+    E3: float | None = None
+    nu12: float | None = None
+    nu13: float | None = None
+    nu23: float | None = None
+    G12: float | None = None
+    G13: float | None = None
+    G23: float | None = None
+    D: tuple | None = None
+    orientation: Orientation | None = None
 
     @property
     def transversely_isotropic(self) -> bool:
         return self.E_axial is not None
 
+    @property
+    def anisotropic(self) -> bool:
+        """Orthotropic or anisotropic in a material frame (engineering constants E1 … G23, or D)."""
+        return self.E1 is not None or self.D is not None
+
+    def local_stiffness(self) -> np.ndarray:
+        """6×6 stiffness in the material frame (Voigt xx, yy, zz, yz, xz, xy) of an anisotropic material."""
+        if self.D is not None:
+            return voigt_from_d(self.D)
+        return np.linalg.inv(orthotropic_compliance(*(getattr(self, k) for k in ENGINEERING_CONSTANTS)))
+
     def voigt_stiffness(self) -> np.ndarray:
         """6×6 stiffness in Voigt order (xx, yy, zz, yz, xz, xy), engineering shear strains,
         axis = z: the inverse of the compliance
         S = [[1/E, −ν/E, −ν_a/E_a], [−ν/E, 1/E, −ν_a/E_a], [−ν_a/E_a, −ν_a/E_a, 1/E_a]] ⊕
-            diag(1/G_a, 1/G_a, 2(1+ν)/E)."""
+            diag(1/G_a, 1/G_a, 2(1+ν)/E).
+        Anisotropic: :meth:`local_stiffness` (in the material frame)."""
+        if self.anisotropic:
+            return self.local_stiffness()
         E, nu = self.E, self.nu
         Ea, nua, Ga = (self.E_axial, self.nu_axial, self.G_axial) if self.transversely_isotropic else \
             (E, nu, E / (2 * (1 + nu)))
@@ -84,10 +193,50 @@ class Material:
         S[5, 5] = 2 * (1 + nu) / E
         return np.linalg.inv(S)
 
+    def _check_anisotropic(self) -> None:
+        eng = [getattr(self, k) for k in ENGINEERING_CONSTANTS]
+        if any(v is not None for v in eng):
+            if any(v is None for v in eng):
+                raise ModelError(f"{', '.join(ENGINEERING_CONSTANTS)}: give all nine for an orthotropic material "
+                                 f"(missing {[k for k, v in zip(ENGINEERING_CONSTANTS, eng) if v is None]})")
+            if self.D is not None:
+                raise ModelError("D: give either the engineering constants E1 … G23 or D, not both")
+            for k in ("E1", "E2", "E3", "G12", "G13", "G23"):
+                if not getattr(self, k) > 0:
+                    raise ModelError(f"{k}: must be > 0 (got {getattr(self, k)})")
+        if self.D is not None:
+            object.__setattr__(self, "D", tuple(float(x) for x in self.D))
+            voigt_from_d(self.D)
+        if self.transversely_isotropic and self.anisotropic:
+            raise ModelError("E_axial, nu_axial, G_axial: not with the orthotropic constants E1 … G23 or D")
+        C = self.local_stiffness()
+        if np.min(np.linalg.eigvalsh(C)) <= 0:
+            what = "D" if self.D is not None else "nu12, nu13, nu23"
+            raise ModelError(f"{what}: the constants give a stiffness that is not positive definite "
+                             f"(eigenvalues {np.array2string(np.linalg.eigvalsh(C), precision=3)})")
+        S = np.linalg.inv(C)
+        if self.E is None:
+            object.__setattr__(self, "E", float(1 / S[0, 0]))
+        if self.nu is None:
+            object.__setattr__(self, "nu", float(-S[0, 1] / S[0, 0]))
+
     def __post_init__(self):
+        if self.orientation is not None and not isinstance(self.orientation, Orientation):
+            o = dict(self.orientation)
+            try:
+                object.__setattr__(self, "orientation", Orientation(**o))
+            except TypeError:
+                raise ModelError(f"orientation: keys system, a, b[, c] (got {sorted(o)})") from None
+        if self.anisotropic:
+            self._check_anisotropic()
+        elif self.orientation is not None:
+            raise ModelError("orientation: only for an orthotropic or anisotropic material (E1 … G23 or D)")
+        if self.E is None or self.nu is None:
+            raise ModelError(f"{'E' if self.E is None else 'nu'}: required (or the orthotropic constants "
+                             "E1 … G23, or D)")
         if not self.E > 0:
             raise ModelError(f"E: must be > 0 (got {self.E})")
-        if not -1.0 < self.nu < 0.5:
+        if not self.anisotropic and not -1.0 < self.nu < 0.5:
             raise ModelError(f"nu: must be in (-1, 0.5) (got {self.nu})")
         if not self.rho > 0:
             raise ModelError(f"rho: must be > 0 (got {self.rho})")
@@ -257,6 +406,23 @@ class Pressure:
 
 
 @dataclass(frozen=True)
+class PointLoad:
+    """A concentrated force [N] at the mesh node ``point`` (Abaqus ``*CLOAD``): it enters the static
+    right-hand side f as F on the three displacement DOFs of that node."""
+
+    name: str
+    point: tuple
+    force: tuple
+
+    def __post_init__(self):
+        for k in ("point", "force"):
+            v = getattr(self, k)
+            if len(v) != 3:
+                raise ModelError(f"{k}: must be three numbers (got {v!r})")
+            object.__setattr__(self, k, tuple(float(x) for x in v))
+
+
+@dataclass(frozen=True)
 class ModelSpec:
     """Everything the assembly needs besides the mesh: materials per part, plates, clamps, degree."""
 
@@ -271,6 +437,7 @@ class ModelSpec:
     pressures: tuple[Pressure, ...] = ()
     interface_quadrature_degree: int = 4
     fixed: tuple[FixedFace, ...] = ()     # component-wise Dirichlet conditions (clamped: all three)
+    point_loads: tuple[PointLoad, ...] = ()
 
     def __post_init__(self):
         held: dict[str, set[int]] = {}

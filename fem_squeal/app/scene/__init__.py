@@ -34,7 +34,9 @@ geometry         builder = "mesh_file": file (relative to the scene file), forma
                  builder = "brake_corner": every field of ``geometry.brake_corner.BrakeCornerParams``
                  (dimensions [m], angles [deg], mesh sizes [m], matching) plus order
 materials.<part> E [Pa], nu, rho [kg/m³], rayleigh_alpha [1/s], rayleigh_beta [s];
-                 E_axial [Pa], nu_axial, G_axial [Pa] (all three: transversely isotropic about the axis)
+                 E_axial [Pa], nu_axial, G_axial [Pa] (all three: transversely isotropic about the axis);
+                 E1 E2 E3 nu12 nu13 nu23 G12 G13 G23 (orthotropic) or D (9 or 21 Abaqus D_ijkl) in the
+                 frame of orientation = {system = rectangular | cylindrical, a, b[, c]} (E, nu optional)
 interfaces.<name> type = "rigid_plate": face, kn [N/m³], mu, sliding (+1 forward: the plate
                  slides in +e_θ relative to the body; −1 backward; 0 none), kt [N/m³]
                  type = "contact": slave, master (faces), kn [N/m³], mu, sliding (+1: the master

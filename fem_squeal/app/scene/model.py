@@ -6,7 +6,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from fem_squeal.fe.model import FixedFace, GroundSpring, Interface, Material, ModelSpec, Pressure, RigidPlate
+from fem_squeal.fe.model import (
+    FixedFace,
+    GroundSpring,
+    Interface,
+    Material,
+    ModelSpec,
+    PointLoad,
+    Pressure,
+    RigidPlate,
+)
 from fem_squeal.reduced.laws.friction import FRICTION_LAWS
 from fem_squeal.util.errors import SceneError
 
@@ -58,11 +67,13 @@ def build_model_spec(scene: Mapping, materials: Mapping[str, Material] | None = 
     springs = tuple(GroundSpring(t["face"], float(t["k_axial"]), float(t["k_transverse"]))
                     for t in scene["boundary"]["ground_springs"].values())
     pressures = tuple(Pressure(t["face"], float(t["p"])) for t in scene["loads"]["pressure"].values())
+    points = tuple(PointLoad(n, tuple(t["point"]), tuple(t["force"]))
+                   for n, t in scene["loads"].get("point", {}).items())
     d = scene["discretisation"]
     fixed = tuple(FixedFace(t["face"], tuple(t["components"]))
                   for t in scene["boundary"].get("fixed", {}).values())
     return ModelSpec(mats, plates, tuple(scene["boundary"]["clamped"]), d["degree"],
                      d["quadrature_degree"], interfaces=interfaces, ground_springs=springs,
                      pressures=pressures, interface_quadrature_degree=d["interface_quadrature_degree"],
-                     fixed=fixed)
+                     fixed=fixed, point_loads=points)
 

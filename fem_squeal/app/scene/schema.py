@@ -83,8 +83,9 @@ def _loss_table(v: dict) -> str | None:
 
 
 MATERIAL = {
-    "E": Field(REAL, check=positive, doc="Young's modulus [Pa]"),
-    "nu": Field(REAL, check=poisson, doc="Poisson's ratio"),
+    "E": Field(REAL, None, positive, "Young's modulus [Pa] (required unless orthotropic or anisotropic: then the "
+               "nominal modulus a parameter scales; not set: 1/S11 of the material frame)"),
+    "nu": Field(REAL, None, poisson, "Poisson's ratio (required unless orthotropic or anisotropic)"),
     "rho": Field(REAL, check=positive, doc="density [kg/m³]"),
     "rayleigh_alpha": Field(REAL, 0.0, non_negative, "mass-proportional damping [1/s]"),
     "rayleigh_beta": Field(REAL, 0.0, non_negative, "stiffness-proportional damping [s]"),
@@ -103,6 +104,39 @@ MATERIAL = {
                        "analyses.operating_matrix solve each mode at its own frequency (fixed point) and "
                        "temperature.  Not with eta"),
 }
+_ENG = {"E1": "E1 [Pa]", "E2": "E2 [Pa]", "E3": "E3 [Pa]", "nu12": "ν12 (= −ε2/ε1 under σ1)", "nu13": "ν13",
+        "nu23": "ν23", "G12": "G12 [Pa]", "G13": "G13 [Pa]", "G23": "G23 [Pa]"}
+MATERIAL.update({k: Field(REAL, None, positive if k[0] in "EG" else None,
+                          f"orthotropic (all nine, in the orientation's frame): {d}") for k, d in _ENG.items()})
+
+
+def _numbers(n: tuple[int, ...]):
+    def check(v):
+        ok = len(v) in n and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+        return None if ok else f"must be {' or '.join(map(str, n))} numbers (got {v!r})"
+    return check
+
+
+def _orientation(v: dict) -> str | None:
+    unknown = sorted(set(v) - {"system", "a", "b", "c"})
+    if unknown:
+        return f"unknown key {unknown[0]!r}; allowed: system, a, b, c"
+    if v.get("system", "rectangular") not in ("rectangular", "cylindrical"):
+        return f"system: must be 'rectangular' or 'cylindrical' (got {v.get('system')!r})"
+    for k in ("a", "b", "c"):
+        if k in v and _numbers((3,))(v[k]):
+            return f"{k}: {_numbers((3,))(v[k])}"
+    return None if "a" in v and "b" in v else "needs a and b (points: rectangular a on axis 1, b in the 1-2 " \
+        "plane; cylindrical a, b on the axis)"
+
+
+MATERIAL["D"] = Field(list, None, _numbers((9, 21)), "anisotropic stiffness in the orientation's frame [Pa]: "
+                      "Abaqus/CalculiX's D1111 D1122 D2222 D1133 D2233 D3333 D1212 D1313 D2323 (9, orthotropic)"
+                      " or the 21 of TYPE=ANISO")
+MATERIAL["orientation"] = Field(dict, None, _orientation, "material frame of E1 … G23 or D (*ORIENTATION): "
+                                "{system = 'rectangular' | 'cylindrical', a = [x, y, z], b = [x, y, z], c = "
+                                "origin (rectangular)} [m, in the model's frame: after geometry's scaling]; "
+                                "cylindrical: 1 radial, 2 tangential, 3 along a → b")
 _TYPE = Field(str, "rigid_plate", one_of("rigid_plate", "contact", "spring", "bonded"))
 _PAIR = {"slave": Field(str, check=nonempty_str, doc="slave face (quadrature side: the lining)"),
          "master": Field(str, check=nonempty_str, doc="master face (the disc)")}
@@ -145,6 +179,8 @@ GROUND_SPRING = {
     "k_transverse": Field(REAL, 0.0, non_negative, "stiffness across the axis [N/m³]"),
 }
 PRESSURE = {"face": Field(str, check=nonempty_str), "p": Field(REAL, check=None, doc="pressure [Pa]")}
+POINT_LOAD = {"point": Field(list, check=_numbers((3,)), doc="a node of the mesh [m] (after geometry's scaling)"),
+              "force": Field(list, check=_numbers((3,)), doc="force [N] (global x, y, z) at that node")}
 
 
 def _part_names(v: list) -> str | None:
@@ -159,7 +195,8 @@ SECTIONS = {
     "boundary": {"clamped": Field(list, [], None, "faces with all displacements fixed"),
                  "fixed": Field(dict, {}, None, "name -> {face, components}: global components fixed"),
                  "ground_springs": Field(dict, {}, None, "name -> {face, k_axial, k_transverse}")},
-    "loads": {"pressure": Field(dict, {}, None, "name -> {face, p}")},
+    "loads": {"pressure": Field(dict, {}, None, "name -> {face, p}"),
+              "point": Field(dict, {}, None, "name -> {point, force}: a concentrated force at a mesh node")},
     "preload": {
         "mode": Field(str, "nonlinear", one_of("nonlinear", "all_closed")),
         "friction": Field(bool, True, None, "sliding friction in the static step"),
@@ -198,7 +235,7 @@ SECTIONS = {
 }
 #: the name -> table maps inside model sections, with the fields of their tables
 SUBTABLES = {("boundary", "fixed"): FIXED, ("boundary", "ground_springs"): GROUND_SPRING,
-             ("loads", "pressure"): PRESSURE}
+             ("loads", "pressure"): PRESSURE, ("loads", "point"): POINT_LOAD}
 
 
 def _range(v: list) -> str | None:

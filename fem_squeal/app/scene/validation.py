@@ -32,6 +32,7 @@ from fem_squeal.app.scene.schema import (
     GROUND_SPRING,
     INTERFACES,
     MATERIAL,
+    POINT_LOAD,
     PRESSURE,
     SECTIONS,
     geometry_tags,
@@ -293,11 +294,12 @@ def _boundary(table: Any, sec: str, known_face: Callable[[str, str], None]) -> S
 
 
 def _loads(table: Any, sec: str, known_face: Callable[[str, str], None]) -> Section:
-    """loads: pressures on faces of the geometry."""
+    """loads: pressures on faces of the geometry, concentrated forces at nodes."""
     t = check_fields(table, SECTIONS[sec], sec)
     pressure = {name: _on_face(entry, PRESSURE, f"loads.pressure.{name}", "loads.pressure", known_face)
                 for name, entry in t["pressure"].items()}
-    return freeze({**t, "pressure": pressure}, SECTIONS[sec], sec)
+    point = {name: section(entry, POINT_LOAD, f"loads.point.{name}") for name, entry in t["point"].items()}
+    return freeze({**t, "pressure": pressure, "point": point}, SECTIONS[sec], sec)
 
 
 def _plain_section(table: Any, sec: str, known_face: Callable[[str, str], None]) -> Section:
@@ -344,8 +346,10 @@ def cross_check(scene: Scene, volumes: Mapping[str, int]) -> None:
     analysis's cross-checks in the registry's order."""
     if "geometry" in scene:
         has_contact = any(t.type == "contact" for t in scene.interfaces.values())
-        if has_contact and scene.preload.mode == "nonlinear" and not scene.loads.pressure:
+        if has_contact and scene.preload.mode == "nonlinear" and not (scene.loads.pressure or
+                                                                       scene.loads.get("point")):
             raise SceneError("loads.pressure: required for preload.mode = 'nonlinear' with contact interfaces "
+                             "(or loads.point) "
                              "(or set preload.mode = 'all_closed')")
         check_speed_terms(scene)
         check_rotation(scene, volumes)

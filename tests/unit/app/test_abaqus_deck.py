@@ -188,12 +188,20 @@ def test_frequency_and_complex_frequency_steps(deck):
 
 @pytest.mark.parametrize("edit, message", [
     (("*DENSITY\n2500.", "*DENSITY\n2500.\n*PLASTIC\n1e8, 0."), "model.inp line 10: *PLASTIC: not supported"),
-    (("*STEP, PERTURBATION", "*CLOAD\nNBACK, 3, 1.\n*STEP, PERTURBATION"), "*CLOAD: concentrated forces"),
+    (("*STEP, PERTURBATION", "*CLOAD\n999, 3, 1.\n*STEP, PERTURBATION"),
+     "model.inp line 62: *CLOAD: no node set or node '999'"),
+    (("*STEP, PERTURBATION", "*CLOAD\nNBACK, 4, 1.\n*STEP, PERTURBATION"), "line 62: *CLOAD, 4: only forces"),
     (("PRESSURE-OVERCLOSURE=LINEAR", "PRESSURE-OVERCLOSURE=EXPONENTIAL"),
      "line 22: *SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=EXPONENTIAL: only LINEAR"),
-    (("3.2e9, 1e9, 1e9", "3.1e9, 1e9, 1e9"), "line 5: *ELASTIC, TYPE=ENGINEERING CONSTANTS: not transversely"),
+    (("0.25, 0.1, 0.1,", "0.25, 0.1, 4.0,"),
+     "line 5: *ELASTIC of *MATERIAL LINING: nu12, nu13, nu23: the constants give a stiffness that is not"),
     (("*SOLID SECTION, ELSET=PAD, MATERIAL=LINING", "*SOLID SECTION, ELSET=PAD, MATERIAL=LINING, ORIENTATION=OR"),
-     "line 16: *SOLID SECTION, ORIENTATION"),
+     "line 16: *SOLID SECTION, ORIENTATION=OR: no such *ORIENTATION"),
+    (("*SOLID SECTION, ELSET=PAD,",
+      "*ORIENTATION, NAME=OR, SYSTEM=SPHERICAL\n0,0,0,0,0,1\n*SOLID SECTION, ELSET=PAD,"),
+     "line 16: *ORIENTATION, SYSTEM=SPHERICAL: only RECTANGULAR and CYLINDRICAL"),
+    (("*STATIC\n*BOUNDARY", "*STATIC\n*MOTION, TRANSLATION, TYPE=VELOCITY\nNPLATE, 1, 1, 1.\n*BOUNDARY"),
+     "*MOTION, TRANSLATION: parameter not supported"),
     (("BACKTOP, P, 2e5", "PAD, P2, 2e5"), "line 37: *DLOAD PAD, P2: element-face pressure"),
     (("NBACK, 1, 2", "NBACK, 1, 2, 1e-6"), "line 30: *BOUNDARY NBACK, 1, 2, 1e-06: a nonzero prescribed"),
     (("*FREQUENCY\n6", "*COMPLEX FREQUENCY, FRICTION DAMPING=YES\n6"),
@@ -249,3 +257,46 @@ def test_run_deck_as_it_is(deck, tmp_path):
     bad = deck.parent / "bad_run.inp"
     bad.write_text(deck.read_text().replace("*EL FILE", "*MODAL DAMPING\n1, 6, 0.01\n*EL FILE"))
     assert main(["--cache-dir", str(tmp_path / "cache"), "run", str(bad), "-o", str(tmp_path / "o2")]) == 2
+
+
+def test_orientation_cload_and_motion(deck):
+    """Orthotropic constants in a cylindrical *ORIENTATION, a *CLOAD and the disc's *MOTION become an editable
+    scene: materials.PAD.E1 … G23 with its orientation, loads.point.n<node> (components summed), and the
+    sliding direction of the rotation rate, the same as the prescribed rotation of equal sign gives."""
+    from fem_squeal.app.deck import deck_scene, write_scene
+    from fem_squeal.app.scene import load_scene
+
+    text = deck.read_text().replace("3.2e9, 1e9, 1e9", "3.1e9, 1e9, 0.9e9").replace(
+        "*SOLID SECTION, ELSET=PAD, MATERIAL=LINING",
+        "*ORIENTATION, NAME=CYL, SYSTEM=CYLINDRICAL\n0, 0, 0, 0, 0, 1\n"
+        "*SOLID SECTION, ELSET=PAD, MATERIAL=LINING, ORIENTATION=cyl").replace(
+        "*DLOAD\n", "*CLOAD\nNBACK, 3, -10.\n18, 1, 2.\n*DLOAD\n")
+    turn = text[text.index("*STATIC\n*BOUNDARY\n25, 1"):text.index("*END STEP\n*STEP, PERTURBATION")]
+    motion = deck.parent / "motion.inp"
+    for omega, sign in ((50.0, 1), (-50.0, -1)):
+        motion.write_text(text.replace(turn, f"*STATIC\n*MOTION, ROTATION, TYPE=VELOCITY\nNPLATE, {omega}, "
+                                             "0., 0., 0., 0., 0., 1.\n"))
+        ds = deck_scene(motion)
+        assert ds.raw["interfaces"]["PADBOT_PLATETOP"]["sliding"] == sign
+        assert "*MOTION, ROTATION" in ds.origin["interfaces.PADBOT_PLATETOP.sliding"]
+    pad = ds.raw["materials"]["PAD"]
+    assert (pad["E1"], pad["E3"], pad["nu23"], pad["G23"]) == (8e9, 2e9, 0.1, 0.9e9) and "E" not in pad
+    assert pad["orientation"] == {"system": "cylindrical", "a": [0.0, 0.0, 0.0], "b": [0.0, 0.0, 1.0],
+                                  "c": [0.0, 0.0, 0.0]}
+    assert ds.raw["loads"]["point"]["n18"]["force"] == [2.0, 0.0, -10.0]
+    assert ds.raw["loads"]["point"]["n19"]["force"] == [0.0, 0.0, -10.0]
+    write_scene(motion, deck.parent / "motion.toml")
+    scene = load_scene(deck.parent / "motion.toml")
+    from fem_squeal.app.scene.validation import model_spec
+
+    spec = model_spec(scene)
+    mat = spec.materials["PAD"]
+    assert scene.materials["PAD"].orientation["system"] == "cylindrical"
+    assert mat.anisotropic and mat.orientation.system == "cylindrical" and mat.E == pytest.approx(8e9)
+    assert {p.name: p.force for p in spec.point_loads}["n18"] == (2.0, 0.0, -10.0)
+    motion.write_text(text.replace(turn, "*STATIC\n*MOTION, ROTATION, TYPE=VELOCITY\nNPLATE, 50., 0., 0., 0., "
+                                         "1., 0., 0.\n"))
+    from fem_squeal.util.errors import MeshError
+
+    with pytest.raises(MeshError, match=r"motion.inp line \d+: \*MOTION, ROTATION: the axis must be the z axis"):
+        deck_scene(motion)

@@ -145,6 +145,75 @@ def test_transversely_isotropic_stiffness(ring_mesh):
         Material(8e9, 0.3, 2500.0, E_axial=3e9, nu_axial=0.9, G_axial=1.5e9)
 
 
+def test_oriented_orthotropic_stiffness(ring_mesh):
+    """Material frames: a cylindrical frame about z of a material transversely isotropic about its local 3
+    axis assembles the global transversely isotropic matrix (1e-12 on the same rule: the rotation about z
+    leaves it unchanged); a rectangular frame that permutes the axes gives the relabelled constants' stiffness,
+    the 21 ANISO constants of a rotated stiffness give it back; non-positive-definite constants and an
+    orientation on an isotropic material are named errors."""
+    from dolfinx import fem
+
+    from fem_squeal.fe import forms
+    from fem_squeal.fe.model import ANISO_ORDER, ENGINEERING_CONSTANTS, Material
+
+    md = ring_mesh()
+    V = fem.VectorFunctionSpace(md.mesh, ("Lagrange", 2))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+
+    def mat(m):
+        dx = ufl.dx(metadata={"quadrature_degree": 6})
+        A = fem_petsc.assemble_matrix(fem.form(forms.material_stiffness_form(u, v, m, dx)))
+        A.assemble()
+        return A
+
+    ti = Material(8e9, 0.3, 2500.0, E_axial=3e9, nu_axial=0.15, G_axial=1.5e9)
+    eng = dict(zip(ENGINEERING_CONSTANTS, (8e9, 8e9, 3e9, 0.3, 0.4, 0.4, 8e9 / 2.6, 1.5e9, 1.5e9)))
+    cyl = {"system": "cylindrical", "a": [0, 0, 0], "b": [0, 0, 1]}
+    A, B = mat(ti), mat(Material(None, None, 2500.0, **eng, orientation=cyl))
+    B.axpy(-1.0, A)
+    assert B.norm() <= 1e-12 * A.norm()
+    orth = dict(zip(ENGINEERING_CONSTANTS, (10e9, 4e9, 2e9, 0.25, 0.2, 0.3, 3e9, 1e9, 0.8e9)))
+    # local 1 = global y, local 2 = −x, local 3 = z: E_x = E2, E_y = E1, ν_xy = ν21 = ν12 E2/E1, G_xz = G23
+    rect = Material(None, None, 2500.0, **orth, orientation={"system": "rectangular", "a": [0, 1, 0],
+                                                             "b": [-1, 0, 0]})
+    relabel = dict(zip(ENGINEERING_CONSTANTS, (4e9, 10e9, 2e9, 0.1, 0.3, 0.2, 3e9, 0.8e9, 1e9)))
+    Cr = forms.rotated_voigt(rect.local_stiffness(), rect.orientation.frame())
+    assert np.allclose(Cr, Material(None, None, 2500.0, **relabel).local_stiffness(), rtol=0, atol=1e-12 * 1e10)
+    tilted = Material(None, None, 2500.0, **orth, orientation={"system": "rectangular", "a": [1, 0.5, 0.2],
+                                                               "b": [-0.3, 1, 0.1]})
+    Cg = forms.rotated_voigt(tilted.local_stiffness(), tilted.orientation.frame())
+    assert np.count_nonzero(np.abs(Cg) > 1e-6 * np.abs(Cg).max()) == 36
+    Cd = Material(None, None, 2500.0, D=[Cg[i, j] for i, j in ANISO_ORDER]).local_stiffness()
+    assert np.allclose(Cd, Cg, rtol=0, atol=1e-14 * np.abs(Cg).max())
+    with pytest.raises(ValueError, match="nu12, nu13, nu23: the constants give a stiffness that is not positive"):
+        Material(None, None, 2500.0, **{**orth, "nu23": 4.0})
+    with pytest.raises(ValueError, match="orientation: only for an orthotropic"):
+        Material(8e9, 0.3, 2500.0, orientation=cyl)
+
+
+def test_point_load_at_a_node(ring_mesh):
+    """loads.point: F lands on the three DOFs of the node at the point (summed over ranks: F), and a point
+    that is no node is a named error."""
+    from dolfinx import fem, la
+
+    from fem_squeal.fe.assembly import add_point_loads
+    from fem_squeal.fe.model import PointLoad
+    from fem_squeal.util.errors import ModelError
+
+    md = ring_mesh()
+    V = fem.VectorFunctionSpace(md.mesh, ("Lagrange", 2))
+    x = md.mesh.comm.bcast(V.tabulate_dof_coordinates()[0].tolist(), root=0)
+    f = la.create_petsc_vector(V.dofmap.index_map, 3)
+    f.set(0.0)
+    add_point_loads(f, V, [PointLoad("p", x, (1.0, -2.0, 3.0))])
+    a = f.array_r.reshape(-1, 3)
+    hit = np.flatnonzero(np.abs(a).sum(axis=1))
+    assert md.mesh.comm.allreduce(a.sum(axis=0), op=MPI.SUM).tolist() == [1.0, -2.0, 3.0]
+    assert all(np.allclose(V.tabulate_dof_coordinates()[i], x) for i in hit)
+    with pytest.raises(ModelError, match=r"loads.point.q: no node of the mesh at \[0.0, 0.0, 0.0\]"):
+        add_point_loads(f, V, [PointLoad("q", (0, 0, 0), (1, 0, 0))])
+
+
 def test_quadrature_degree_is_honoured(ring_mesh):
     """discretisation.quadrature_degree reaches FFCx (it was silently ignored as a form-compiler
     parameter): the P2 mass on curved P2 cells is a degree-7 polynomial, so degree 7 and the

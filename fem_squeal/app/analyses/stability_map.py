@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from fem_squeal.app import plots
+from fem_squeal.app.analyses import matrix_studies
 from fem_squeal.app.analyses.reduced import (
     band_and_growth_tol,
     map_E_range,
@@ -71,6 +72,8 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
 
 def check(scene: dict, volumes) -> None:
     """The varied part exists; E_range is [E_min, E_max] with 0 < E_min < E_max."""
+    if "matrices" in scene:                 # a model given as matrices: :mod:`.matrix_studies`
+        return matrix_studies.check_map(scene, volumes)
     m = scene.analyses["map"]
     if m["second"] == SPEED:
         why = speed_not_a_parameter(scene)
@@ -100,4 +103,5 @@ def report(res: dict) -> str:
                "unstable modes.</p>")
 
 
-STAGE = Stage("map", ("reduced",), run, "(μ, E) stability map", section=SECTION, check=check, report=report)
+STAGE = Stage("map", ("reduced",), run, "(μ, E) stability map", section=SECTION, check=check, report=report,
+              on_matrices=matrix_studies.run_map, section_on_matrices=matrix_studies.MAP)

@@ -97,9 +97,10 @@ def report(res: dict) -> str:
     if "map" not in res:
         return ""
     m = res["map"]
-    return (f"<h2>Stability map</h2><p>{m['points']} points of (sign(v)μ, {_e(m['parameter'])}) in "
+    axes = ", ".join(m["parameters"]) if "parameters" in m else f"sign(v)μ, {m['parameter']}"  # matrices: its own
+    return (f"<h2>Stability map</h2><p>{m['points']} points of ({_e(axes)}) in "
                f"{_num(m['seconds'])} s; at most "
-               f"{_num(max(max(r) for r in m['total']) if m.get('total') else 0)} "
+               f"{_num(int(np.max(m['total'])) if m.get('total') else 0)} "
                "unstable modes.</p>")
 
 

@@ -173,7 +173,9 @@ def _step(scene, name: str, fraction: float) -> float:
 
 def _full_differences(ctx: Context, s, records: list[dict], eigenvalues, params, values, band) -> None:
     """Each record gets ``full``: dλ/dp of the full problem by central differences of full sparse CEAs
-    (module docstring), and the relative difference of the reduced derivative to it."""
+    (module docstring) of the full eigenvalue nearest the reduced one (``match``: their relative distance;
+    where it is not small against the spacing of the eigenvalues the pair may not be the same mode), and
+    the relative difference of the reduced derivative to it."""
     lam0 = np.array(eigenvalues)
     f0 = lam0.imag / TWO_PI
     lo, hi = min(band[0], f0.min()), max(band[1], f0.max())
@@ -195,7 +197,8 @@ def _full_differences(ctx: Context, s, records: list[dict], eigenvalues, params,
         d_re = {p: None if near else float(v.real) for p, v in d.items()}
         d_f = {p: None if near else float(v.imag / TWO_PI) for p, v in d.items()}
         red = {p: complex(r["d_real_part"][p], TWO_PI * r["d_freq_hz"][p]) if not near else None for p in params}
-        r["full"] = {"freq_hz": float(xf.imag / TWO_PI), "real_part": float(xf.real), "d_real_part": d_re,
+        r["full"] = {"freq_hz": float(xf.imag / TWO_PI), "real_part": float(xf.real),
+                     "match": float(abs(xf - lam0[i]) / abs(lam0[i])), "d_real_part": d_re,
                      "d_freq_hz": d_f, "steps": steps,
                      "rel_d_real_part": {p: None if v is None else v * values[p] for p, v in d_re.items()},
                      "rel_difference": {p: None if near or d[p] == 0 else float(abs(red[p] - d[p]) / abs(d[p]))

@@ -197,9 +197,11 @@ def complex_plane(path: Path, lam: np.ndarray, band_hz: tuple[float, float], gro
 
 
 def stability_maps(path: Path, mu: np.ndarray, E: np.ndarray, counts: np.ndarray, total: np.ndarray,
-                   bands_hz: list[tuple[float, float]], E_label: str, title: str = "") -> None:
+                   bands_hz: list[tuple[float, float]], E_label: str, title: str = "",
+                   x_label: str = "sign(v) μ") -> None:
     """Number of unstable modes per band over the (sign(v)μ, E) plane, one panel per band and the
-    total (seed 001 Figs. 17-19); counts[b] has shape (n_E, n_mu)."""
+    total (seed 001 Figs. 17-19); counts[b] has shape (n_E, n_mu).  ``x_label``: another first axis
+    than sign(v)μ (the map of a model given as matrices: two of its parameters)."""
     plt = pyplot()
     n = len(bands_hz) + 1
     cols = min(n, 4)
@@ -209,9 +211,10 @@ def stability_maps(path: Path, mu: np.ndarray, E: np.ndarray, counts: np.ndarray
     for ax, (name, c) in zip(axes.ravel(), panels):
         im = ax.pcolormesh(mu, E, c, shading="nearest", cmap="magma_r", vmin=0, vmax=max(int(c.max()), 1))
         fig.colorbar(im, ax=ax, label="unstable modes")
-        ax.axvline(0.0, color="k", lw=0.4)
+        if x_label == "sign(v) μ":
+            ax.axvline(0.0, color="k", lw=0.4)
         ax.set_title(name, fontsize=9)
-        ax.set_xlabel("sign(v) μ")
+        ax.set_xlabel(x_label)
         ax.set_ylabel(E_label)
     for ax in axes.ravel()[n:]:
         ax.axis("off")

@@ -247,6 +247,11 @@ def render_scene_reference() -> str:
     out.append(field_table(MATRIX_FILE))
     out.append("### `matrices.parameters.<name>`\n\nA number is the value alone.\n")
     out.append(field_table(MATRIX_PARAMETER))
+    for name, st in ANALYSES.items():
+        if st.section_on_matrices is not None:
+            out.append(f"### `analyses.{name}` on a model given as matrices\n\nIn place of the section below "
+                       f"(`{st.on_matrices.__module__}`).\n")
+            out.append(field_table(st.section_on_matrices, f"analyses.{name}."))
     out.append("(analyses)=\n## `analyses`\n")
     out.append("One table `[analyses.<name>]` per analysis the scene asks for (at least one).  The pipeline "
                "runs the stages they need, in this order, and caches each under a hash of what it reads.\n")

@@ -146,6 +146,8 @@ class AffineTerm:
     coefficient: Callable[[Mapping[str, Any]], Any]
     parameters: frozenset[str] = frozenset()
     text: str = "1"
+    #: ∂c/∂p: ``derivative(values, name)`` (None: not known; then :meth:`AffineOperator.derivatives` refuses)
+    derivative: Callable[[Mapping[str, Any], str], Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -176,6 +178,25 @@ class AffineOperator:
                 raise ModelError(f"{self.name}: the coefficient {t.text} of {t.matrix} is not a finite number at "
                                  f"{at or 'every point'}")
             out.append(c)
+        return out
+
+    def derivatives(self, values: Mapping[str, Any], name: str) -> list:
+        """∂c_k/∂p at ``values`` for the parameter ``name`` (0 for a term that does not read it), each
+        checked finite."""
+        out = []
+        for t in self.terms:
+            if name not in t.parameters:
+                out.append(0.0)
+                continue
+            if t.derivative is None:
+                raise ModelError(f"{self.name}: the derivative of the coefficient {t.text} of {t.matrix} is "
+                                 "not known")
+            with np.errstate(all="ignore"):
+                d = t.derivative(values, name)
+            if not np.all(np.isfinite(d)):
+                raise ModelError(f"{self.name}: the derivative of the coefficient {t.text} of {t.matrix} with "
+                                 f"respect to {name} is not a finite number at {name} = {values[name]}")
+            out.append(d)
         return out
 
     def evaluate(self, values: Mapping[str, Any], matrices: Mapping[str, Any]):

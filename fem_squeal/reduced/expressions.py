@@ -168,10 +168,51 @@ def evaluate_scalar(tree: ast.expr, values: Mapping[str, Any]):
     raise ExpressionError(f"not a compiled coefficient: {type(tree).__name__}", "construct")
 
 
+#: d f(u)/du of the functions, as functions of u
+_DERIVATIVES: dict[str, Callable] = {"sqrt": lambda u: 0.5 / np.sqrt(u), "exp": np.exp, "log": lambda u: 1.0 / u,
+                                     "sin": np.cos, "cos": lambda u: -np.sin(u)}
+
+
+def derivative_scalar(tree: ast.expr, values: Mapping[str, Any], name: str) -> tuple[Any, Any]:
+    """(c, ∂c/∂p) of a scalar tree made by :func:`compile_operator` at parameter ``values``, p the
+    parameter ``name``: forward-mode differentiation over the same nodes (sum, product and quotient rules,
+    d(u^v) = v u^(v−1) du + u^v ln(u) dv, the chain rule through :data:`FUNCTIONS`), exact to rounding."""
+    if isinstance(tree, ast.Constant):
+        return tree.value, 0.0
+    if isinstance(tree, ast.Name):
+        if tree.id in CONSTANTS:
+            return CONSTANTS[tree.id], 0.0
+        return np.asarray(values[tree.id], float), (1.0 if tree.id == name else 0.0)
+    if isinstance(tree, ast.UnaryOp):
+        u, du = derivative_scalar(tree.operand, values, name)
+        f = _UNARY[type(tree.op)]
+        return f(u), f(du)
+    if isinstance(tree, ast.BinOp):
+        (u, du), (v, dv) = derivative_scalar(tree.left, values, name), derivative_scalar(tree.right, values, name)
+        op = type(tree.op)
+        if op in (ast.Add, ast.Sub):
+            f = _BINARY[op]
+            return f(u, v), f(du, dv)
+        if op is ast.Mult:
+            return u * v, du * v + u * dv
+        if op is ast.Div:
+            return u / v, (du * v - u * dv) / (v * v)
+        w = np.power(u, v)
+        dw = v * np.power(u, v - 1.0) * du
+        if np.any(dv != 0):
+            dw = dw + w * np.log(u) * dv
+        return w, dw
+    if isinstance(tree, ast.Call):
+        u, du = derivative_scalar(tree.args[0], values, name)
+        return FUNCTIONS[tree.func.id](u), _DERIVATIVES[tree.func.id](u) * du
+    raise ExpressionError(f"not a compiled coefficient: {type(tree).__name__}", "construct")
+
+
 def _term(matrix: str, tree: ast.expr) -> AffineTerm:
     tree = ast.fix_missing_locations(ast.Expression(tree)).body
     return AffineTerm(matrix, lambda values, tree=tree: evaluate_scalar(tree, values), _names(tree),
-                      ast.unparse(tree) if tree is not _ONE else "1")
+                      ast.unparse(tree) if tree is not _ONE else "1",
+                      lambda values, name, tree=tree: derivative_scalar(tree, values, name)[1])
 
 
 def compile_operator(name: str, text: str, matrices: Collection[str],

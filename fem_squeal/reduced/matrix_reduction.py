@@ -21,7 +21,7 @@ parameters, per point otherwise), so the sweep, tracking and grid code
 (:mod:`fem_squeal.reduced.sweep`, :mod:`fem_squeal.reduced.tracking`) run on it unchanged."""
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,16 +41,25 @@ def _sym(A: sp.spmatrix) -> sp.csr_matrix:
     return (0.5 * (A + A.T)).tocsr()
 
 
-def _orthonormal(V: np.ndarray, W: sp.spmatrix | None = None, rtol: float = DROP_RTOL) -> np.ndarray:
-    """An orthonormal basis of the columns of V (W-orthonormal when W is given: VᵀWV = I), from the
-    eigen-decomposition of the Gram matrix, directions of relative weight < rtol dropped."""
-    V = V / np.maximum(np.linalg.norm(V, axis=0), 1e-300)
+def orthonormal(V: np.ndarray, gram: Callable[[np.ndarray], np.ndarray],
+                norms: Callable[[np.ndarray], np.ndarray] | None = None, rtol: float = DROP_RTOL) -> np.ndarray:
+    """An orthonormal basis of the columns of V in the inner product of ``gram`` (``gram(V) = VᵀWV``),
+    from the eigen-decomposition G = U diag(d) Uᵀ of the Gram matrix, V ← V U_k d_k^(−1/2), directions of
+    relative weight d < rtol·max d dropped.  V may be the rows of one rank of a distributed basis: then
+    ``gram`` and ``norms`` (the columns' Euclidean norms; default: of V itself) sum over the ranks and
+    return the same numbers on each."""
+    V = V / np.maximum(np.linalg.norm(V, axis=0) if norms is None else norms(V), 1e-300)
     for _ in range(2):                  # twice: the Gram matrix squares the condition number
-        G = V.T @ (W @ V if W is not None else V)
+        G = gram(V)
         d, U = np.linalg.eigh(0.5 * (G + G.T))
         keep = d > rtol * d.max()
         V = V @ (U[:, keep] / np.sqrt(d[keep]))
     return V
+
+
+def _orthonormal(V: np.ndarray, W: sp.spmatrix | None = None, rtol: float = DROP_RTOL) -> np.ndarray:
+    """:func:`orthonormal` of a whole V, W-orthonormal when W is given (VᵀWV = I)."""
+    return orthonormal(V, lambda X: X.T @ (W @ X if W is not None else X), rtol=rtol)
 
 
 def modal_basis(model: MatrixModel, matrices: Mapping[str, sp.spmatrix], n_modes: int,
@@ -165,13 +174,42 @@ class ReducedMatrixModel:
         C = np.linalg.solve(Mr, self._operator("C", values, n, False)) if self.damped else None
         return K, C
 
+    def _check(self, names) -> None:
+        check_names(names, self.parameters, " of this matrix model")
+
+    def derivative(self, name: str, point: Mapping[str, float] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray | None]:
+        """(∂K̃/∂p, ∂C̃/∂p or None) of K̃ = M_r⁻¹K_r, C̃ = M_r⁻¹C_r at ``point`` (nominal where not given) for
+        the parameter ``name``: ∂K̃ = M_r⁻¹(∂K_r − ∂M_r K̃), ∂C̃ = M_r⁻¹(∂C_r − ∂M_r C̃), ∂A_r = Σ_k ∂c_k/∂p A_k,r
+        (the coefficients differentiated exactly: :func:`fem_squeal.reduced.expressions.derivative_scalar`).
+        At an eigenpair of λ²I + λC̃ + K̃, λ∂C̃ + ∂K̃ = M_r⁻¹(λ²∂M_r + λ∂C_r + ∂K_r) on x: the sensitivity
+        formula (:mod:`fem_squeal.reduced.sensitivity`) is that of the unscaled problem."""
+        self._check([name, *(point or {})])
+        values = self.model.point(point)
+
+        def part(op: str, d: bool) -> np.ndarray:
+            ops = self.model.operators[op]
+            c = ops.derivatives(values, name) if d else ops.coefficients(values)
+            return sum(float(x) * A for x, A in zip(c, self.terms[op]))
+
+        Mr = part("M", False)
+        K, C = self.matrices({k: np.array([v], float) for k, v in (point or {}).items()}, 1)
+        dM = part("M", True)
+        dK = np.linalg.solve(Mr, part("K", True) - dM @ K[0])
+        dC = np.linalg.solve(Mr, part("C", True) - dM @ C[0]) if C is not None else None
+        return dK, dC
+
     def frictionless_frequencies(self) -> np.ndarray:
         """The real-mode frequencies [Hz] of the basis (``info['modes_hz']``; empty for snapshots)."""
         return np.asarray(self.info.get("modes_hz", []), float)
 
 
-def project(model: MatrixModel, matrices: Mapping[str, sp.spmatrix], V: np.ndarray) -> dict[str, list[np.ndarray]]:
-    """Every affine term projected once: {op: [Vᵀ A_k V]}."""
+def project(model: MatrixModel, matrices: Mapping[str, sp.spmatrix], V: np.ndarray, rows: np.ndarray | None = None,
+            total: Callable[[np.ndarray], np.ndarray] | None = None) -> dict[str, list[np.ndarray]]:
+    """Every affine term projected once: {op: [Vᵀ A_k V]}.  Distributed: ``matrices`` the rows of this
+    rank, ``rows`` the same rows of the whole basis ``V`` and ``total`` the sum over the ranks, so that
+    Vᵀ A V = Σ_ranks V_rᵀ (A_r V)."""
+    rows = V if rows is None else rows
     cache: dict[str, np.ndarray] = {}
     out = {}
     for op in OPERATORS:
@@ -180,7 +218,8 @@ def project(model: MatrixModel, matrices: Mapping[str, sp.spmatrix], V: np.ndarr
         out[op] = []
         for t in model.operators[op].terms:
             if t.matrix not in cache:
-                cache[t.matrix] = V.T @ (sp.csr_matrix(matrices[t.matrix]) @ V)
+                local = rows.T @ (sp.csr_matrix(matrices[t.matrix]) @ V)
+                cache[t.matrix] = local if total is None else total(local)
             out[op].append(cache[t.matrix])
     return out
 

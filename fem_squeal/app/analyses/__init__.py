@@ -12,8 +12,8 @@ part of the report.  The scene loader, the pipeline, the runner and the report l
                                → reduced + preload → robustness (its spot checks solve the full CEA),
                                                      operating_matrix (its corner checks too)
     segmented_pad (no mesh: a lumped model)
-    matrices → real_modes, cea (a model given as matrices: ``Stage.on_matrices``, in place of mesh,
-               operators and preload)
+    matrices → real_modes, cea, sweep, map, sensitivity, robustness (a model given as matrices:
+               ``Stage.on_matrices``, in place of mesh, operators, preload and reduced)
 """
 from __future__ import annotations
 

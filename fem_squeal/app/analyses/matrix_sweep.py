@@ -7,8 +7,9 @@ located; the same files and results.json ``sweep`` as the sweep of a finite-elem
 root_locus.png, complex_plane.png), plus ``sweep_reduction``: the basis and the check of the reduced
 eigenvalues against the full sparse CEA of the assembled matrices at ``check_points`` values of the
 sweep (relative error of every full eigenvalue in the band to the nearest reduced one, against
-``tol``).  The basis is built on rank 0 from the gathered matrices and broadcast, so every rank
-tracks the same reduced model: serial and MPI runs give the same sweep."""
+``tol``).  The basis: :func:`fem_squeal.app.analyses.matrix_reduced.reduced_model` (on several ranks
+the modal basis is built distributed, the snapshot basis on rank 0); every rank tracks the same
+reduced model: serial and MPI runs give the same sweep."""
 from __future__ import annotations
 
 import time
@@ -16,15 +17,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 
 from fem_squeal.app import plots
+from fem_squeal.app.analyses import matrix_reduced
 from fem_squeal.app.analyses.matrices import model_of
 from fem_squeal.app.fields import REAL, Field, at_least, band, increasing, one_of, positive
 from fem_squeal.app.stage import Context
-from fem_squeal.reduced.eigensolve import TWO_PI, unstable
-from fem_squeal.reduced.matrix_reduction import ReducedMatrixModel, reduce_matrix_model
-from fem_squeal.reduced.sweep import path_solver, solve_points
+from fem_squeal.reduced.eigensolve import unstable
+from fem_squeal.reduced.matrix_reduction import ReducedMatrixModel
+from fem_squeal.reduced.sweep import path_solver
 from fem_squeal.reduced.tracking import track
 from fem_squeal.util.atomic import write_json_atomic
 from fem_squeal.util.errors import InputError, SceneError
@@ -85,68 +86,20 @@ def check(scene, volumes) -> None:
         raise SceneError(f"{key}.{'points' if s['points'] is not None else 'range'}: {e}") from None
 
 
-def _gathered(ctx: Context) -> dict[str, sp.csr_matrix] | None:
-    """The named matrices whole on rank 0 (None elsewhere), from the ranks' rows."""
-    comm, rows = ctx.comm, ctx.products["matrices"]["rows"]
-    if comm.size == 1:
-        return dict(rows)
-    parts = {k: comm.gather(v, root=0) for k, v in rows.items()}
-    return {k: sp.vstack(v, format="csr") for k, v in parts.items()} if comm.rank == 0 else None
-
-
 def reduced_model(ctx: Context, values: np.ndarray) -> ReducedMatrixModel:
-    """The reduced model of the scene's matrices (rank 0 builds it, every rank gets its terms)."""
-    s, model = ctx.scene.analyses["sweep"], ctx.products["matrices"]["model"]
-    mats = _gathered(ctx)
-    built = None
-    if ctx.comm.rank == 0:
-        idx = np.unique(np.linspace(0, values.size - 1, s["snapshots"]).round().astype(int))
-        r = reduce_matrix_model(model, mats, basis=s["basis"], modes=s["modes"], corrections=s["corrections"],
-                                snapshot_points=[{s["parameter"]: float(values[i])} for i in idx],
-                                snapshot_modes=s["snapshot_modes"], target_hz=s["target_hz"])
-        built = (r.terms, r.info)
-    terms, info = ctx.comm.bcast(built, root=0)
-    return ReducedMatrixModel(model, terms, info)
-
-
-def _band(ctx: Context, red: ReducedMatrixModel) -> tuple[float, float]:
+    """The reduced model of the scene's matrices (:func:`fem_squeal.app.analyses.matrix_reduced.reduced_model`;
+    snapshots at ``snapshots`` values evenly over the sweep)."""
     s = ctx.scene.analyses["sweep"]
-    if s["band_hz"] is not None:
-        return tuple(s["band_hz"])
-    if "cea" in ctx.scene.analyses:
-        return tuple(ctx.scene.analyses["cea"]["band_hz"])
-    if red.info.get("modes_hz"):
-        return 0.0, float(red.info["modes_hz"][-1])
-    lam = solve_points(red, {})[0]
-    return 0.0, float(np.max(lam.imag) / TWO_PI)
+    idx = np.unique(np.linspace(0, values.size - 1, s["snapshots"]).round().astype(int))
+    return matrix_reduced.reduced_model(ctx, s, [{s["parameter"]: float(values[i])} for i in idx])
 
 
 def check_point(ctx: Context, red: ReducedMatrixModel, par: str, value: float, band_hz, growth_tol: float) -> dict:
     """The full sparse CEA of the assembled matrices at ``par = value`` (PETSc/SLEPc, distributed) against
-    the reduced eigenvalues: the worst relative distance of a full eigenvalue in the band to the nearest
-    reduced one."""
-    from fem_squeal.fe.eigen import solve_complex_modes  # heavy: FE stack
-    from fem_squeal.fe.matrix_operators import operators  # heavy: FE stack
-
-    sec = ctx.scene.matrices
-    lam_r = solve_points(red, {par: np.array([value])})[0]
-    f = lam_r.imag / TWO_PI
-    inside = lam_r[(f >= band_hz[0]) & (f <= band_hz[1])]
-    t = time.perf_counter()
-    ops = operators(ctx.products["matrices"]["model"], ctx.products["matrices"]["rows"], ctx.comm, {par: value},
-                    bs=sec.block_size)
-    target = float(np.sqrt(0.5 * (band_hz[0] ** 2 + band_hz[1] ** 2)))
-    cm = solve_complex_modes(ops["K"], ops["M"], ops.get("C"), max(len(inside) + 2, 4), target, band_hz=band_hz,
-                             options=ctx.scene.solver.petsc_options, prefix="sweep_check_")
-    for x in (*cm.vectors_re, *cm.vectors_im, *ops.values()):
-        x.destroy()
-    full = np.asarray(cm.eigenvalues)
-    dist = np.min(np.abs(full[:, None] - lam_r[None, :]), axis=1) if full.size else np.zeros(0)
-    err = float(np.max(dist / np.abs(full))) if full.size else 0.0
-    return {"value": float(value), "n_full": int(full.size), "n_reduced": int(inside.size),
-            "n_unstable_full": int(unstable(full, growth_tol).sum()),
-            "n_unstable_reduced": int(unstable(inside, growth_tol).sum()),
-            "max_rel_error": err, "full_cea_s": time.perf_counter() - t}
+    the reduced eigenvalues (:func:`fem_squeal.app.analyses.matrix_reduced.check_point`)."""
+    c = matrix_reduced.check_point(ctx, red, {par: value}, band_hz, growth_tol, "sweep_check_")
+    del c["point"]
+    return {"value": float(value), **c}
 
 
 def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
@@ -158,7 +111,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     t = time.perf_counter()
     red = reduced_model(ctx, values)
     timings["sweep_reduction"] = time.perf_counter() - t
-    band_hz = _band(ctx, red)
+    band_hz = matrix_reduced.study_band(ctx, s, red)
     t = time.perf_counter()
     tr = track(path_solver(red, par), values, growth_tol=gt, start=float(values[0]), progress=ctx.comm.rank == 0,
                values_solve=path_solver(red, par, vectors=False), tol=s["refine_tol"], band_hz=band_hz)

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from fem_squeal.app import plots
+from fem_squeal.app.analyses import matrix_studies
 from fem_squeal.app.analyses.reduced import (
     band_and_growth_tol,
     parametric_operators,
@@ -171,6 +172,8 @@ def _full_block(ctx: Context, model, records: list[dict], eigenvalues, params, v
 def check(scene: dict, volumes) -> None:
     """Every listed parameter is one of the reduced model's (:func:`check_parameter`); ``full`` needs a
     real stiffness (no loss factor at the nominal point)."""
+    if "matrices" in scene:                 # a model given as matrices: :mod:`.matrix_studies`
+        return matrix_studies.check_sensitivity(scene, volumes)
     if scene.analyses["sensitivity"].full:
         lossy = sorted(p for p, m in scene.get("materials", {}).items() if m.get("eta", 0.0) > 0)
         if lossy:
@@ -214,4 +217,5 @@ def report(res: dict) -> str:
 
 # "preload": the full-model derivatives (``full``) need the linearised operators (rebuilt in memory if cached)
 STAGE = Stage("sensitivity", ("reduced", "preload"), run, "eigenvalue sensitivities dλ/dp", section=SECTION,
-              check=check, report=report)
+              check=check, report=report,
+              on_matrices=matrix_studies.run_sensitivity, section_on_matrices=matrix_studies.SENSITIVITY)

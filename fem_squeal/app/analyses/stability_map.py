@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from fem_squeal.app import plots
+from fem_squeal.app.analyses import matrix_studies
 from fem_squeal.app.analyses.reduced import (
     band_and_growth_tol,
     map_E_range,
@@ -71,6 +72,8 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
 
 def check(scene: dict, volumes) -> None:
     """The varied part exists; E_range is [E_min, E_max] with 0 < E_min < E_max."""
+    if "matrices" in scene:                 # a model given as matrices: :mod:`.matrix_studies`
+        return matrix_studies.check_map(scene, volumes)
     m = scene.analyses["map"]
     if m["second"] == SPEED:
         why = speed_not_a_parameter(scene)
@@ -94,10 +97,12 @@ def report(res: dict) -> str:
     if "map" not in res:
         return ""
     m = res["map"]
-    return (f"<h2>Stability map</h2><p>{m['points']} points of (sign(v)μ, {_e(m['parameter'])}) in "
+    axes = ", ".join(m["parameters"]) if "parameters" in m else f"sign(v)μ, {m['parameter']}"  # matrices: its own
+    return (f"<h2>Stability map</h2><p>{m['points']} points of ({_e(axes)}) in "
                f"{_num(m['seconds'])} s; at most "
-               f"{_num(max(max(r) for r in m['total']) if m.get('total') else 0)} "
+               f"{_num(int(np.max(m['total'])) if m.get('total') else 0)} "
                "unstable modes.</p>")
 
 
-STAGE = Stage("map", ("reduced",), run, "(μ, E) stability map", section=SECTION, check=check, report=report)
+STAGE = Stage("map", ("reduced",), run, "(μ, E) stability map", section=SECTION, check=check, report=report,
+              on_matrices=matrix_studies.run_map, section_on_matrices=matrix_studies.MAP)

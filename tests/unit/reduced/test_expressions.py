@@ -97,3 +97,21 @@ def test_matrix_model_point_checks():
         matrix_model({"M": "M", "K": K_TEXT}, MATRICES, {"W": 5.0}, {"W": (0.5, 4.0)}, "matrices.")
     with pytest.raises(ModelError, match="matrices.K: required"):
         matrix_model({"M": "M"}, MATRICES, {}, where="matrices.")
+
+
+def test_coefficient_derivatives_are_exact():
+    """∂c/∂p of every construct (sum, product, quotient, powers with a parameter in base and exponent,
+    the five functions) equals the closed form to rounding; a term that does not read p has 0."""
+    op = compile_operator("K", "(W**2 - 1)*A + sqrt(W)*exp(s)/W*B + log(s)*sin(W)*C + W**s*D + cos(2*pi*W)*E - F",
+                          list("ABCDEF"), ["W", "s"])
+    W, s = 1.3, 0.7
+    dW = {"A": 2 * W, "B": math.exp(s) * (-0.5) * W ** -1.5, "C": math.log(s) * math.cos(W),
+          "D": s * W ** (s - 1), "E": -2 * math.pi * math.sin(2 * math.pi * W), "F": 0.0}
+    ds = {"A": 0.0, "B": math.sqrt(W) * math.exp(s) / W, "C": math.sin(W) / s, "D": W ** s * math.log(W),
+          "E": 0.0, "F": 0.0}
+    for name, ref in (("W", dW), ("s", ds)):
+        got = dict(zip(op.matrices, op.derivatives({"W": W, "s": s}, name)))
+        for m, v in ref.items():
+            assert abs(float(got[m]) - v) <= 1e-14 * max(1.0, abs(v)), (name, m)
+    with pytest.raises(ModelError, match="derivative of the coefficient"):
+        compile_operator("K", "log(W)*A", ["A"], ["W"]).derivatives({"W": 0.0}, "W")

@@ -120,13 +120,13 @@ def _law(spec, key: str) -> InterfaceLaw:
         raise SceneError(f"{key}: must be a table {{law = ..., ...}}")
     kind = spec.get("law", "table")
     allowed = {"constant": {"law", "mu"}, "stribeck": {"law", "mu_s", "mu_d", "v_s", "v_d", "radius"},
-               "table": {"law", "temperature", "speed", "mu"}}
+               "table": {"law", "temperature", "speed", "mu", "pressure"}}
     if kind not in allowed:
         raise SceneError(f"{key}.law: must be one of {list(allowed)} (got {kind!r})")
     unknown = sorted(set(spec) - allowed[kind])
     if unknown:
         raise SceneError(f"{key}.{unknown[0]}: unknown key for law = {kind!r}; allowed: {sorted(allowed[kind])}")
-    missing = sorted(allowed[kind] - set(spec) - {"law"})
+    missing = sorted(allowed[kind] - set(spec) - {"law", "pressure"})
     if missing:
         raise SceneError(f"{key}.{missing[0]}: required for law = {kind!r}")
     try:
@@ -137,7 +137,8 @@ def _law(spec, key: str) -> InterfaceLaw:
             if not float(spec["radius"]) > 0:
                 raise SceneError(f"{key}.radius: must be > 0 (got {spec['radius']})")
             return InterfaceLaw(law, float(spec["radius"]))
-        return InterfaceLaw(TableFriction(spec["temperature"], spec["speed"], spec["mu"], name=key))
+        return InterfaceLaw(TableFriction(spec["temperature"], spec["speed"], spec["mu"], name=key,
+                                          pressure=spec.get("pressure")))
     except (TypeError, ValueError) as e:
         msg = str(e)
         if isinstance(e, ModelError) and msg.startswith(key):
@@ -167,7 +168,7 @@ def friction_values(scene, cond: Conditions) -> dict[str, np.ndarray]:
     out = {}
     try:
         for name, law in {**({"default": default} if default is not None else {}), **laws}.items():
-            out[name] = law.mu(cond.temperature, cond.speed)
+            out[name] = law.mu(cond.temperature, cond.speed, cond.pressure)
     except ModelError as e:
         raise SceneError(f"{_KEY}.friction: {e}" if not str(e).startswith(_KEY) else str(e)) from None
     return dict(sorted(out.items()))

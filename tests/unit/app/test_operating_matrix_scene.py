@@ -45,6 +45,13 @@ def test_bundled_scene_conditions_and_laws():
      r"^analyses\.operating_matrix\.friction\.default: temperature 450 is outside the table's range \[0, 400\]"),
     ("analyses.operating_matrix.speed=[10.0, 200.0]",
      r"^analyses\.operating_matrix\.friction\.default: speed 200 is outside the table's range \[0, 150\]"),
+    ("analyses.operating_matrix.friction.default={law = 'table', temperature = [0.0, 400.0], speed = [0.0], "
+     "pressure = [0.5, 0.8], mu = [[[0.4], [0.3]], [[0.4], [0.3]]]}",
+     r"^analyses\.operating_matrix\.friction\.default: pressure 1 is outside the table's range \[0\.5, 0\.8\]"),
+    ("analyses.operating_matrix.friction.default={law = 'table', temperature = [0.0, 400.0], speed = [0.0], "
+     "pressure = [0.5, 2.0], mu = [[0.4], [0.3]]}",
+     r"^analyses\.operating_matrix\.friction\.default\.mu: with a pressure axis, one \(temperature × speed\) "
+     r"table per pressure, shape \(2, 2, 1\)"),
     ("analyses.operating_matrix.direction=['backward']",
      r"^analyses\.operating_matrix\.direction: must be a list of \['forward', 'reverse'\]"),
     ("analyses.operating_matrix.temperature={start = 1.0, n = 3}",

@@ -14,8 +14,10 @@ and the reverse direction (d = −1) turns the disc the other way: the friction 
 the Ω² terms (centrifugal stiffening, convective) and the friction damping (|μ|/|V|) do not.  Kept from
 the nominal point: the contact state and the preload's stress stiffening (with a frictional static
 step its friction traction is that of the scene's direction).  The pressure p is the scale of the
-scene's ``loads.pressure``; the reduced model is built about one preload, so only p = 1 is evaluated
-here (other pressures need their own preload: the pressure continuation of issue 39 is not done).
+scene's ``loads.pressure``; it enters here through the friction laws μ(p, T, Ω) only: the reduced model
+is built about one preload, so another pressure is evaluated on it only where its linearised operators
+are the scene's (the same contact set, a linear penalty, no stress stiffening or friction damping: the
+app checks this with the preload continuation, :mod:`fem_squeal.app.analyses.pressure_continuation`).
 
 Each condition is solved alone (one eigenproblem per condition, the same arithmetic on any rank), the
 conditions dealt round-robin over the ranks and gathered: results do not depend on the rank count.

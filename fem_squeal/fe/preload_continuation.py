@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from fem_squeal.fe.assembly import Operators
@@ -87,7 +88,7 @@ class StateCache:
                     a = u
         except (OSError, KeyError, ValueError):
             a = None
-        if not self.comm.allreduce(int(a is not None), op=_min_op()):
+        if not self.comm.allreduce(int(a is not None), op=MPI.MIN):
             return None
         v = like.duplicate()
         v.array[:] = a
@@ -96,18 +97,6 @@ class StateCache:
     def store(self, scale: float, u: PETSc.Vec) -> None:
         a = np.array(u.array_r, float)
         write_npz_atomic(self._path(scale), {"u": a, "sha256": np.array(hashlib.sha256(a.tobytes()).hexdigest())})
-
-
-def _min_op():
-    from mpi4py import MPI
-
-    return MPI.MIN
-
-
-def _max_op():
-    from mpi4py import MPI
-
-    return MPI.MAX
 
 
 def continuation_order(scales: np.ndarray, start: float | None) -> list[int]:
@@ -158,7 +147,7 @@ def continue_preload(ops: Operators, scales: Sequence[float], *, start: tuple[fl
                 u0.destroy()
             if cache is not None and not cached:
                 cache.store(scale, res.u)
-            seconds = comm.allreduce(time.perf_counter() - t, op=_max_op())
+            seconds = comm.allreduce(time.perf_counter() - t, op=MPI.MAX)
             out[i] = PressureState(scale, res, seconds, cached)
             prev = (scale, res.u)
     finally:

@@ -24,6 +24,8 @@ from typing import Any
 import numpy as np
 
 from fem_squeal.app import plots
+from fem_squeal.app.analyses import pressure_continuation
+from fem_squeal.app.analyses.condition_values import VALUES, values
 from fem_squeal.app.analyses.reduced import (
     band_and_growth_tol,
     full_cea,
@@ -55,14 +57,13 @@ from fem_squeal.util.errors import ModelError, SceneError
 
 NAME = "operating_matrix"
 _KEY = f"analyses.{NAME}"
-_VALUES = "a list of numbers or a range {start, stop, n}"
 SECTION = {
-    "pressure": Field((list, dict), [1.0], None, "scales of loads.pressure (" + _VALUES + "); other than 1 "
+    "pressure": Field((list, dict), [1.0], None, "scales of loads.pressure (" + VALUES + "); other than 1 "
                       "(the scene's): the preload is continued to them and each must keep the scene's contact "
                       "set; they act through the friction laws μ(p, T, Ω)"),
-    "temperature": Field((list, dict), [20.0], None, f"disc temperatures [°C] ({_VALUES}); they act through "
+    "temperature": Field((list, dict), [20.0], None, f"disc temperatures [°C] ({VALUES}); they act through "
                          "the friction laws"),
-    "speed": Field((list, dict), [], None, f"disc speeds |Ω| [rad/s] ({_VALUES}); [] = operating.speed"),
+    "speed": Field((list, dict), [], None, f"disc speeds |Ω| [rad/s] ({VALUES}); [] = operating.speed"),
     "direction": Field(list, ["forward", "reverse"], None, "'forward' (the scene's sliding direction) and/or "
                        "'reverse' (the disc turning the other way)"),
     "design": Field(str, "factorial", one_of("factorial", "table"), "factorial: every combination of the "
@@ -77,21 +78,6 @@ SECTION = {
 }
 
 
-def _values(v, key: str) -> list[float]:
-    """A list of numbers, or the range {start, stop, n} (n ≥ 1 values, linspace)."""
-    if isinstance(v, dict):
-        unknown = sorted(set(v) - {"start", "stop", "n"})
-        if unknown or not {"start", "stop", "n"} <= set(v):
-            raise SceneError(f"{key}: a range is {{start, stop, n}} (got {v!r})")
-        n = v["n"]
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise SceneError(f"{key}.n: must be an integer >= 1 (got {n!r})")
-        return np.linspace(float(v["start"]), float(v["stop"]), n).tolist()
-    if not v or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in v):
-        raise SceneError(f"{key}: must be {_VALUES} (got {v!r})")
-    return [float(x) for x in v]
-
-
 def conditions(scene) -> Conditions:
     """The conditions of the section (factorial design or table); speed [] = operating.speed."""
     a = scene.analyses[NAME]
@@ -103,17 +89,17 @@ def conditions(scene) -> Conditions:
             for i, r in enumerate(rows):
                 if not isinstance(r, dict):
                     raise SceneError(f"{_KEY}.conditions[{i}]: must be a table {{{', '.join(VARIABLES)}}}")
-                r.setdefault("pressure", 1.0)
+                r.setdefault("pressure", pressure_continuation.SCENE_PRESSURE)
                 r.setdefault("speed", scene.operating.speed)
             return from_table(rows)
-        speed = _values(a["speed"], f"{_KEY}.speed") if a["speed"] else [float(scene.operating.speed)]
+        speed = values(a["speed"], f"{_KEY}.speed") if a["speed"] else [float(scene.operating.speed)]
         for d in a["direction"]:
             if d not in DIRECTIONS:
                 raise SceneError(f"{_KEY}.direction: must be a list of {list(DIRECTIONS)} (got {d!r})")
         if not a["direction"]:
             raise SceneError(f"{_KEY}.direction: must not be empty")
-        return factorial(_values(a["pressure"], f"{_KEY}.pressure"),
-                         _values(a["temperature"], f"{_KEY}.temperature"), speed, a["direction"])
+        return factorial(values(a["pressure"], f"{_KEY}.pressure"),
+                         values(a["temperature"], f"{_KEY}.temperature"), speed, a["direction"])
     except ModelError as e:
         raise SceneError(f"{_KEY}.{e}") from None
 
@@ -229,8 +215,6 @@ def pressure_states(ctx, cond: Conditions) -> dict | None:
     a SceneError naming the pressure where the contact set is not the scene's (the reduced model holds the
     scene's contact state: a pressure that opens or closes contact points needs per-pressure contact
     operators, not implemented)."""
-    from fem_squeal.app.analyses import pressure_continuation
-
     if not set(cond.pressure.tolist()) - {1.0}:
         return None
     summ = pressure_continuation.summary(ctx)

@@ -9,6 +9,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_squeal.app import plots
+from fem_squeal.app.analyses import pressure_continuation
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 
@@ -115,7 +116,6 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
         pl = ctx.scene.preload
         t = time.perf_counter()
         if pl["mode"] == "nonlinear":
-            from fem_squeal.app.analyses import pressure_continuation
             from fem_squeal.fe.preload import NewtonFactor, solve_preload  # heavy: FE stack
 
             settings = dict(friction=pl["friction"], tol=pl["tol"], max_iterations=pl["max_iterations"],
@@ -157,12 +157,6 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     return out
 
 
-def _key_inputs(scene):
-    from fem_squeal.app.analyses.pressure_continuation import key_inputs
-
-    return key_inputs(scene)
-
-
 def report(res: dict) -> str:
     """The report section (HTML) of this stage from results.json ``res``."""
     if not (res.get("preload", {}).get("interfaces")):
@@ -175,4 +169,5 @@ def report(res: dict) -> str:
 
 
 STAGE = Stage("preload", ("operators",), run, "static contact state and the linearisation about it",
-              inputs=lambda scene, spec: _key_inputs(scene), report=report, memory=True, fields=True)
+              inputs=lambda scene, spec: pressure_continuation.key_inputs(scene), report=report, memory=True,
+              fields=True)

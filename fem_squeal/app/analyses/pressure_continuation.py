@@ -15,19 +15,26 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from mpi4py import MPI
 
+from fem_squeal.app.analyses.condition_values import values
 from fem_squeal.util.atomic import write_json_atomic
 
 FILE = "pressure_continuation.json"
+#: the scene's own pressure as a scale of loads.pressure (a table row without a pressure)
+SCENE_PRESSURE = 1.0
 
 
 def scales(scene) -> list[float]:
     """The pressure scales other than 1 that ``analyses.operating_matrix`` asks for ([] if none)."""
-    if "operating_matrix" not in scene.analyses:
+    a = scene.analyses.get("operating_matrix")
+    if a is None:
         return []
-    from fem_squeal.app.analyses.operating_matrix import conditions
-
-    return sorted(set(conditions(scene).pressure.tolist()) - {1.0})
+    if a["design"] == "table":
+        ps = [float(r.get("pressure", SCENE_PRESSURE)) for r in a["conditions"] if isinstance(r, dict)]
+    else:
+        ps = values(a["pressure"], "analyses.operating_matrix.pressure")
+    return sorted(set(ps) - {SCENE_PRESSURE})
 
 
 def key_inputs(scene) -> Any:
@@ -40,8 +47,6 @@ def key_inputs(scene) -> Any:
 def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
     """Continue the converged preload ``pre`` (scale 1, solved with ``factor``) to the other scales; the
     summary (also written to ``work``/FILE for the operating matrix); the states' vectors are freed."""
-    from mpi4py import MPI
-
     from fem_squeal.fe.preload_continuation import StateCache, continue_preload  # heavy: FE stack
 
     comm = ctx.comm

@@ -83,6 +83,7 @@ class KeptFactorisation:
         self.factor_seconds = 0.0
         self.column_seconds: float | None = None
         self.columns_computed = 0
+        self.columns_before = 0        # columns_computed when the current solve began (new_solve)
         self._reference: dict[str, np.ndarray] = {}
         self._clear()
 
@@ -100,6 +101,12 @@ class KeptFactorisation:
         self.factor_seconds = seconds
         self._reference = {k: np.array(v, dtype=float) for k, v in values.items()}
         self._clear()
+
+    def new_solve(self) -> None:
+        """A new nonlinear solve (the next pressure of a continuation) starts from this factorisation: it
+        counts as the solve's first for ``max_factorisations``; the kept columns stay valid (same J_f)."""
+        self.factorisations = 1
+        self.columns_before = self.columns_computed
 
     def may_refactorise(self) -> bool:
         return self.factorisations < self.max_factorisations

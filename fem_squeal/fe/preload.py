@@ -69,15 +69,39 @@ def _traction(g: np.ndarray, kn: float, k3: float) -> tuple[np.ndarray, np.ndarr
     return 0.0 - law.force(-g), law.stiffness(-g)   # 0.0 - F: open points give +0.0, not -0.0
 
 
+class NewtonFactor:
+    """The preload Newton's Jacobian J, its direct solver and kept factorisation (low-rank updates), held
+    across the solves of a pressure continuation (:mod:`fem_squeal.fe.preload_continuation`): the next
+    pressure's steps are updates of the factorisation of the last one.  Lifecycle: created empty, filled
+    by the first :func:`solve_preload` it is given to, reused by the later ones, :meth:`destroy` at the end."""
+
+    def __init__(self):
+        self.J: PETSc.Mat | None = None
+        self.ksp: PETSc.KSP | None = None
+        self.kept: KeptFactorisation | None = None
+
+    def destroy(self) -> None:
+        for obj in (self.kept, self.ksp, self.J):
+            if obj is not None:
+                obj.destroy()
+        self.J = self.ksp = self.kept = None
+
+
 def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol: float = 1e-9,
                   max_iterations: int = 25, options: dict | None = None,
                   prefix: str = "preload_", jacobian: str = "update",
                   max_factorisations: int = 2,
-                  progress: Callable[[str], None] | None = None) -> PreloadResult:
-    """Static equilibrium under ``ops.f`` with unilateral contact on ``ops.contacts`` (module doc).
+                  progress: Callable[[str], None] | None = None,
+                  scale: float = 1.0, start: PETSc.Vec | None = None,
+                  factor: NewtonFactor | None = None) -> PreloadResult:
+    """Static equilibrium under ``scale``·``ops.f`` with unilateral contact on ``ops.contacts`` (module doc).
 
-    Starts from u = 0 with the touching points (g₀ ≤ 0) closed.  Raises :class:`PreloadError`
-    with the per-iteration history if it does not converge in ``max_iterations``.
+    Starts from u = 0 with the touching points (g₀ ≤ 0) closed, or from ``start`` (a state, e.g. the
+    converged one of another pressure) with its closed points (g < 0); a ``start`` already in equilibrium
+    (‖R‖ ≤ tol‖f‖) is accepted without a Newton step.  ``factor`` (a :class:`NewtonFactor`) keeps the
+    Jacobian and its factorisation after the solve for the next one (and uses those it holds), instead of
+    destroying them.  Raises :class:`PreloadError` with the per-iteration history if it does not converge
+    in ``max_iterations``.
 
     ``jacobian``: "refactorise" factorises J at every Newton step; "update" keeps a factorisation
     and solves the later steps by low-rank updates of it (the points whose stiffness changed;
@@ -90,11 +114,20 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     if ops.f is None:
         raise ModelError("loads: the preload needs a load (e.g. loads.pressure on the piston)")
     comm = ops.K.getComm().tompi4py()
+    if not (np.isfinite(scale) and scale > 0):
+        raise ModelError(f"preload: the load scale must be > 0 (got {scale!r})")
     bc_rows = _owned_global_rows(ops.K, ops.V, ops.bc_dofs)
     u = ops.K.createVecRight()
-    u.set(0.0)
+    if start is None:
+        u.set(0.0)
+    else:
+        start.copy(u)
     R, du, t = u.duplicate(), u.duplicate(), u.duplicate()
-    fnorm = ops.f.norm()
+    f = ops.f
+    if scale != 1.0:
+        f = ops.f.copy()
+        f.scale(scale)
+    fnorm = f.norm()
     if fnorm == 0:
         raise ModelError("loads: the load vector is zero")
     # size of the model, for the "touching" tolerance of the initial gaps
@@ -103,25 +136,26 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     prev = None
     history: list[tuple[int, float]] = []
     gaps: dict[str, np.ndarray] = {}
-    J: PETSc.Mat | None = None
-    ksp: PETSc.KSP | None = None
-    kept: KeptFactorisation | None = None
+    J, ksp, kept = (factor.J, factor.ksp, factor.kept) if factor is not None else (None, None, None)
+    if kept is not None:
+        kept.new_solve()
+    cold = start is None               # the first step closes the touching points (else: the state's own)
     factorisations = 0
     how, t_step = "", time.perf_counter()         # the last Newton step: how it was solved, when it began
     for k in range(max_iterations + 1):
         # gaps, tractions and residual at u
         ops.K.mult(u, R)
-        R.axpy(-1.0, ops.f)
+        R.axpy(-1.0, f)
         tangents, closed = {}, {}
         for it, op in ops.contacts:
             gn = op.Gn.createVecLeft()
             op.Gn.mult(u, gn)
             g = op.gap0 + gn.array
             # first step: the touching points (g₀ ≈ 0, where σ = 0 still) start closed
-            closed[it.name] = op.gap0 <= 1e-12 * h if k == 0 else g < 0.0
+            closed[it.name] = op.gap0 <= 1e-12 * h if k == 0 and cold else g < 0.0
             gaps[it.name] = g
             sig, dsig = _traction(g, it.kn, k3)
-            if k == 0:
+            if k == 0 and cold:
                 dsig = np.where(closed[it.name], it.kn, 0.0)
             gn.array[:] = op.weight * sig
             op.Gn.multTransposeAdd(gn, R, R)
@@ -151,7 +185,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
                      + (f"; step {k - 1} by {how} in {time.perf_counter() - t_step:.1f} s" if k else ""))
         same = prev is not None and comm.allreduce(
             int(all(np.array_equal(prev[n], closed[n]) for n in closed)), op=MPI.MIN) == 1
-        if k > 0 and same and rel <= tol:
+        if (same or (k == 0 and not cold)) and rel <= tol:
             break
         if k == max_iterations:
             raise PreloadError(f"preload: no convergence in {max_iterations} Newton iterations; "
@@ -195,10 +229,14 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
             raise PreloadError(f"preload: linear solve failed (reason {ksp.getConvergedReason()}) "
                                f"at Newton iteration {k}")
         u.axpy(1.0, du)
-    columns = kept.columns_computed if kept is not None else 0
-    for obj in (kept, R, du, t, ksp, J):
+    columns = kept.columns_computed - kept.columns_before if kept is not None else 0
+    if factor is not None:
+        factor.J, factor.ksp, factor.kept = J, ksp, kept
+    for obj in ((R, du, t) if factor is not None else (kept, R, du, t, ksp, J)):
         if obj is not None:
             obj.destroy()
+    if f is not ops.f:
+        f.destroy()
     pressure, normal, fric, area = {}, {}, {}, {}
     for it, op in ops.contacts:
         pressure[it.name] = p = UnilateralLaw(k_l=it.kn, k_nl=k3).force(-gaps[it.name])

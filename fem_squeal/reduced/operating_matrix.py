@@ -4,8 +4,8 @@ noise-matrix summary a dynamometer squeal test (SAE J2521) reports.
 
 A condition c = (p, T, Ω, d) sets the reduced model's parameters (:mod:`fem_squeal.reduced.model`):
 
-    mu      = d·μ(T, Ω)          the law of every frictional interface without its own (default: the scene's μ)
-    mu.<i>  = d·μ_i(T, Ω)        interface i with its own law
+    mu      = d·μ(p, T, Ω)       the law of every frictional interface without its own (default: the scene's μ)
+    mu.<i>  = d·μ_i(p, T, Ω)     interface i with its own law
                                  (:func:`~fem_squeal.reduced.laws.friction.operating_mu`)
     speed   = |Ω|                where Ω is a parameter of the model (gyroscopic, friction damping)
 
@@ -14,8 +14,10 @@ and the reverse direction (d = −1) turns the disc the other way: the friction 
 the Ω² terms (centrifugal stiffening, convective) and the friction damping (|μ|/|V|) do not.  Kept from
 the nominal point: the contact state and the preload's stress stiffening (with a frictional static
 step its friction traction is that of the scene's direction).  The pressure p is the scale of the
-scene's ``loads.pressure``; the reduced model is built about one preload, so only p = 1 is evaluated
-here (other pressures need their own preload: the pressure continuation of issue 39 is not done).
+scene's ``loads.pressure``; it enters here through the friction laws μ(p, T, Ω) only: the reduced model
+is built about one preload, so another pressure is evaluated on it only where its linearised operators
+are the scene's (the same contact set, a linear penalty, no stress stiffening or friction damping: the
+app checks this with the preload continuation, :mod:`fem_squeal.app.analyses.pressure_continuation`).
 
 A part's loss factor η(f, T) (a shim's table, :class:`LossFactors`) enters at the condition's temperature:
 as the parameter ``eta.<part>`` where the table does not vary with f (then exactly the constant-η model),
@@ -137,13 +139,14 @@ def from_table(rows: Sequence[Mapping]) -> Conditions:
 @dataclass(frozen=True)
 class InterfaceLaw:
     """The friction law of one interface at the operating conditions (``law``: constant, Stribeck or
-    table; ``radius``: the sliding radius r of a Stribeck law, V = |Ω| r)."""
+    table μ(p, T, Ω); ``radius``: the sliding radius r of a Stribeck law, V = |Ω| r)."""
 
     law: object
     radius: float = 0.0
 
-    def mu(self, temperature, speed) -> np.ndarray:
-        return operating_mu(self.law, temperature, speed, self.radius)
+    def mu(self, temperature, speed, pressure=None) -> np.ndarray:
+        """|μ| at the conditions (``pressure``: the scale of loads.pressure, for a table over it)."""
+        return operating_mu(self.law, temperature, speed, self.radius, pressure)
 
 
 def parameter_points(model: ReducedModel, cond: Conditions, laws: Mapping[str, InterfaceLaw],
@@ -153,14 +156,15 @@ def parameter_points(model: ReducedModel, cond: Conditions, laws: Mapping[str, I
     Raises a ModelError when a law names an interface without a friction parameter, or when the speed
     changes terms the model cannot follow (Ω not a parameter but present in it)."""
     d = cond.direction
-    mu = default.mu(cond.temperature, cond.speed) if default is not None else np.full(cond.size, abs(model.mu0))
+    mu = (default.mu(cond.temperature, cond.speed, cond.pressure) if default is not None
+          else np.full(cond.size, abs(model.mu0)))
     pts = {MU: d * mu}
     for name, law in laws.items():
         key = f"mu.{name}"
         if key not in model.parameters:
             raise ModelError(f"friction.{name}: not a sliding interface with its own μ in this reduced model; "
                              f"its friction parameters: {[p for p in model.parameters if p.startswith('mu')]}")
-        pts[key] = d * law.mu(cond.temperature, cond.speed)
+        pts[key] = d * law.mu(cond.temperature, cond.speed, cond.pressure)
     if SPEED in model.parameters:
         pts[SPEED] = cond.speed.copy()
     elif np.any(cond.speed != model.speed0) and any(

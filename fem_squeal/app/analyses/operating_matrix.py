@@ -6,11 +6,14 @@ variable, the unstable modes per condition with their growth rates).
 The physics of a condition is in :mod:`fem_squeal.reduced.operating_matrix`: temperature and speed act
 through the friction laws (and the speed through the model's gyroscopic, centrifugal and friction-damping
 terms where Ω is a parameter), the direction turns the friction and gyroscopic terms.  The pressure is
-the scale of ``loads.pressure``; only the scene's pressure (1) is possible: the reduced model holds one
-contact state and preload (pressure continuation is not done).  Parts with a loss-factor table
-``materials.<part>.eta_table`` η(f, T): at each condition's temperature, per band mode at its own frequency
-(fixed point; ``loss_factor_fixed_point`` in results.json: iterations, modes not converged).
-``verify``: full CEAs at the corner conditions, compared as analyses.reduced compares its check points.
+the scale of ``loads.pressure``: the preload stage continues the scene's preload to the other pressures
+(:mod:`fem_squeal.app.analyses.pressure_continuation`); they are evaluated on the one reduced model when
+its operators do not depend on the pressure (:func:`pressure_dependent_terms`, checked before any
+computation) and the contact set at each is the scene's (checked after the preloads, a named error
+otherwise).  Parts with a loss-factor table ``materials.<part>.eta_table`` η(f, T): at each condition's
+temperature, per band mode at its own frequency (fixed point; ``loss_factor_fixed_point`` in results.json:
+iterations, modes not converged).  ``verify``: full CEAs at the corner conditions, compared as
+analyses.reduced compares its check points.
 Files: operating_matrix_conditions.csv, operating_matrix_modes.csv, operating_matrix_bands.csv,
 operating_matrix.png (+ its .csv)."""
 from __future__ import annotations
@@ -23,6 +26,8 @@ from typing import Any
 import numpy as np
 
 from fem_squeal.app import plots
+from fem_squeal.app.analyses import pressure_continuation
+from fem_squeal.app.analyses.condition_values import VALUES, values
 from fem_squeal.app.analyses.reduced import (
     band_and_growth_tol,
     full_cea,
@@ -56,13 +61,13 @@ from fem_squeal.util.errors import ModelError, SceneError
 
 NAME = "operating_matrix"
 _KEY = f"analyses.{NAME}"
-_VALUES = "a list of numbers or a range {start, stop, n}"
 SECTION = {
-    "pressure": Field((list, dict), [1.0], None, "scales of loads.pressure (" + _VALUES + "); only 1 (the "
-                      "scene's pressure) for now: other pressures need their own preload"),
-    "temperature": Field((list, dict), [20.0], None, f"disc temperatures [°C] ({_VALUES}); they act through "
+    "pressure": Field((list, dict), [1.0], None, "scales of loads.pressure (" + VALUES + "); other than 1 "
+                      "(the scene's): the preload is continued to them and each must keep the scene's contact "
+                      "set; they act through the friction laws μ(p, T, Ω)"),
+    "temperature": Field((list, dict), [20.0], None, f"disc temperatures [°C] ({VALUES}); they act through "
                          "the friction laws"),
-    "speed": Field((list, dict), [], None, f"disc speeds |Ω| [rad/s] ({_VALUES}); [] = operating.speed"),
+    "speed": Field((list, dict), [], None, f"disc speeds |Ω| [rad/s] ({VALUES}); [] = operating.speed"),
     "direction": Field(list, ["forward", "reverse"], None, "'forward' (the scene's sliding direction) and/or "
                        "'reverse' (the disc turning the other way)"),
     "design": Field(str, "factorial", one_of("factorial", "table"), "factorial: every combination of the "
@@ -109,21 +114,6 @@ def check_loss_factors(scene, spec, cond: Conditions) -> None:
                          "loss_nep, benchmarks/loss_factor_nep.py), which this stage does not run")
 
 
-def _values(v, key: str) -> list[float]:
-    """A list of numbers, or the range {start, stop, n} (n ≥ 1 values, linspace)."""
-    if isinstance(v, dict):
-        unknown = sorted(set(v) - {"start", "stop", "n"})
-        if unknown or not {"start", "stop", "n"} <= set(v):
-            raise SceneError(f"{key}: a range is {{start, stop, n}} (got {v!r})")
-        n = v["n"]
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise SceneError(f"{key}.n: must be an integer >= 1 (got {n!r})")
-        return np.linspace(float(v["start"]), float(v["stop"]), n).tolist()
-    if not v or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in v):
-        raise SceneError(f"{key}: must be {_VALUES} (got {v!r})")
-    return [float(x) for x in v]
-
-
 def conditions(scene) -> Conditions:
     """The conditions of the section (factorial design or table); speed [] = operating.speed."""
     a = scene.analyses[NAME]
@@ -135,17 +125,17 @@ def conditions(scene) -> Conditions:
             for i, r in enumerate(rows):
                 if not isinstance(r, dict):
                     raise SceneError(f"{_KEY}.conditions[{i}]: must be a table {{{', '.join(VARIABLES)}}}")
-                r.setdefault("pressure", 1.0)
+                r.setdefault("pressure", pressure_continuation.SCENE_PRESSURE)
                 r.setdefault("speed", scene.operating.speed)
             return from_table(rows)
-        speed = _values(a["speed"], f"{_KEY}.speed") if a["speed"] else [float(scene.operating.speed)]
+        speed = values(a["speed"], f"{_KEY}.speed") if a["speed"] else [float(scene.operating.speed)]
         for d in a["direction"]:
             if d not in DIRECTIONS:
                 raise SceneError(f"{_KEY}.direction: must be a list of {list(DIRECTIONS)} (got {d!r})")
         if not a["direction"]:
             raise SceneError(f"{_KEY}.direction: must not be empty")
-        return factorial(_values(a["pressure"], f"{_KEY}.pressure"),
-                         _values(a["temperature"], f"{_KEY}.temperature"), speed, a["direction"])
+        return factorial(values(a["pressure"], f"{_KEY}.pressure"),
+                         values(a["temperature"], f"{_KEY}.temperature"), speed, a["direction"])
     except ModelError as e:
         raise SceneError(f"{_KEY}.{e}") from None
 
@@ -156,13 +146,13 @@ def _law(spec, key: str) -> InterfaceLaw:
         raise SceneError(f"{key}: must be a table {{law = ..., ...}}")
     kind = spec.get("law", "table")
     allowed = {"constant": {"law", "mu"}, "stribeck": {"law", "mu_s", "mu_d", "v_s", "v_d", "radius"},
-               "table": {"law", "temperature", "speed", "mu"}}
+               "table": {"law", "temperature", "speed", "mu", "pressure"}}
     if kind not in allowed:
         raise SceneError(f"{key}.law: must be one of {list(allowed)} (got {kind!r})")
     unknown = sorted(set(spec) - allowed[kind])
     if unknown:
         raise SceneError(f"{key}.{unknown[0]}: unknown key for law = {kind!r}; allowed: {sorted(allowed[kind])}")
-    missing = sorted(allowed[kind] - set(spec) - {"law"})
+    missing = sorted(allowed[kind] - set(spec) - {"law", "pressure"})
     if missing:
         raise SceneError(f"{key}.{missing[0]}: required for law = {kind!r}")
     try:
@@ -173,7 +163,8 @@ def _law(spec, key: str) -> InterfaceLaw:
             if not float(spec["radius"]) > 0:
                 raise SceneError(f"{key}.radius: must be > 0 (got {spec['radius']})")
             return InterfaceLaw(law, float(spec["radius"]))
-        return InterfaceLaw(TableFriction(spec["temperature"], spec["speed"], spec["mu"], name=key))
+        return InterfaceLaw(TableFriction(spec["temperature"], spec["speed"], spec["mu"], name=key,
+                                          pressure=spec.get("pressure")))
     except (TypeError, ValueError) as e:
         msg = str(e)
         if isinstance(e, ModelError) and msg.startswith(key):
@@ -203,7 +194,7 @@ def friction_values(scene, cond: Conditions) -> dict[str, np.ndarray]:
     out = {}
     try:
         for name, law in {**({"default": default} if default is not None else {}), **laws}.items():
-            out[name] = law.mu(cond.temperature, cond.speed)
+            out[name] = law.mu(cond.temperature, cond.speed, cond.pressure)
     except ModelError as e:
         raise SceneError(f"{_KEY}.friction: {e}" if not str(e).startswith(_KEY) else str(e)) from None
     return dict(sorted(out.items()))
@@ -216,10 +207,11 @@ def check(scene, volumes) -> None:
     friction_values(scene, cond)
     check_loss_factors(scene, scene.spec, cond)
     other = sorted(set(cond.pressure.tolist()) - {1.0})
-    if other:
-        raise SceneError(f"{_KEY}.pressure: only 1 (the scene's loads.pressure) is possible: the reduced model "
-                         f"is built about one preload and contact state, and the pressure continuation is not "
-                         f"implemented; run one scene per pressure (got {other})")
+    why = pressure_dependent_terms(scene)
+    if other and why:
+        raise SceneError(f"{_KEY}.pressure: other pressures than the scene's (1) need a reduced model whose "
+                         f"operators do not depend on the pressure, but {why}; run one scene per pressure "
+                         f"(got {other})")
     speeds = set(cond.speed.tolist()) - {float(scene.operating.speed)}
     why = speed_not_a_parameter(scene)
     terms = scene.operating.gyroscopic or any(t.get("friction_damping") for t in scene.interfaces.values())
@@ -236,6 +228,40 @@ def check(scene, volumes) -> None:
                          f"({_KEY}.friction.{own[0]} or .default)")
     if terms and np.any(cond.speed <= 0):
         raise SceneError(f"{_KEY}.speed: must be > 0 with gyroscopic or friction-damping terms")
+
+
+def pressure_dependent_terms(scene) -> str:
+    """Why the linearised operators of the scene depend on the brake pressure beyond its contact set ('' if
+    they do not).  With the linear penalty, a fixed contact set and none of these terms, the stiffness
+    (elastic, contact k_n, friction μ k_n), mass, damping and gyroscopic operators are those of the scene's
+    pressure: only μ(p, T, Ω) changes.  The stress stiffening K_σ(u(p)) and the friction damping (∝ the
+    contact pressure) grow with p; the reduced model holds them at the scene's pressure only."""
+    if scene.preload["mode"] != "nonlinear":
+        return "preload.mode is 'all_closed' (the contact state at each pressure needs the nonlinear preload)"
+    if scene.preload["geometric_stiffness"]:
+        return "preload.geometric_stiffness = true (the stress stiffening K_σ grows with the pressure)"
+    damped = sorted(n for n, t in scene.interfaces.items() if t.get("friction_damping"))
+    if damped:
+        return (f"interfaces.{damped[0]}.friction_damping = true (the friction damping grows with the contact "
+                f"pressure)")
+    return ""
+
+
+def pressure_states(ctx, cond: Conditions) -> dict | None:
+    """The preload's continuation to the conditions' other pressures (None: only the scene's pressure);
+    a SceneError naming the pressure where the contact set is not the scene's (the reduced model holds the
+    scene's contact state: a pressure that opens or closes contact points needs per-pressure contact
+    operators, not implemented)."""
+    if not set(cond.pressure.tolist()) - {1.0}:
+        return None
+    summ = pressure_continuation.summary(ctx)
+    for r in summ["pressures"]:
+        if not r["same_contact_set"]:
+            raise SceneError(f"{_KEY}.pressure: at {r['scale']:g} × loads.pressure the contact set is not the "
+                             f"scene's ({r['changed_points']} contact points opened or closed): the reduced "
+                             f"model holds one contact state, and per-pressure contact operators in reduced "
+                             f"coordinates are not implemented; keep pressures where the contact set holds")
+    return summ
 
 
 def _full_cea(par, point: dict, reverse: bool, band, nev: int, options) -> tuple[np.ndarray, float]:
@@ -312,6 +338,12 @@ def _write_tables(work: Path, res, mus: dict, noise: dict) -> None:
                                                                     "occurrence", "in_model_band")])
 
 
+_PRESSURE_MODEL = ("the contact set at every pressure is the scene's (checked by the preload continuation) and "
+                   "the penalty is linear, so the linearised operators are the scene's: the pressure acts "
+                   "through μ(p, T, Ω) only; the preload state scales with p, but no operator of this scene "
+                   "depends on it (no stress stiffening, no friction damping)")
+
+
 def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     """analyses.operating_matrix: every condition on the reduced model, the noise matrix, its tables and
     plot, and the corner checks against full CEAs when asked."""
@@ -325,6 +357,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
         points = parameter_points(model, cond, laws, default)
     except ModelError as e:
         raise SceneError(f"{_KEY}.{e}") from None
+    states = pressure_states(ctx, cond)
     loss = loss_factors(scene, ctx.spec)
     if loss is not None:      # η(T) of the tables that do not vary with f: parameters (the corner checks too)
         points = {**points, **loss.constant_in_frequency(cond.temperature)}
@@ -336,6 +369,8 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
                            "mu": {n: v.tolist() for n, v in mus.items()}, **noise,
                            "squeal_index": "not available: the reduced model carries no radiation (ERP); "
                                            "the CEA's nvh section ranks the nominal point's modes"}
+    if states is not None:
+        out["pressure"] = {"continuation": states, "model": _PRESSURE_MODEL}
     ctx.say(f"[fem_squeal] operating matrix: {cond.size} conditions in {res.seconds:.2f} s, "
             f"{noise['unstable_conditions']} with instability")
     if res.fixed_point is not None:
@@ -390,10 +425,17 @@ def report(res: dict) -> str:
     crow = []
     for k, c in enumerate(r["conditions"]):
         ms = modes.get(k, [])
-        crow.append([k, c["temperature"], c["speed"], c["direction"], len(ms),
+        crow.append([k, c["pressure"], c["temperature"], c["speed"], c["direction"], len(ms),
                      ", ".join(f"{m['frequency_hz']:.0f} Hz ({m['growth_rate']:.3g}/s)" for m in ms) or "—"])
     txt += "<h3>Unstable modes per condition</h3>" + _table(
-        ["condition", "T [°C]", "|Ω| [rad/s]", "direction", "unstable", "f (growth rate Re λ)"], crow)
+        ["condition", "p [× loads.pressure]", "T [°C]", "|Ω| [rad/s]", "direction", "unstable",
+         "f (growth rate Re λ)"], crow)
+    if r.get("pressure"):
+        txt += ("<h3>Pressures</h3><p>" + _e(r["pressure"]["model"]) + ".</p>" + _table(
+            ["p [× loads.pressure]", "Newton iterations", "factorisations", "seconds", "closed points",
+             "‖u(p) − p u(1)‖/‖p u(1)‖"],
+            [[x["scale"], x["iterations"], x["factorisations"], x["seconds"], x["closed_points"],
+              x["nonlinearity"]] for x in r["pressure"]["continuation"]["pressures"]]))
     if r.get("verification"):
         txt += "<h3>Reduced vs full CEA at the corners</h3>" + _table(
             ["condition", "T [°C]", "|Ω| [rad/s]", "direction", "max rel. error", "unstable full",

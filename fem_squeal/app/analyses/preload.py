@@ -9,6 +9,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fem_squeal.app import plots
+from fem_squeal.app.analyses import pressure_continuation
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 
@@ -115,19 +116,28 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
         pl = ctx.scene.preload
         t = time.perf_counter()
         if pl["mode"] == "nonlinear":
-            from fem_squeal.fe.preload import solve_preload  # heavy: FE stack
+            from fem_squeal.fe.preload import NewtonFactor, solve_preload  # heavy: FE stack
 
-            pre = solve_preload(ops, friction=pl["friction"], tol=pl["tol"], max_iterations=pl["max_iterations"],
-                                options=ctx.scene.solver.petsc_options, jacobian=pl["jacobian"],
-                                max_factorisations=pl["max_factorisations"],
+            settings = dict(friction=pl["friction"], tol=pl["tol"], max_iterations=pl["max_iterations"],
+                            options=ctx.scene.solver.petsc_options, jacobian=pl["jacobian"],
+                            max_factorisations=pl["max_factorisations"])
+            other = pressure_continuation.scales(ctx.scene)    # the operating matrix's other pressures
+            factor = NewtonFactor() if other else None
+            pre = solve_preload(ops, **settings, factor=factor,
                                 progress=lambda line: ctx.say(f"[fem_squeal] {line}"))
             lin = linearise(ops, pre.active)
             timings["preload"] = time.perf_counter() - t
+            if other:
+                t = time.perf_counter()
+                more = pressure_continuation.run(ctx, ops, pre, factor, work, settings)
+                timings["preload_continuation"] = time.perf_counter() - t
             out["preload"] = {"mode": "nonlinear", "iterations": pre.iterations, "history": pre.history,
                               "jacobian": pl["jacobian"], "factorisations": pre.factorisations,
                               "update_columns": pre.update_columns,
                               "interfaces": _preload_outputs(ctx.comm, work, ops, pre,
                                                              ctx.scene.title, ctx.keep_files)}
+            if other:
+                out["preload"]["pressure_continuation"] = more
             ctx.say(f"[fem_squeal] preload: {pre.iterations} Newton iterations "
                     f"({pre.factorisations} factorisations, {pre.update_columns} update columns), "
                     + ", ".join(f"{k} N = {v['normal_force']:.4g} N, closed {100 * v['closed_share']:.1f} %"
@@ -159,4 +169,5 @@ def report(res: dict) -> str:
 
 
 STAGE = Stage("preload", ("operators",), run, "static contact state and the linearisation about it",
-              inputs=lambda scene, spec: scene.preload, report=report, memory=True, fields=True)
+              inputs=lambda scene, spec: pressure_continuation.key_inputs(scene), report=report, memory=True,
+              fields=True)

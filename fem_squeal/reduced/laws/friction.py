@@ -12,9 +12,10 @@ relative displacement increment Δs of the step (None where it does not depend o
   an elastic stick spring and return mapping (below).
 - :class:`StribeckFriction`: μ(|w|) of seed 004 eq. 4 with the static and dynamic levels μ_s, μ_d
   and the transition velocities v_s < v_d, f = −μ(|w|) F w/|w|.
-- :class:`TableFriction`: μ(T, Ω) of an operating condition (disc temperature T, disc speed Ω),
-  interpolated bilinearly in a table (the operating matrix's friction law; :func:`operating_mu`
-  evaluates the constant and Stribeck laws at a condition too).
+- :class:`TableFriction`: μ(p, T, Ω) of an operating condition (brake pressure scale p, disc
+  temperature T, disc speed Ω), interpolated bilinearly in (T, Ω) and linearly in p in a table
+  (the operating matrix's friction law; :func:`operating_mu` evaluates the constant and Stribeck
+  laws at a condition too).
 """
 from __future__ import annotations
 
@@ -235,29 +236,35 @@ def _interp_weights(axis: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.nda
     return i, (x - axis[i]) / (axis[i + 1] - axis[i])
 
 
-def bilinear(axis0: np.ndarray, axis1: np.ndarray, table: np.ndarray, x0: np.ndarray, x1: np.ndarray
-             ) -> np.ndarray:
+def bilinear(axis0: np.ndarray, axis1: np.ndarray, table: np.ndarray, x0: np.ndarray, x1: np.ndarray,
+             layer: np.ndarray | None = None) -> np.ndarray:
     """The bilinear interpolant of ``table`` (len(axis0), len(axis1)) at (x0, x1), written in differences
     from the lower corner, v₀₀ + s(v₁₀ − v₀₀) + t(v₀₁ − v₀₀) + st(v₁₁ − v₁₀ − v₀₁ + v₀₀), so that a constant
     table returns its value bit for bit (an axis of one value: independent of that variable; no range
-    check here)."""
+    check here).  ``layer``: ``table`` is (n_layers, len(axis0), len(axis1)), read in the layers given
+    per point (a pressure layer of :class:`TableFriction`)."""
     i, s = _interp_weights(axis0, x0)
     j, t = _interp_weights(axis1, x1)
-    i1 = np.minimum(i + 1, table.shape[0] - 1)
-    j1 = np.minimum(j + 1, table.shape[1] - 1)
-    m00, m10, m01, m11 = table[i, j], table[i1, j], table[i, j1], table[i1, j1]
+    i1 = np.minimum(i + 1, table.shape[-2] - 1)
+    j1 = np.minimum(j + 1, table.shape[-1] - 1)
+    at = (lambda a, b: table[a, b]) if layer is None else (lambda a, b: table[layer, a, b])  # noqa: E731
+    m00, m10, m01, m11 = at(i, j), at(i1, j), at(i, j1), at(i1, j1)
     return m00 + s * (m10 - m00) + t * (m01 - m00) + s * t * (m11 - m10 - m01 + m00)
 
 
 @dataclass(frozen=True)
 class TableFriction:
-    """μ(T, Ω) at an operating condition, bilinear in a table over the disc temperature T and the disc
-    speed |Ω| [rad/s] (the operating matrix's variables, not the local slip velocity):
+    """μ(p, T, Ω) at an operating condition: bilinear in a table over the disc temperature T and the disc
+    speed |Ω| [rad/s] (the operating matrix's variables, not the local slip velocity), and linear between
+    pressure layers when the table has a ``pressure`` axis (p: the scale of the scene's loads.pressure):
 
         μ(T, Ω) = μ₀₀ + s(μ₁₀ − μ₀₀) + t(μ₀₁ − μ₀₀) + st(μ₁₁ − μ₁₀ − μ₀₁ + μ₀₀)
         s = (T − T_i)/(T_{i+1} − T_i),  t = (|Ω| − Ω_j)/(Ω_{j+1} − Ω_j),  μ_ab = μ[i+a, j+b]
+        μ(p, T, Ω) = μ_k(T, Ω) + r (μ_{k+1}(T, Ω) − μ_k(T, Ω)),  r = (p − p_k)/(p_{k+1} − p_k)
 
-(the bilinear interpolant written in differences, so that a constant table returns its value exactly).
+(the interpolants written in differences, so that a constant table returns its value exactly; the
+trilinear interpolant of a 3-D table).  Without ``pressure``, ``mu`` has shape (n_T, n_Ω); with it,
+(n_p, n_T, n_Ω) (one (T, Ω) table per pressure).
 
     An axis of one value means "independent of this variable" (any value is accepted); a condition
     outside an axis of two or more values is a :class:`ModelError` naming the variable and the range
@@ -267,11 +274,17 @@ class TableFriction:
     speed: np.ndarray
     mu: np.ndarray
     name: str = "friction table"
+    pressure: np.ndarray | None = None
 
     def __post_init__(self):
         T, V = (np.atleast_1d(np.asarray(a, float)) for a in (self.temperature, self.speed))
+        axes = [("temperature", T), ("speed", V)]
+        P = None
+        if self.pressure is not None:
+            P = np.atleast_1d(np.asarray(self.pressure, float))
+            axes.insert(0, ("pressure", P))
         mu = np.asarray(self.mu, float)
-        for key, a in (("temperature", T), ("speed", V)):
+        for key, a in axes:
             if a.ndim != 1 or a.size == 0 or not np.all(np.isfinite(a)):
                 raise ModelError(f"{self.name}.{key}: must be a non-empty list of finite numbers "
                                  f"(got {a.tolist()})")
@@ -279,40 +292,70 @@ class TableFriction:
                 raise ModelError(f"{self.name}.{key}: must be strictly increasing (got {a.tolist()})")
         if np.any(V < 0):
             raise ModelError(f"{self.name}.speed: must be >= 0 (the disc speed |Ω|; got {V.tolist()})")
-        if mu.ndim == 1 and 1 in (T.size, V.size):
-            mu = mu.reshape(T.size, V.size) if mu.size == T.size * V.size else mu
-        if mu.shape != (T.size, V.size):
-            raise ModelError(f"{self.name}.mu: must have one row per temperature and one column per speed, "
-                             f"shape ({T.size}, {V.size}) (got {mu.shape})")
+        if P is not None and np.any(P <= 0):
+            raise ModelError(f"{self.name}.pressure: must be > 0 (scales of loads.pressure; got {P.tolist()})")
+        if P is None:
+            if mu.ndim == 1 and 1 in (T.size, V.size):
+                mu = mu.reshape(T.size, V.size) if mu.size == T.size * V.size else mu
+            if mu.shape != (T.size, V.size):
+                raise ModelError(f"{self.name}.mu: must have one row per temperature and one column per speed, "
+                                 f"shape ({T.size}, {V.size}) (got {mu.shape})")
+        elif mu.shape != (P.size, T.size, V.size):
+            raise ModelError(f"{self.name}.mu: with a pressure axis, one (temperature × speed) table per "
+                             f"pressure, shape ({P.size}, {T.size}, {V.size}) (got {mu.shape})")
         _check(f"{self.name}.mu", mu)
         object.__setattr__(self, "temperature", T)
         object.__setattr__(self, "speed", V)
         object.__setattr__(self, "mu", mu)
+        object.__setattr__(self, "pressure", P)
 
-    def check_range(self, temperature, speed) -> None:
-        """Refuse conditions outside the table (ModelError naming the variable, the value and the range)."""
-        for key, axis, x in (("temperature", self.temperature, np.asarray(temperature, float)),
-                             ("speed", self.speed, np.abs(np.asarray(speed, float)))):
+    def check_range(self, temperature, speed, pressure=None) -> None:
+        """Refuse conditions outside the table (ModelError naming the variable, the value and the range);
+        a table with a pressure axis of two or more values needs the pressure."""
+        checks = [("temperature", self.temperature, np.asarray(temperature, float)),
+                  ("speed", self.speed, np.abs(np.asarray(speed, float)))]
+        if self.pressure is not None and self.pressure.size > 1:
+            if pressure is None:
+                raise ModelError(f"{self.name}: the table depends on the pressure; a condition without one "
+                                 f"cannot be evaluated")
+            checks.insert(0, ("pressure", self.pressure, np.asarray(pressure, float)))
+        for key, axis, x in checks:
             if axis.size > 1:
                 out = (x < axis[0]) | (x > axis[-1]) | ~np.isfinite(x)
                 if np.any(out):
                     raise ModelError(f"{self.name}: {key} {x[out].ravel()[0]:g} is outside the table's range "
                                      f"[{axis[0]:g}, {axis[-1]:g}]")
 
-    def coefficient(self, temperature, speed) -> np.ndarray:
-        """μ at the conditions (T, Ω) (arrays broadcast together); the range is checked first."""
-        T, V = np.broadcast_arrays(np.asarray(temperature, float), np.abs(np.asarray(speed, float)))
-        self.check_range(T, V)
-        return bilinear(self.temperature, self.speed, self.mu, T, V)
+    def coefficient(self, temperature, speed, pressure=None) -> np.ndarray:
+        """μ at the conditions (p, T, Ω) (arrays broadcast together; ``pressure`` needed only by a table
+        with a pressure axis of two or more values); the range is checked first."""
+        if pressure is None:
+            T, V = np.broadcast_arrays(np.asarray(temperature, float), np.abs(np.asarray(speed, float)))
+            p = None
+        else:
+            T, V, p = np.broadcast_arrays(np.asarray(temperature, float), np.abs(np.asarray(speed, float)),
+                                          np.asarray(pressure, float))
+        self.check_range(T, V, p)
+        if self.pressure is None:
+            return bilinear(self.temperature, self.speed, self.mu, T, V)
+        if p is None:
+            p = np.full(T.shape, self.pressure[0])
+        k, r = _interp_weights(self.pressure, p)
+        k1 = np.minimum(k + 1, self.mu.shape[0] - 1)
+        lo = bilinear(self.temperature, self.speed, self.mu, T, V, layer=k)
+        hi = bilinear(self.temperature, self.speed, self.mu, T, V, layer=k1)
+        return lo + r * (hi - lo)
 
 
-def operating_mu(law, temperature, speed, radius: float = 0.0) -> np.ndarray:
-    """|μ| of a friction law at operating conditions (T, Ω): a :class:`ConstantFriction`'s μ, a
+
+def operating_mu(law, temperature, speed, radius: float = 0.0, pressure=None) -> np.ndarray:
+    """|μ| of a friction law at operating conditions (p, T, Ω): a :class:`ConstantFriction`'s μ, a
     :class:`StribeckFriction`'s μ(V) at the sliding speed V = |Ω| r (``radius`` r [m] > 0), a
-    :class:`TableFriction`'s μ(T, Ω) (range checked)."""
+    :class:`TableFriction`'s μ(p, T, Ω) (range checked; ``pressure``: the scale of loads.pressure, needed
+    by a table with a pressure axis)."""
     T, V = np.broadcast_arrays(np.asarray(temperature, float), np.abs(np.asarray(speed, float)))
     if isinstance(law, TableFriction):
-        return law.coefficient(T, V)
+        return law.coefficient(T, V) if pressure is None else law.coefficient(T, V, pressure)
     if isinstance(law, ConstantFriction):
         return np.broadcast_to(np.asarray(law.mu, float), T.shape).copy()
     if isinstance(law, StribeckFriction):

@@ -1,6 +1,6 @@
 """The scene keys of analyses.operating_matrix: the conditions and friction laws it makes, bad values named
 by their key before any computation (a condition outside a friction table, a pressure other than the
-scene's), and its report section."""
+scene's where the operators depend on it), and its report section."""
 from __future__ import annotations
 
 import numpy as np
@@ -36,15 +36,24 @@ def test_bundled_scene_conditions_and_laws():
 
 
 @pytest.mark.parametrize("override, message", [
-    ("analyses.operating_matrix.pressure=[1.0, 2.0]",
-     r"^analyses\.operating_matrix\.pressure: only 1 \(the scene's loads\.pressure\) is possible"
-     r".*\(got \[2\.0\]\)"),
+    ("analyses.operating_matrix.pressure=[1.0, 2.0]\npreload.geometric_stiffness=true",
+     r"^analyses\.operating_matrix\.pressure: other pressures than the scene's \(1\) need a reduced model whose "
+     r"operators do not depend on the pressure, but preload\.geometric_stiffness = true .*\(got \[2\.0\]\)"),
+    ("analyses.operating_matrix.pressure=[0.5, 1.0]\ninterfaces.pad_inner.friction_damping=true",
+     r"^analyses\.operating_matrix\.pressure: .* but interfaces\.pad_inner\.friction_damping = true"),
     ("analyses.operating_matrix.pressure=[-1.0]",
      r"^analyses\.operating_matrix\.conditions\.pressure: must be > 0"),
     ("analyses.operating_matrix.temperature=[50.0, 450.0]",
      r"^analyses\.operating_matrix\.friction\.default: temperature 450 is outside the table's range \[0, 400\]"),
     ("analyses.operating_matrix.speed=[10.0, 200.0]",
      r"^analyses\.operating_matrix\.friction\.default: speed 200 is outside the table's range \[0, 150\]"),
+    ("analyses.operating_matrix.friction.default={law = 'table', temperature = [0.0, 400.0], speed = [0.0], "
+     "pressure = [0.5, 0.8], mu = [[[0.4], [0.3]], [[0.4], [0.3]]]}",
+     r"^analyses\.operating_matrix\.friction\.default: pressure 1 is outside the table's range \[0\.5, 0\.8\]"),
+    ("analyses.operating_matrix.friction.default={law = 'table', temperature = [0.0, 400.0], speed = [0.0], "
+     "pressure = [0.5, 2.0], mu = [[0.4], [0.3]]}",
+     r"^analyses\.operating_matrix\.friction\.default\.mu: with a pressure axis, one \(temperature × speed\) "
+     r"table per pressure, shape \(2, 2, 1\)"),
     ("analyses.operating_matrix.direction=['backward']",
      r"^analyses\.operating_matrix\.direction: must be a list of \['forward', 'reverse'\]"),
     ("analyses.operating_matrix.temperature={start = 1.0, n = 3}",
@@ -62,7 +71,17 @@ def test_bundled_scene_conditions_and_laws():
 ])
 def test_bad_values_name_the_key(override, message):
     with pytest.raises(SceneError, match=message):
-        load_scene(SCENE, [override])
+        load_scene(SCENE, override.split("\n"))
+
+
+def test_other_pressures_are_continued_by_the_preload():
+    from fem_squeal.app.analyses import pressure_continuation
+
+    scene = load_scene(SCENE, ["analyses.operating_matrix.pressure=[0.5, 1.0, 2.0]"])
+    assert pressure_continuation.scales(scene) == [0.5, 2.0]
+    assert pressure_continuation.key_inputs(scene)["pressure_scales"] == [0.5, 2.0]
+    plain = load_scene(SCENE)
+    assert pressure_continuation.scales(plain) == [] and pressure_continuation.key_inputs(plain) is plain.preload
 
 
 def test_report_section_from_results():
@@ -95,3 +114,22 @@ def test_a_scene_speed_law_needs_its_law_at_the_conditions():
                                          r"\(analyses\.operating_matrix\.friction\.pad_inner"):
         load_scene(SCENE, stribeck)
     load_scene(SCENE, stribeck + ["analyses.operating_matrix.speed=[60.0]"])   # the scene's speed: fine
+
+
+def test_a_pressure_that_changes_the_contact_set_is_named():
+    """The continuation's summary (from the preload stage) decides: the scene's contact set at every other
+    pressure, or a SceneError naming the pressure."""
+    scene = load_scene(SCENE, ["analyses.operating_matrix.pressure=[1.0, 2.0, 3.0]"])
+    cond = om.conditions(scene)
+
+    class Ctx:
+        products = {"pressure_continuation": {"pressures": [
+            {"scale": 2.0, "same_contact_set": True, "changed_points": 0},
+            {"scale": 3.0, "same_contact_set": False, "changed_points": 7}]}}
+
+    with pytest.raises(SceneError, match=r"^analyses\.operating_matrix\.pressure: at 3 × loads\.pressure the "
+                                         r"contact set is not the scene's \(7 contact points opened or closed\)"):
+        om.pressure_states(Ctx(), cond)
+    Ctx.products["pressure_continuation"]["pressures"].pop()
+    assert om.pressure_states(Ctx(), cond)["pressures"][0]["scale"] == 2.0
+    assert om.pressure_states(Ctx(), om.conditions(load_scene(SCENE))) is None

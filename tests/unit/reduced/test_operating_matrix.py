@@ -163,3 +163,30 @@ def test_a_condition_does_not_depend_on_the_others():
     sub = Conditions(*(getattr(cond, v)[odd] for v in ("pressure", "temperature", "speed", "direction")))
     part = evaluate(model, sub, {k: v[odd] for k, v in pts.items()}).eigenvalues
     np.testing.assert_array_equal(part, full[odd])
+
+
+def test_table_over_pressure_is_trilinear_and_a_constant_layer_reproduces_mu():
+    layers = [[[0.5, 0.4], [0.3, 0.2]], [[0.6, 0.5], [0.4, 0.1]]]
+    law = TableFriction([0.0, 100.0], [0.0, 50.0], layers, pressure=[0.5, 1.5])
+    flat = [TableFriction([0.0, 100.0], [0.0, 50.0], m) for m in layers]
+    T, W, p = np.array([30.0, 70.0, 100.0]), np.array([10.0, 40.0, 50.0]), np.array([0.5, 0.8, 1.5])
+    r = (p - 0.5) / 1.0
+    np.testing.assert_allclose(law.coefficient(T, W, p),
+                               (1 - r) * flat[0].coefficient(T, W) + r * flat[1].coefficient(T, W), rtol=1e-14)
+    const = TableFriction([0.0, 400.0], [0.0, 200.0], np.full((3, 2, 2), 0.37), pressure=[0.5, 1.0, 2.0])
+    np.testing.assert_array_equal(operating_mu(const, T, W, pressure=[0.5, 1.3, 2.0]), [0.37] * 3)
+    same = TableFriction([0.0, 100.0], [0.0, 50.0], [layers[0]], pressure=[1.0])   # one pressure: independent of p
+    twice = TableFriction([0.0, 100.0], [0.0, 50.0], [layers[0]] * 2, pressure=[0.5, 1.5])  # constant in p
+    np.testing.assert_array_equal(twice.coefficient(T, W, p), flat[0].coefficient(T, W))
+    np.testing.assert_array_equal(same.coefficient(T, W, [7.0, 0.1, 3.0]), flat[0].coefficient(T, W))
+    with pytest.raises(ModelError, match=r"^friction table: pressure 2 is outside the table's range \[0\.5, 1\.5"):
+        law.coefficient(T, W, [1.0, 2.0, 1.0])
+    with pytest.raises(ModelError, match=r"^friction table: the table depends on the pressure"):
+        law.coefficient(T, W)
+    with pytest.raises(ModelError, match=r"^x\.mu: with a pressure axis, .* shape \(2, 2, 2\)"):
+        TableFriction([0.0, 100.0], [0.0, 50.0], layers[0], pressure=[0.5, 1.5], name="x")
+    with pytest.raises(ModelError, match=r"^x\.pressure: must be > 0"):
+        TableFriction([0.0, 100.0], [0.0, 50.0], layers, pressure=[0.0, 1.5], name="x")
+    cond = factorial([0.5, 1.5], [30.0], [10.0], ["forward", "reverse"])
+    pts = parameter_points(flutter_model(), cond, {}, InterfaceLaw(law))
+    np.testing.assert_allclose(pts["mu"], [1, -1, 1, -1] * law.coefficient(30.0, 10.0, cond.pressure))

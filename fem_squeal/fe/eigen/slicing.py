@@ -88,9 +88,11 @@ def sliced_modes(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, slices: int, *, to
     criterion, as :func:`fem_squeal.fe.eigen.solve_real_modes`); ``max_residual``: the pairs'
     ‖Kφ − λMφ‖/(‖K‖∞‖φ‖) bound.  The factorisation: :data:`SLICE_FACTOR` under ``prefix``, the user's
     options (``options``, the command line) over it.  ``progress``: one line per slice on rank 0's
-    stderr with the modes so far and the remaining time, estimated from the planned share of the
-    modes the slices done hold.  None (with the slices done) where a Lanczos run stops short, an
-    inertia count differs or a residual misses: the caller solves otherwise."""
+    stderr with the modes so far and the remaining time (as much per slice as so far: the last
+    slice, half the modes of the others, converges as many above the cut; measured at 78k DOFs, 3
+    slices: 22 s estimated after the first, 27 s taken).  None (with the slices done) where a
+    Lanczos run stops short, an inertia count differs or a residual misses: the caller solves
+    otherwise."""
     if slices < 1:
         raise ValueError(f"slices: must be >= 1 (got {slices})")
     lam_cut = (TWO_PI * f_cut_hz) ** 2
@@ -99,10 +101,9 @@ def sliced_modes(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, slices: int, *, to
     Ms = drop_zeros(M)
     mass = product_of(Ms)
     planned = planned_bounds(lam_cut, slices)
-    share = np.concatenate([[0.0], (planned / lam_cut) ** 0.75])    # planned share of the modes below each bound
     lower, kept_lam, kept_X, done, counts = -np.inf, [], [], [], []
     n_kept, t_factor, t_solve, b = 0, 0.0, 0.0, 0
-    bar = ProgressBar(1.0, f"real modes to {f_cut_hz:.0f} Hz, {slices} slices",
+    bar = ProgressBar(slices, f"real modes to {f_cut_hz:.0f} Hz", unit=" slices",
                       enabled=progress and comm.rank == 0)
     try:
         for j, upper in enumerate(planned):
@@ -147,8 +148,7 @@ def sliced_modes(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, slices: int, *, to
             kept_X.append(X[:, keep])
             n_kept += int(keep.sum())
             done.append(Slice(_hz(c), _hz(max(lower, 0.0)), _hz(hi), nu, int(keep.sum()), b, t1 - t0, t2 - t1))
-            bar.update(share[j + 1] if not last else 1.0,
-                       extra=f"slice {j + 1}/{slices} to {_hz(hi):.0f} Hz: {n_kept} modes, inertia {nu} "
+            bar.update(j + 1, extra=f"slice {j + 1}/{slices} to {_hz(hi):.0f} Hz: {n_kept} modes, inertia {nu} "
                              f"below {_hz(c):.0f} Hz {'proves the count' if proved else 'DIFFERS'}")
             if not proved:
                 return None, done

@@ -26,7 +26,16 @@ INERTIA = CHOLESKY.with_(icntl={13: 1, 24: 1})
 #: K + σM for blocks of columns: MUMPS LDLᵀ taking its right-hand sides 64 at a time (ICNTL(27); its
 #: default of 32 for MatMatSolve): the 50k-DOF brake's 172 columns 0.43 → 0.38 s, the factorisation the same.
 SHIFTED = CHOLESKY.with_(icntl={27: 64})
-#: slices of the spectrum slicing in :func:`modes_below` (``<prefix>slices``; 0: one shift near 0, as before)
+#: slices of the spectrum slicing in :func:`modes_below` (``<prefix>slices``; 0: one shift near 0, as before).
+#: Off: slower wherever measured (issue 36; benchmarks/real_mode_slicing.py and the same calls on the
+#: projection's K and M, brake corner, modes ≤ 24 kHz, methods compared within one process on a shared
+#: machine): 78k DOFs, 1 rank: one shift (CHOLMOD) 19.6 s, 2/3 slices 26.3/39.3 s (a quieter run; a loaded one:
+#: 115 s, 2/3/4 slices 238/234/219 s); 2 ranks: one shift (the
+#: band-centre factorisation) 117 s, 3 slices 446 s; 163k DOFs, 1 rank: 241 s against 871 s (3 slices);
+#: SLEPc's own slicing (EPSSetInterval, MUMPS LDLᵀ) 782 s against 83 s at 78k.  Each slice's MUMPS
+#: LDLᵀ costs more than CHOLMOD's LLᵀ near 0 and its solves more than CHOLMOD's, and one block Lanczos
+#: space for ~160 modes still fits :data:`~fem_squeal.fe.eigen.BLOCK_MEMORY` at these sizes; the
+#: slices pay where it no longer does (then one shift falls back to Krylov–Schur): not measured here.
 SLICES = 0
 
 

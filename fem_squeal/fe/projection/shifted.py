@@ -31,7 +31,8 @@ SHIFTED = CHOLESKY.with_(icntl={27: 64})
 #: projection's K and M, brake corner, modes ≤ 24 kHz, methods compared within one process on a shared
 #: machine): 78k DOFs, 1 rank: one shift (CHOLMOD) 19.6 s, 2/3 slices 26.3/39.3 s (a quieter run; a loaded one:
 #: 115 s, 2/3/4 slices 238/234/219 s); 2 ranks: one shift (the
-#: band-centre factorisation) 117 s, 3 slices 446 s; 163k DOFs, 1 rank: 241 s against 871 s (3 slices);
+#: band-centre factorisation) 117 s, 3 slices 446 s; 163k DOFs, 1 rank: 37.2 s against 102.7 s (2 slices; loaded:
+#: 241 s against 871 s with 3);
 #: SLEPc's own slicing (EPSSetInterval, MUMPS LDLᵀ) 782 s against 83 s at 78k.  Each slice's MUMPS
 #: LDLᵀ costs more than CHOLMOD's LLᵀ near 0 and its solves more than CHOLMOD's, and one block Lanczos
 #: space for ~160 modes still fits :data:`~fem_squeal.fe.eigen.BLOCK_MEMORY` at these sizes; the

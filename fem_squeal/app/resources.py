@@ -34,6 +34,11 @@ and 0.003 m, 5.17 and 4.66, and 8 % high at 0.016 m, where it is 5.89).
 
 A run is refused (:class:`~fem_squeal.util.errors.ResourceError`, exit 2, before gmsh or any solver
 starts) when M exceeds 90 % of the memory of the machines it runs on, and warned about above 60 %.
+The CEA's vectors beyond those the model was measured with count on top (:func:`cea_vectors`, issue 36):
+the Krylov–Schur space beyond 120 vectors (``analyses.cea.n_modes``), or the projection's real modes
+to its cut and their mass products (``analyses.cea.band_hz`` × ``cut_factor``, the brake corner's
+measured mode count :data:`BRAKE_MODE_COUNTS`), so that a band or cut that cannot fit is refused
+naming its key.
 The same model says how many such machines an N-DOF model needs under MPI.
 """
 from __future__ import annotations
@@ -96,6 +101,43 @@ def factorisation_kind(scene: dict) -> str:
     return "ooc" if both(22) else "blr" if both(35) else "exact"
 
 
+#: real modes of the brake corner below f [Hz]: 90 below 16 kHz and 159 below 24 kHz (163,506 DOFs; 157 at
+#: 78,072: converged in the mesh), N = 159 (f / 24 kHz)^1.40 through the two (issue 36's benchmark runs)
+BRAKE_MODE_COUNTS = ((16000.0, 90), (24000.0, 159))
+#: Krylov–Schur vectors of the CEA runs the memory model was fitted on (2 × 60 modes)
+MODEL_VECTORS = 120
+
+
+def modes_below_estimate(builder: str, f_hz: float) -> float | None:
+    """Real modes below ``f_hz`` of a ``builder``'s model (the brake corner's power law through
+    :data:`BRAKE_MODE_COUNTS`); None where no count was measured."""
+    if builder != "brake_corner":
+        return None
+    (f1, n1), (f2, n2) = BRAKE_MODE_COUNTS
+    return n2 * (f_hz / f2) ** (math.log(n2 / n1) / math.log(f2 / f1))
+
+
+def cea_vectors(scene: dict) -> tuple[float, str] | None:
+    """(vectors of the model's size the CEA keeps beyond the memory model's, what sets them and how):
+    the projection (``method = "projection"``) its real modes to cut_factor × the band top and their
+    mass products, 2 N (:func:`modes_below_estimate`; the Lanczos space, the static corrections and
+    the enrichment come on top: a lower bound); the other methods Krylov–Schur's max(2 nev, nev + 16)
+    beyond :data:`MODEL_VECTORS`.  None without a CEA or a count."""
+    cea = scene.get("analyses", {}).get("cea")
+    if cea is None:
+        return None
+    if cea.get("method") == "projection":
+        top, factor = float(cea["band_hz"][1]), float(cea.get("cut_factor", 1.5))
+        n = modes_below_estimate(scene["geometry"]["builder"], factor * top)
+        if n is None:
+            return None
+        return 2.0 * n, (f"analyses.cea.band_hz: its top {top:g} Hz × cut_factor {factor:g} needs the real modes "
+                         f"below {factor * top:.0f} Hz, about {n:.0f} of them (the brake corner's, N ∝ f^1.4)")
+    nev = int(cea.get("n_modes", 20))
+    return float(max(max(2 * nev, nev + 16) - MODEL_VECTORS, 0)), \
+        f"analyses.cea.n_modes: {nev} modes keep {max(2 * nev, nev + 16)} Krylov vectors"
+
+
 def machine_memory() -> float:
     """Physical memory of this machine [bytes]."""
     return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
@@ -151,6 +193,12 @@ def check_resources(scene: dict, comm) -> tuple[Estimate | None, list[str]]:
             f"{est.dofs:.3g} DOFs (P{scene.discretisation['degree']}); its largest solve needs about "
             f"{need:.3g} GiB on {comm.size} rank(s) ({m_ref:g} GiB at {n_ref / 1e3:.0f}k DOFs on one rank "
             f"with {kind} factors, fill-in ∝ DOFs^(4/3))")
+    vectors = cea_vectors(scene) if need <= REFUSE_SHARE * est.available_gib else None
+    if vectors is not None and need + 8.0 * vectors[0] * est.dofs / GIB > REFUSE_SHARE * est.available_gib:
+        extra = 8.0 * vectors[0] * est.dofs / GIB
+        raise ResourceError(f"{vectors[1]}: {extra:.3g} GiB of vectors of {est.dofs:.3g} DOFs on top of the "
+                            f"{need:.3g} GiB of the largest solve, more than {100 * REFUSE_SHARE:.0f} % of the "
+                            f"{est.available_gib:.3g} GiB of the {nodes} machine(s) of this run; lower it")
     if need > REFUSE_SHARE * est.available_gib:
         raise ResourceError(f"{what}, more than {100 * REFUSE_SHARE:.0f} % of the {est.available_gib:.3g} GiB of "
                             f"the {nodes} machine(s) of this run: it needs {est.machines} such machines under "

@@ -7,10 +7,14 @@ import time
 
 class ProgressBar:
     """``with ProgressBar(n, "transient") as bar: bar.update(i)``.  On a terminal the bar is
-    redrawn in place; otherwise (logs, CI) a line is printed every 10 %."""
+    redrawn in place; otherwise (logs, CI) a line is printed every 10 % and, with ``heartbeat``,
+    at least every ``heartbeat`` seconds of updates (a stage that moves slowly still shows its state)."""
 
-    def __init__(self, total: float, label: str, *, enabled: bool = True, stream=None, unit: str = ""):
+    def __init__(self, total: float, label: str, *, enabled: bool = True, stream=None, unit: str = "",
+                 heartbeat: float | None = None):
         self.total, self.label, self.enabled, self.unit = float(total), label, enabled, unit
+        self.heartbeat = heartbeat
+        self._last_line = time.perf_counter()
         self.stream = stream or sys.stderr
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.t0 = time.perf_counter()
@@ -22,20 +26,33 @@ class ProgressBar:
 
     def __exit__(self, *exc) -> None:
         if self.enabled and exc[0] is None:
-            self.update(self.total, force=True)
-            if self.tty:
-                self.stream.write("\n")
-                self.stream.flush()
+            self.close()
 
-    def update(self, done: float, force: bool = False, extra: str = "") -> None:
+    def close(self) -> None:
+        """Draw the bar full (the work is done) and end its line."""
+        if not self.enabled:
+            return
+        self.update(self.total, force=True)
+        self.abandon()
+
+    def abandon(self) -> None:
+        """End the bar's line on a terminal without drawing it full (the work stopped short)."""
+        if self.enabled and self.tty:
+            self.stream.write("\n")
+            self.stream.flush()
+
+    def update(self, done: float, force: bool = False, extra: str = "", eta: float | None = None) -> None:
+        """Draw ``done`` of the total; ``eta``: the caller's estimate of the seconds left (NaN: not
+        known yet), else elapsed × (1 − share done)/share done."""
         if not self.enabled:
             return
         frac = min(max(done / self.total, 0.0), 1.0) if self.total > 0 else 1.0
         now = time.perf_counter()
         elapsed = now - self.t0
-        eta = elapsed * (1 - frac) / frac if frac > 0 else float("nan")
+        if eta is None:
+            eta = elapsed * (1 - frac) / frac if frac > 0 else float("nan")
         text = (f"{self.label}: {100 * frac:5.1f}% {done:.4g}/{self.total:.4g}{self.unit} "
-                f"elapsed {elapsed:.1f} s, eta {eta:.1f} s {extra}")
+                f"elapsed {elapsed:.1f} s, eta {'?' if eta != eta else f'{eta:.1f} s'} {extra}")
         if self.tty:
             if force or now - self._last_draw > 0.2:
                 bar = "#" * int(30 * frac)
@@ -44,7 +61,9 @@ class ProgressBar:
                 self._last_draw = now
         else:
             decile = int(10 * frac)
-            if decile > self._last_decile or (force and frac >= 1 and self._last_decile < 10):
-                self._last_decile = decile
+            beat = self.heartbeat is not None and now - self._last_line >= self.heartbeat
+            if decile > self._last_decile or beat or (force and frac >= 1 and self._last_decile < 10):
+                self._last_decile = max(decile, self._last_decile)
+                self._last_line = now
                 self.stream.write(text + "\n")
                 self.stream.flush()

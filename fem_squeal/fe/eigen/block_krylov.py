@@ -76,7 +76,8 @@ def _grown(A: np.ndarray, shape: tuple[int, int], order: str) -> np.ndarray:
 
 def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np.ndarray], np.ndarray],
                    comm, rows: tuple[int, int], n: int, nev: int, sigma: float, tol: float, b: int,
-                   lam_max: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+                   lam_max: float | None = None, radius: float | None = None
+                   ) -> tuple[np.ndarray, np.ndarray] | None:
     """The ``nev`` eigenpairs of K x = λ M x nearest σ by block Lanczos on (K − σM)⁻¹M in the M-inner
     product, with full reorthogonalisation.  ``solve``: B ↦ (K − σM)⁻¹B and ``mass``: W ↦ MW, both
     on the rank-local rows ``rows`` (r0, r1) of column-major blocks; ``n``: the global size.
@@ -97,14 +98,17 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     guess that sizes the block and the first budget, which grows (×1.5, the vectors copied) up to
     what :data:`BLOCK_MEMORY` holds.  This is how :func:`fem_squeal.fe.projection.modes_below` asks
     for the modes below a cut without counting them first (an inertia count cost one more
-    factorisation)."""
+    factorisation).  ``radius``: likewise every pair with |λ − σ| ≤ ``radius`` (|θ| ≥ 1/radius: they
+    lead in |θ| whatever σ) and the next :data:`BEYOND`: one slice of spectrum slicing
+    (:mod:`fem_squeal.fe.eigen.slicing`)."""
     r0, r1 = rows
     dim = _krylov_dim(nev, b, n)
+    open_count = lam_max is not None or radius is not None
     # with a threshold the budget grows (×1.5, the vectors copied) up to what BLOCK_MEMORY holds:
     # allocating that at once cost 1.4 s of zeroed pages for the 50k-DOF brake's 89 modes
-    limit = dim if lam_max is None else \
+    limit = dim if not open_count else \
         min(n - b, int(BLOCK_MEMORY // (2 * 8 * max(comm.allreduce(r1 - r0, op=MPI.MAX), 1)))) // b * b
-    if (dim < nev and lam_max is None) or comm.allreduce(2 * 8 * (r1 - r0) * dim, op=MPI.MAX) > BLOCK_MEMORY:
+    if (dim < nev and not open_count) or comm.allreduce(2 * 8 * (r1 - r0) * dim, op=MPI.MAX) > BLOCK_MEMORY:
         return None
     V = np.zeros((r1 - r0, dim), order="F")
     MV = np.zeros(V.shape, order="F")    # calloc: pages are touched only as columns are filled
@@ -126,7 +130,8 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
         Tk = 0.5 * (T[:k, :k] + T[:k, :k].T)
         theta, Y = np.linalg.eigh(Tk)
         want = np.argsort(-np.abs(theta), kind="stable")
-        count = nev if lam_max is None else int(np.sum(sigma + 1.0 / theta <= lam_max)) + BEYOND
+        count = nev if not open_count else BEYOND + int(
+            np.sum(sigma + 1.0 / theta <= lam_max) if radius is None else np.sum(np.abs(theta) * radius >= 1.0))
         want = want[:count]
         nxt = _m_orthonormal(comm, mass, W)
         # an invariant subspace (nothing new in W): the Ritz pairs are exact

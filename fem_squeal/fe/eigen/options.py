@@ -3,6 +3,7 @@
 a SLEPc solve, matrices without stored zeros."""
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping
 from contextlib import contextmanager
 
@@ -82,16 +83,52 @@ def drop_zeros(A: PETSc.Mat) -> PETSc.Mat:
     return B
 
 
+#: seconds between progress lines of a SLEPc solve in a log (a terminal redraws the bar in place)
+PROGRESS_HEARTBEAT = 10.0
+
+
+def restarts_left(before: np.ndarray | None, now: np.ndarray, tol: float) -> float:
+    """Restarts until every error estimate in ``now`` is ≤ ``tol``, each falling geometrically at
+    its rate since the last restart: max_j log(e_j/tol) / log(e_j⁻/e_j) over the pending pairs
+    whose estimate fell (e⁻: ``before``, the same Ritz pairs one restart earlier); NaN where no
+    pending estimate has fallen yet (no rate known)."""
+    pending = now > tol
+    if not pending.any():
+        return 0.0
+    if before is None or before.size < now.size:
+        return float("nan")
+    e, p = now[pending], before[:now.size][pending]
+    falling = (p > e) & (e > 0)
+    if not falling.any():
+        return float("nan")
+    return float(np.max(np.log(e[falling] / tol) / np.log(p[falling] / e[falling])))
+
+
 @contextmanager
 def _progress(solver, total: int, label: str, enabled: bool):
-    """A progress bar of converged eigenpairs on rank 0, fed by the SLEPc monitor of ``solver``
-    (set on every rank: monitors are logically collective)."""
+    """A progress line of converged eigenpairs on rank 0, fed by the SLEPc monitor of ``solver``
+    (set on every rank: monitors are logically collective), once per restart: the converged pairs,
+    the seconds per restart and the time left, estimated from the convergence rate of the wanted
+    pairs' error estimates (:func:`restarts_left` × the mean seconds per restart).  In a log a line
+    every :data:`PROGRESS_HEARTBEAT` seconds at least."""
     if not enabled:
         yield
         return
 
-    with ProgressBar(total, label, unit=" pairs", enabled=solver.getComm().getRank() == 0) as bar:
-        solver.setMonitor(lambda _s, its, nconv, *_: bar.update(min(nconv, total), extra=f"it {its}"))
+    tol = solver.getTolerances()[0]
+    state: dict = {"before": None}
+    with ProgressBar(total, label, unit=" pairs", enabled=solver.getComm().getRank() == 0,
+                     heartbeat=PROGRESS_HEARTBEAT) as bar:
+        def monitor(_s, its, nconv, _eig, errest):
+            err = np.abs(np.asarray(errest, float))[:max(total, nconv)]
+            left = restarts_left(state["before"], err[nconv:], tol) if nconv < total else 0.0
+            state["before"] = err[nconv:]
+            per = (time.perf_counter() - bar.t0) / max(its, 1)
+            bar.update(min(nconv, total), eta=left * per,
+                       extra=f"restart {its}, {per:.1f} s each, {'?' if left != left else f'{left:.0f}'} "
+                             "restarts left")
+
+        solver.setMonitor(monitor)
         try:
             yield
         finally:

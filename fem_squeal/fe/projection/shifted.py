@@ -7,8 +7,10 @@ from petsc4py import PETSc
 
 from fem_squeal.fe.dense import block_solve
 from fem_squeal.fe.eigen import TWO_PI, modes_on_factor, solve_real_modes
-from fem_squeal.fe.factorisation import CHOLESKY, factor_solver
+from fem_squeal.fe.eigen.slicing import sliced_modes
+from fem_squeal.fe.factorisation import CHOLESKY, factor_solver, scoped_options, user_option
 from fem_squeal.fe.projection.basis import _local_array
+from fem_squeal.util.errors import ModelError
 
 #: convergence of the basis modes (shift-inverted residual, SLEPc's criterion; the real-mode analysis
 #: takes 1e-7): they only span the basis, to which their derivatives and the static corrections are
@@ -24,17 +26,43 @@ INERTIA = CHOLESKY.with_(icntl={13: 1, 24: 1})
 #: K + σM for blocks of columns: MUMPS LDLᵀ taking its right-hand sides 64 at a time (ICNTL(27); its
 #: default of 32 for MatMatSolve): the 50k-DOF brake's 172 columns 0.43 → 0.38 s, the factorisation the same.
 SHIFTED = CHOLESKY.with_(icntl={27: 64})
+#: slices of the spectrum slicing in :func:`modes_below` (``<prefix>slices``; 0: one shift near 0, as before).
+#: Off: slower wherever measured (issue 36; benchmarks/real_mode_slicing.py and the same calls on the
+#: projection's K and M, brake corner, modes ≤ 24 kHz, methods compared within one process on a shared
+#: machine): 78k DOFs, 1 rank: one shift (CHOLMOD) 19.6 s, 2/3 slices 26.3/39.3 s (a quieter run; a loaded one:
+#: 115 s, 2/3/4 slices 238/234/219 s); 2 ranks: one shift (the
+#: band-centre factorisation) 117 s, 3 slices 446 s; 163k DOFs, 1 rank: 37.2 s against 102.7 s (2 slices; loaded:
+#: 241 s against 871 s with 3);
+#: SLEPc's own slicing (EPSSetInterval, MUMPS LDLᵀ) 782 s against 83 s at 78k.  Each slice's MUMPS
+#: LDLᵀ costs more than CHOLMOD's LLᵀ near 0 and its solves more than CHOLMOD's, and one block Lanczos
+#: space for ~160 modes still fits :data:`~fem_squeal.fe.eigen.BLOCK_MEMORY` at these sizes; the
+#: slices pay where it no longer does (then one shift falls back to Krylov–Schur): not measured here.
+SLICES = 0
+
+
+def _slices(prefix: str, options) -> int:
+    """``<prefix>slices`` from the scene's PETSc options or the command line, else :data:`SLICES`."""
+    with scoped_options({}, options):
+        value = user_option(f"{prefix}slices")
+    try:
+        return SLICES if value is None else int(value)
+    except ValueError:
+        raise ModelError(f"{prefix}slices: must be an integer >= 0 (got {value!r})") from None
 
 
 def modes_below(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, *, n_start: int = 20, options=None,
-                prefix: str = "basis_", max_modes: int = 2000, solver: ShiftedSolver | None = None):
+                prefix: str = "basis_", max_modes: int = 2000, solver: ShiftedSolver | None = None,
+                slices: int | None = None):
     """Every real mode with f ≤ ``f_cut_hz`` (shift-invert near 0): block Lanczos converges the modes
     below the cut and two above it (``f_max_hz`` of :func:`solve_real_modes`; ``n_start``, a guess
     of their number, sets its block size); where Krylov–Schur takes over, the count grows until the
     highest converged mode lies above the cut.  ``solver``: a factorisation of K + σM at hand, used
     instead of a new one where MUMPS would factorise anyway (more than one rank;
     :func:`fem_squeal.fe.eigen.modes_on_factor`; on one rank CHOLMOD's factorisation near 0 and its
-    solves cost less than MUMPS's solves).  Returns (ω² array, local (n_local, n) array)."""
+    solves cost less than MUMPS's solves).  ``slices`` (None: ``<prefix>slices``, :data:`SLICES`): at
+    least 1, spectrum slicing instead (:func:`fem_squeal.fe.eigen.slicing.sliced_modes`: a MUMPS LDLᵀ
+    per slice, its inertia proving the slice's count), the paths above where it does not answer.
+    Returns (ω² array, local (n_local, n) array)."""
     def local(rm) -> tuple[np.ndarray, np.ndarray]:
         keep = rm.freqs_hz <= f_cut_hz
         Phi = _local_array([v for v, k in zip(rm.vectors, keep) if k])
@@ -42,6 +70,14 @@ def modes_below(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, *, n_start: int = 2
             v.destroy()
         return rm.omega2[keep], Phi
 
+    slices = _slices(prefix, options) if slices is None else slices
+    if slices < 0:
+        raise ModelError(f"{prefix}slices: must be >= 0 (got {slices})")
+    if slices > 0:
+        rm, _ = sliced_modes(K, M, f_cut_hz, slices, tol=BASIS_MODE_TOL, max_residual=BASIS_MODE_RESIDUAL,
+                             options=options, prefix=prefix + "slice_", progress=True)
+        if rm is not None:
+            return local(rm)
     if solver is not None and solver.factor is not None and K.getComm().getSize() > 1:
         rm = modes_on_factor(solver.solve, K, M, -solver.sigma, f_cut_hz, n_start, tol=BASIS_MODE_TOL,
                              max_residual=BASIS_MODE_RESIDUAL)

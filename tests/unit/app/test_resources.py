@@ -85,6 +85,29 @@ def test_absurd_mesh_size_is_refused_before_anything_runs(tmp_path):
     assert not list((tmp_path / "c").glob("mesh-*"))          # no stage ran
 
 
+def test_band_or_cut_too_large_for_memory_is_refused_naming_the_key():
+    """The projection's real modes to cut_factor × the band top, and the full CEA's Krylov vectors, count
+    on top of the largest solve (issue 36): a band or a mode count that cannot fit is refused before
+    meshing, naming its key and the estimate; the scene's own band passes."""
+    from fem_squeal.app.resources import check_resources, machine_memory, modes_below_estimate
+    from fem_squeal.app.scene import load_scene
+    from fem_squeal.util.errors import ResourceError
+
+    scene = ROOT / "scenes" / "brake_corner_cea.toml"
+    assert modes_below_estimate("brake_corner", 24000.0) == pytest.approx(159)
+    assert modes_below_estimate("brake_corner", 16000.0) == pytest.approx(90)
+    # 0.012 m: ~79k DOFs; a top whose modes below 1.5 × top take twice the machine: 8 B × 2N × 79k = 2 × memory
+    top = 24000.0 * (machine_memory() / (8.0 * 79e3) / 159) ** (1 / 1.4) / 1.5
+    base = ["geometry.mesh_size=0.012", "analyses.cea.method=projection"]
+    check_resources(load_scene(scene, base + ["analyses.cea.band_hz=[0.0, 16000.0]"]), MPI.COMM_WORLD)
+    with pytest.raises(ResourceError, match=r"analyses\.cea\.band_hz: its top .* about \d+ of them.* GiB of "
+                                            r"vectors of .* DOFs"):
+        check_resources(load_scene(scene, base + [f"analyses.cea.band_hz=[0.0, {top:.0f}]"]), MPI.COMM_WORLD)
+    with pytest.raises(ResourceError, match=r"analyses\.cea\.n_modes: 2000000 modes keep"):
+        check_resources(load_scene(scene, ["geometry.mesh_size=0.012", "analyses.cea.n_modes=2000000"]),
+                        MPI.COMM_WORLD)
+
+
 def test_unwritable_output_folder_is_refused_before_anything_runs(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("a file where the output folder's parent should be")

@@ -103,7 +103,7 @@ BAD = [
      r"geometry: not used by a model given as matrices"),
     ("analysis", lambda r: r["analyses"].update(transient={}), SceneError,
      r"analyses.transient: not available for a model given as matrices; available: "
-     r"\['cea', 'real_modes', 'sweep'\]"),
+     r"\['cea', 'map', 'real_modes', 'robustness', 'sensitivity', 'sweep'\]"),
 ]
 
 

@@ -98,6 +98,9 @@ def test_reduced_layer_does_not_import_dolfinx():
     assert r.returncode == 0, r.stdout + r.stderr
 
 
+# slow (27 s of the fresh-clone suite): the sweep's rank independence at 1e-8 is
+# test_pipeline.py::test_results_do_not_depend_on_the_rank_count; this adds the map, at 2 %
+@pytest.mark.slow
 @pytest.mark.mpi
 def test_ring_sweep_1_vs_2_ranks(tmp_path, mpirun):
     """The reduced sweep and map of the ring scene on 1 and 2 ranks, each run on its own empty cache

@@ -10,7 +10,9 @@ import pytest
 from support.paths import ROOT
 from support.processes import clean_env
 
-PAD_QUICK = ["--set=analyses.segmented_pad.t_end=0.15", "--set=analyses.segmented_pad.speeds=[0.005, 0.045]"]
+# the velocity pair (0.001, 0.033) at 5 mm/s is the scene's own v_s, v_d: the same run as the speed 0.005
+PAD_QUICK = ["--set=analyses.segmented_pad.t_end=0.15", "--set=analyses.segmented_pad.speeds=[0.005, 0.045]",
+             "--set=analyses.segmented_pad.velocity_pairs=[[0.001, 0.1], [0.003, 0.1]]"]
 
 
 def _demo(prefix: list[str], tmp_path, n: int) -> dict:

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fem_squeal.reduced.eigensolve import TWO_PI, eig_left_right
+from fem_squeal.reduced.eigensolve import TWO_PI, eig_left_right, unstable
 from fem_squeal.reduced.model import ReducedModel
 from fem_squeal.util.errors import ModelError
 
@@ -126,3 +126,23 @@ def ranking(record: dict) -> list[tuple[str, float]]:
     """Parameters of one results.json record by |p ∂Re λ/∂p|, largest first ([] near a coalescence)."""
     rel = {p: v for p, v in record["rel_d_real_part"].items() if v is not None}
     return sorted(rel.items(), key=lambda kv: -abs(kv[1]))
+
+
+def band_records(model, lam: np.ndarray, band_hz: Sequence[float], growth_tol: float, which: str,
+                 params: Sequence[str], kappa_max: float) -> tuple[list, list[dict]]:
+    """The sensitivities of the modes of ``lam`` (the nominal eigenvalues of ``model``) in ``band_hz``
+    (``which`` = "unstable": only those with Re λ > ``growth_tol``) to ``params``, and their records for
+    results.json: :meth:`Sensitivity.as_dict` at the parameters' values, ``unstable``, and ``ranking``
+    (the parameters by |dλ/dp|·|p|, :func:`ranking`)."""
+    f = lam.imag / TWO_PI
+    inside = (f >= band_hz[0]) & (f <= band_hz[1])
+    pick = inside & unstable(lam, growth_tol) if which == "unstable" else inside
+    sens = sensitivities(model, None, params, np.flatnonzero(pick), kappa_max)
+    values = parameter_values(model)
+    records = []
+    for x in sens:
+        r = x.as_dict({p: values[p] for p in params})
+        r["unstable"] = bool(unstable(np.array([x.eigenvalue]), growth_tol)[0])
+        r["ranking"] = [p for p, _ in ranking(r)]
+        records.append(r)
+    return sens, records

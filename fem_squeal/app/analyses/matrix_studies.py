@@ -38,9 +38,13 @@ from fem_squeal.app.analyses import robustness_summary as robustness
 from fem_squeal.app.analyses.matrix_reduced import BASIS_MODES, STUDY, check_parameter, parameter_range
 from fem_squeal.app.fields import REAL, Field, at_least, non_negative, one_of, positive
 from fem_squeal.app.stage import Context
-from fem_squeal.reduced.eigensolve import TWO_PI, unstable
+from fem_squeal.reduced.eigensolve import TWO_PI
 from fem_squeal.reduced.robustness import KINDS, draw, run_robustness
-from fem_squeal.reduced.sensitivity import KAPPA_COALESCENCE, parameter_values, ranking, sensitivities
+from fem_squeal.reduced.sensitivity import (
+    KAPPA_COALESCENCE,
+    band_records,
+    parameter_values,
+)
 from fem_squeal.reduced.stability_map import equal_bands, stability_map
 from fem_squeal.reduced.sweep import Grid, evaluate, solve_points
 from fem_squeal.util.atomic import write_json_atomic, write_npz_atomic
@@ -218,17 +222,8 @@ def run_sensitivity(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     band, gt = matrix_reduced.study_band(ctx, s, red), s["growth_tol"]
     t = time.perf_counter()
     lam = solve_points(red, {})[0]
-    f = lam.imag / TWO_PI
-    inside = (f >= band[0]) & (f <= band[1])
-    pick = inside & unstable(lam, gt) if s["modes"] == "unstable" else inside
-    sens = sensitivities(red, None, params, np.flatnonzero(pick), s["kappa_max"])
+    sens, records = band_records(red, lam, band, gt, s["modes"], params, s["kappa_max"])
     values = parameter_values(red)
-    records = []
-    for x in sens:
-        r = x.as_dict({p: values[p] for p in params})
-        r["unstable"] = bool(unstable(np.array([x.eigenvalue]), gt)[0])
-        r["ranking"] = [p for p, _ in ranking(r)]
-        records.append(r)
     timings["sensitivity"] = time.perf_counter() - t
     if s["full"] and records:
         t = time.perf_counter()

@@ -26,9 +26,13 @@ from fem_squeal.app.analyses.reduced import (
 from fem_squeal.app.fields import REAL, Field, one_of
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
-from fem_squeal.reduced.eigensolve import TWO_PI, unstable
+from fem_squeal.reduced.eigensolve import TWO_PI
 from fem_squeal.reduced.model import INTERFACE_PREFIXES, MU, PART_PREFIXES, SPEED, e_param, split_param
-from fem_squeal.reduced.sensitivity import KAPPA_COALESCENCE, parameter_values, ranking, sensitivities
+from fem_squeal.reduced.sensitivity import (
+    KAPPA_COALESCENCE,
+    band_records,
+    parameter_values,
+)
 from fem_squeal.reduced.sweep import solve_points
 from fem_squeal.util.atomic import write_json_atomic
 from fem_squeal.util.errors import SceneError
@@ -116,18 +120,9 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     band, gt = band_and_growth_tol(scene)
     t = time.perf_counter()
     lam = solve_points(model, {})[0]
-    f = lam.imag / TWO_PI
-    inside = (f >= band[0]) & (f <= band[1])
-    pick = inside & unstable(lam, gt) if s["modes"] == "unstable" else inside
     params = s["parameters"] or model.parameters
-    sens = sensitivities(model, None, params, np.flatnonzero(pick), s["kappa_max"])
+    sens, records = band_records(model, lam, band, gt, s["modes"], params, s["kappa_max"])
     values = parameter_values(model)
-    records = []
-    for x in sens:
-        r = x.as_dict({p: values[p] for p in params})
-        r["unstable"] = bool(unstable(np.array([x.eigenvalue]), gt)[0])
-        r["ranking"] = [p for p, _ in ranking(r)]
-        records.append(r)
     timings["sensitivity"] = time.perf_counter() - t
     if s["full"] and records:
         t = time.perf_counter()

@@ -9,6 +9,13 @@ import shutil
 import pytest
 from support import ring
 from support.processes import clean_env
+from support.threads import import_gmsh
+
+
+def pytest_configure(config) -> None:
+    """gmsh imported once per process before any test module does, on whatever thread the session
+    runs (a pytest-xdist worker may run off the main thread: :mod:`support.threads`)."""
+    import_gmsh()
 
 
 @pytest.fixture

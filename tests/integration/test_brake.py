@@ -23,13 +23,22 @@ BAND = (0.0, 6000.0)
 
 
 @functools.cache
-def model(*overrides: str):
+def mesh_data():
+    """The coarse brake's mesh, built once: every variant below changes physics, not geometry."""
     from fem_squeal.app.analyses.mesh import build_mesh
+    from fem_squeal.app.scene import load_scene
+
+    return build_mesh(COMM, load_scene(SCENE, COARSE))
+
+
+@functools.cache
+def model(*overrides: str):
     from fem_squeal.app.scene import load_scene, model_spec
     from fem_squeal.fe.assembly import assemble_operators
 
+    assert not any(o.startswith("geometry.") for o in overrides), overrides
     scene = load_scene(SCENE, COARSE + list(overrides))
-    md = build_mesh(COMM, scene)
+    md = mesh_data()
     spec = model_spec(scene)
     return scene, md, spec, assemble_operators(md, spec, parts=True)
 

@@ -192,12 +192,14 @@ def test_mass_proportional_damping_shifts_every_eigenvalue_by_alpha_over_two():
     _, ref = cea()
     _, cm = cea(*damped)
     assert cm.method == "pep"
-    shifted = ref.eigenvalues.real - alpha / 2
-    w2 = np.abs(ref.eigenvalues.imag) ** 2 - (alpha / 2) ** 2 + 0j
-    for lam in cm.eigenvalues:
-        j = np.argmin(np.abs(np.sqrt(w2).real - lam.imag) + np.abs(shifted - lam.real))
-        assert lam.real == pytest.approx(shifted[j], abs=1e-7 * abs(lam))
-        assert lam.imag == pytest.approx(np.sqrt(w2[j]).real, rel=1e-7)
+    # every undamped mode has its damped counterpart (both solves ask for 24 pairs near 3 kHz; the damped
+    # one may return a few more beyond the undamped set's last frequency, which have no reference here)
+    predicted = ref.eigenvalues.real - alpha / 2 + 1j * np.sqrt(ref.eigenvalues.imag ** 2 - (alpha / 2) ** 2)
+    assert len(cm.eigenvalues) >= len(predicted)
+    for p in predicted:
+        lam = cm.eigenvalues[np.argmin(np.abs(cm.eigenvalues - p))]
+        assert lam.real == pytest.approx(p.real, abs=1e-7 * abs(lam))
+        assert lam.imag == pytest.approx(p.imag, rel=1e-7)
 
 
 # slow (18 s on the brake; the default suite must stay under 10 min); the same law on the ring:

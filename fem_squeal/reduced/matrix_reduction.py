@@ -14,7 +14,8 @@ Two bases:
   M_s-norm is new).
 - ``snapshots`` (none: M_s not positive definite, or asked for): the eigenvectors x of the
   non-symmetric problem itself at sampled parameter values (real and imaginary parts), from a sparse
-  shift-invert solve of its linearisation, orthonormalised.
+  shift-invert solve of its linearisation, orthonormalised column by column (under MPI the same basis
+  built on the ranks' rows: :mod:`fem_squeal.fe.matrix_snapshots`).
 
 :class:`ReducedMatrixModel` answers ``matrices(points, n)`` as :class:`fem_squeal.reduced.model.ReducedModel`
 does (K, C of λ²I + λC + K: the terms are pre-multiplied by M_r⁻¹ once when M does not depend on the
@@ -93,11 +94,6 @@ def orthonormal_columns(V: np.ndarray, mass: Callable[[np.ndarray], np.ndarray] 
     return Q[:, :k]
 
 
-def _orthonormal(V: np.ndarray, W: sp.spmatrix | None = None, rtol: float = DROP_RTOL) -> np.ndarray:
-    """:func:`orthonormal` of a whole V, W-orthonormal when W is given (VᵀWV = I)."""
-    return orthonormal(V, lambda X: X.T @ (W @ X if W is not None else X), rtol=rtol)
-
-
 def modal_basis(model: MatrixModel, matrices: Mapping[str, sp.spmatrix], n_modes: int,
                 corrections: bool = True, shift: float = -1.0) -> tuple[np.ndarray, np.ndarray, int]:
     """(V, f [Hz] of the real modes, the number of static corrections kept): the ``n_modes`` lowest
@@ -146,15 +142,45 @@ def qep_eigs(ops: Mapping[str, sp.spmatrix], k: int, target_hz: float) -> tuple[
     return lam, Z[:n]
 
 
+def nearness(lam: np.ndarray, target_hz: float) -> np.ndarray:
+    """|ν| = |λ/(λ² + ω²)|, ω = 2π·target_hz: how near i·ω (and −i·ω) the eigenvalue λ is for the
+    shift-invert of the real linearisation at σ = iω that :func:`qep_eigs` runs (SciPy takes the real
+    part of (A − σB)⁻¹, whose eigenvalues are ½(1/(λ − σ) + 1/(λ − σ̄)) = ν, and returns the ``k`` of
+    largest |ν|: conjugates alike; at ω = 0 the smallest |λ|)."""
+    lam = np.asarray(lam, complex)
+    return np.abs(lam / (lam ** 2 + (2 * np.pi * target_hz) ** 2))
+
+
+def nearest(lam: np.ndarray, k: int, target_hz: float) -> np.ndarray:
+    """The indices of the ``k`` eigenvalues of ``lam`` of largest :func:`nearness`, nearest first (ties,
+    as conjugates: the larger Im λ first)."""
+    return np.lexsort((-np.asarray(lam).imag, -nearness(lam, target_hz)))[:k]
+
+
+def real_columns(X: np.ndarray, total: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+    """[Re X', Im X'] of the eigenvectors X (columns; this rank's rows with ``total`` the sum over the
+    ranks) each turned to the phase where Σ x_i² is real and positive (x' = x e^(−i arg(Σx²)/2): Re x' ⟂
+    Im x', ‖Re x'‖ ≥ ‖Im x'‖), the same columns whatever phase a solver returned; the span of the pair is
+    that of x and x̄.  An imaginary part under 1e-8 of the real one (a real eigenvalue) is left out."""
+    total = total or (lambda x: x)
+    X = np.asarray(X, complex)
+    s = total(np.sum(X * X, axis=0))
+    X = X * np.exp(-0.5j * np.angle(s))[None, :]
+    re, im = np.ascontiguousarray(X.real), np.ascontiguousarray(X.imag)
+    n_re, n_im = (np.sqrt(total(np.einsum("ij,ij->j", A, A))) for A in (re, im))
+    return np.hstack([re, im[:, n_im > 1e-8 * n_re]])
+
+
 def snapshot_basis(model: MatrixModel, matrices: Mapping[str, sp.spmatrix], points: Sequence[Mapping[str, float]],
                    k: int, target_hz: float) -> np.ndarray:
-    """V: the real and imaginary parts of ``k`` eigenvectors of the non-symmetric problem nearest
-    ``target_hz`` at each of ``points`` (:func:`qep_eigs`), orthonormalised."""
+    """V: the real and imaginary parts (:func:`real_columns`) of ``k`` eigenvectors of the non-symmetric
+    problem nearest ±``target_hz`` (:func:`qep_eigs`, nearest first: :func:`nearest`) at each of ``points``,
+    orthonormalised (:func:`orthonormal_columns`)."""
     cols = []
     for p in points:
-        _, X = qep_eigs(model.assemble(matrices, p), k, target_hz)
-        cols += [X.real, X.imag]
-    return _orthonormal(np.hstack(cols))
+        lam, X = qep_eigs(model.assemble(matrices, p), k, target_hz)
+        cols.append(real_columns(X[:, nearest(lam, k, target_hz)]))
+    return orthonormal_columns(np.hstack(cols))
 
 
 @dataclass

@@ -76,7 +76,10 @@ def compare(a_dir: Path, b_dir: Path, a: dict, b: dict) -> dict:
     la, lb = np.sort_complex(ma["eigenvalues"], ), np.sort_complex(mb["eigenvalues"])
     d_map = float(np.max(np.abs(la - lb) / np.abs(la)))
     d_sens = 0.0
-    for ra, rb in zip(a["sensitivity"], b["sensitivity"], strict=True):
+    lb_modes = np.array([r["real_part"] + 2j * np.pi * r["freq_hz"] for r in b["sensitivity"]])
+    assert len(lb_modes) == len(a["sensitivity"])
+    for ra in a["sensitivity"]:     # paired by eigenvalue: a coupled pair has one frequency (its order: a tie)
+        rb = b["sensitivity"][int(np.argmin(np.abs(lb_modes - (ra["real_part"] + 2j * np.pi * ra["freq_hz"]))))]
         for p, v in ra["d_real_part"].items():
             if v is None:
                 continue

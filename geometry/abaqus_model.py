@@ -18,11 +18,18 @@ output requests are kept as notes.  The translation into a scene is the applicat
   force);
 - ``*MOTION, ROTATION, TYPE=VELOCITY`` (node set, ω, a, b: a rigid rotation rate about the axis a → b) in
   a static step: the disc's sliding motion, as a prescribed rotation gives it;
+- ``*TRANSPORT VELOCITY`` (node set or node, ω: the angular velocity of the material transported through the
+  mesh, Abaqus's keyword manual) in a ``*STEADY STATE TRANSPORT`` step: the same sliding motion, about the
+  axis Abaqus takes from ``*SYMMETRIC MODEL GENERATION`` (a keyword not read here): the disc axis z of
+  fem_squeal's scenes.  The step is a static step otherwise (``*BOUNDARY``, ``*DLOAD``, ``*CLOAD``,
+  ``NLGEOM``); ``INERTIA=YES`` and a ``*MOTION`` in it (which moves the reference frame there) are refused,
+  and ``ELSET=`` (the Eulerian element set) must hold the transported nodes;
 - ``*TIE, NAME=`` (slave, master), ``*SURFACE INTERACTION, NAME=`` with ``*SURFACE BEHAVIOR,
   PRESSURE-OVERCLOSURE=LINEAR`` (slope, σ∞) and ``*FRICTION`` (μ, stick slope λ), ``*CONTACT PAIR,
   INTERACTION=`` (slave, master);
 - ``*STEP`` [``PERTURBATION``, ``NLGEOM``] with ``*STATIC``, ``*FREQUENCY`` (n[, tol, f_min, f_max]),
-  ``*COMPLEX FREQUENCY`` (n[, f_min, f_max]), ``*CHANGE FRICTION, INTERACTION=`` + ``*FRICTION``, ``*END STEP``.
+  ``*COMPLEX FREQUENCY`` (n[, f_min, f_max]), ``*STEADY STATE TRANSPORT``, ``*CHANGE FRICTION, INTERACTION=``
+  + ``*FRICTION``, ``*END STEP``.
 """
 from __future__ import annotations
 
@@ -34,6 +41,8 @@ import numpy as np
 from geometry.abaqus import AbaqusError, Deck, _blocks, read_deck
 
 MESH = {"NODE", "ELEMENT", "NSET", "ELSET", "SURFACE"}
+#: The procedures of a static step (the preload): a steady-state transport step is one where the disc turns.
+STATIC_PROCEDURES = ("STATIC", "STEADY STATE TRANSPORT")
 #: Output requests: ignored, with a note.
 OUTPUT = {"NODE PRINT", "EL PRINT", "NODE FILE", "EL FILE", "OUTPUT", "NODE OUTPUT", "ELEMENT OUTPUT",
           "CONTACT PRINT", "CONTACT FILE", "CONTACT OUTPUT", "ENERGY PRINT", "SECTION PRINT", "NODE RESPONSE",
@@ -52,10 +61,12 @@ PARAMETERS = {
     "CONTACT PAIR": {"INTERACTION", "TYPE", "SMALL SLIDING", "ADJUST"},
     "STEP": {"PERTURBATION", "NLGEOM", "INC", "NAME", "UNSYMM"}, "STATIC": {"SOLVER", "DIRECT"},
     "FREQUENCY": {"SOLVER", "STORAGE", "EIGENSOLVER", "NORMALIZATION"}, "COMPLEX FREQUENCY": set(),
+    "STEADY STATE TRANSPORT": {"DIRECT", "ELSET", "INERTIA", "LONG TERM"}, "TRANSPORT VELOCITY": set(),
     "CHANGE FRICTION": {"INTERACTION"}, "END STEP": set(), "HEADING": set(),
 }
 SUPPORTED = sorted(MESH | set(OPTIONS) | {"MATERIAL", "SOLID SECTION", "BOUNDARY", "DLOAD", "CLOAD", "TIE",
-                                          "ORIENTATION", "MOTION",
+                                          "ORIENTATION", "MOTION", "STEADY STATE TRANSPORT",
+                                          "TRANSPORT VELOCITY",
                                           "SURFACE INTERACTION", "CONTACT PAIR", "STEP", "STATIC", "FREQUENCY",
                                           "COMPLEX FREQUENCY", "CHANGE FRICTION", "END STEP", "HEADING"})
 
@@ -82,14 +93,21 @@ class Step:
     where: str
     perturbation: bool = False
     nlgeom: bool = False
-    procedure: str = ""                 # STATIC, FREQUENCY, COMPLEX FREQUENCY
+    procedure: str = ""                 # STATIC, STEADY STATE TRANSPORT, FREQUENCY, COMPLEX FREQUENCY
     procedure_where: str = ""
     data: list = field(default_factory=list)       # the procedure's data line (numbers)
     boundary: list = field(default_factory=list)   # (node or set, first, last, value, where)
     dload: list = field(default_factory=list)      # (element set or surface, label, p, where)
     cload: list = field(default_factory=list)      # (node or set, degree of freedom 1-3, force, where)
     motion: list = field(default_factory=list)     # (node or set, ω [rad/s], a, b, where)
+    transport: list = field(default_factory=list)  # *TRANSPORT VELOCITY (node or set, ω [rad/s], where)
+    eulerian: Value | None = None                  # *STEADY STATE TRANSPORT, ELSET= (None: the whole model)
     friction: dict = field(default_factory=dict)   # interaction -> (μ Value, λ Value | None)
+
+    @property
+    def static(self) -> bool:
+        """A static step: ``*STATIC`` or ``*STEADY STATE TRANSPORT`` (the preload of the eigenvalue steps)."""
+        return self.procedure in STATIC_PROCEDURES
 
 
 @dataclass
@@ -264,6 +282,20 @@ def read_model(path: str | Path) -> DeckModel:
                     raise AbaqusError(f"{w}: *MOTION, ROTATION: expected node set, ω, a_x, a_y, a_z, b_x, b_y, "
                                       f"b_z (got {ln.strip()!r})")
                 step.motion.append((f[0], vals[0], tuple(vals[1:4]), tuple(vals[4:7]), w))
+        elif kw == "TRANSPORT VELOCITY":
+            if step is None:
+                raise AbaqusError(f"{at}: must be in a *STEP (history data)")
+            for ln, w in lines:
+                f = [v for v in _fields(ln) if v != ""]
+                try:
+                    omega = float(f[1]) if len(f) == 2 else None
+                except ValueError:
+                    omega = None
+                if omega is None:
+                    raise AbaqusError(f"{w}: *TRANSPORT VELOCITY: expected node set or node, ω (the axis is "
+                                      "*SYMMETRIC MODEL GENERATION's: here the disc axis z; got "
+                                      f"{ln.strip()!r})")
+                step.transport.append((f[0], omega, w))
         elif kw == "BOUNDARY":
             if params.get("TYPE", "DISPLACEMENT").upper() != "DISPLACEMENT" or "AMPLITUDE" in params:
                 raise AbaqusError(f"{at}: only displacement boundary conditions without amplitude are supported")
@@ -321,16 +353,22 @@ def read_model(path: str | Path) -> DeckModel:
                 raise AbaqusError(f"{at}: *STEP inside the step of {step.where} (missing *END STEP)")
             step = Step(where, "PERTURBATION" in params,
                         params.get("NLGEOM", "NO" if "NLGEOM" not in params else "YES").upper() != "NO")
-        elif kw in ("STATIC", "FREQUENCY", "COMPLEX FREQUENCY"):
+        elif kw in ("STATIC", "FREQUENCY", "COMPLEX FREQUENCY", "STEADY STATE TRANSPORT"):
             if step is None or step.procedure:
                 raise AbaqusError(f"{at}: must be the procedure of a *STEP")
-            if kw == "STATIC" and step.perturbation:
+            if kw in STATIC_PROCEDURES and step.perturbation:
                 raise AbaqusError(f"{at}: a static perturbation step is not supported")
+            if kw == "STEADY STATE TRANSPORT":
+                if params.get("INERTIA", "NO").upper() != "NO":
+                    raise AbaqusError(f"{at}, INERTIA={params['INERTIA']}: not supported (the centrifugal and "
+                                      "gyroscopic terms of the turning disc: operating.gyroscopic of a scene)")
+                if "ELSET" in params:
+                    step.eulerian = Value(params["ELSET"], where)
             if kw != "STATIC" and "SOLVER" in params and params["SOLVER"].upper() == "MATRIXSTORAGE":
                 raise AbaqusError(f"{at}, SOLVER=MATRIXSTORAGE: not supported")
             step.procedure, step.procedure_where = kw, where
-            step.data = _floats(lines[:1], 1, where, f"*{kw}") if kw != "STATIC" else \
-                (_floats(lines[:1], 0, where, "*STATIC") if lines else [])
+            step.data = _floats(lines[:1], 1, where, f"*{kw}") if kw not in STATIC_PROCEDURES else \
+                (_floats(lines[:1], 0, where, f"*{kw}") if lines else [])
         elif kw == "CHANGE FRICTION":
             name = params.get("INTERACTION", "").upper()
             if step is None or name not in model.interactions:
@@ -341,7 +379,8 @@ def read_model(path: str | Path) -> DeckModel:
                 raise AbaqusError(f"{at}: no *STEP to end")
             if not step.procedure:
                 raise AbaqusError(f"{at}: the step of {step.where} has no procedure (*STATIC, *FREQUENCY, "
-                                  "*COMPLEX FREQUENCY)")
+                                  "*COMPLEX FREQUENCY, *STEADY STATE TRANSPORT)")
+            _check_transport(model, step)
             model.steps.append(step)
             step = None
         elif kw not in OPTIONS:
@@ -354,6 +393,30 @@ def read_model(path: str | Path) -> DeckModel:
             raise AbaqusError(f"{o.where}: *SOLID SECTION, ORIENTATION={o.value}: no such *ORIENTATION (defined: "
                               f"{', '.join(v.value['name'] for v in model.orientations.values()) or 'none'})")
     return model
+
+
+def _check_transport(model: DeckModel, step: Step) -> None:
+    """``*TRANSPORT VELOCITY`` only in a ``*STEADY STATE TRANSPORT`` step and on nodes of its Eulerian
+    element set (``ELSET=``, where given); ``*MOTION`` not in one (there it moves the reference frame)."""
+    sst = step.procedure == "STEADY STATE TRANSPORT"
+    if step.transport and not sst:
+        raise AbaqusError(f"{step.transport[0][2]}: *TRANSPORT VELOCITY: only in a *STEADY STATE TRANSPORT step "
+                          f"(the step of {step.where} is *{step.procedure}; there the disc's rotation is "
+                          "*MOTION, ROTATION, TYPE=VELOCITY)")
+    if step.motion and sst:
+        raise AbaqusError(f"{step.motion[0][4]}: *MOTION in a *STEADY STATE TRANSPORT step (the motion of the "
+                          "reference frame) is not supported; the disc's rotation there is *TRANSPORT VELOCITY")
+    if step.eulerian is None:
+        return
+    name = step.eulerian.value.strip().upper()
+    if name not in model.mesh.elsets:
+        raise AbaqusError(f"{step.eulerian.where}: *STEADY STATE TRANSPORT, ELSET={step.eulerian.value}: no such "
+                          "element set")
+    inside = set(model.elset_nodes(name).tolist())
+    for node_set, _, w in step.transport:
+        if not set(model.set_nodes(node_set, f"{w}: *TRANSPORT VELOCITY").tolist()) <= inside:
+            raise AbaqusError(f"{w}: *TRANSPORT VELOCITY {node_set}: nodes outside the Eulerian element set "
+                              f"ELSET={step.eulerian.value} of *STEADY STATE TRANSPORT ({step.eulerian.where})")
 
 
 def _orientation_name(params: dict, at: str) -> str:
@@ -416,7 +479,7 @@ def rigid_sets(model: DeckModel) -> dict[str, str]:
     """Element sets of sections whose every node has all three displacements prescribed (in the model or
     a static step): rigid parts.  Name (upper) -> where the section is."""
     held: dict[int, set] = {}
-    rows = list(model.boundary) + [r for s in model.steps if s.procedure == "STATIC" for r in s.boundary]
+    rows = list(model.boundary) + [r for s in model.steps if s.static for r in s.boundary]
     for name, first, last, _, w in rows:
         for n in model.set_nodes(name, w).tolist():
             held.setdefault(n, set()).update(range(first, last + 1))
@@ -429,13 +492,14 @@ def rigid_sets(model: DeckModel) -> dict[str, str]:
 
 
 def rotation(model: DeckModel, nodes: np.ndarray) -> list[tuple[float, str]]:
-    """The rigid rotation θ about z of ``nodes`` prescribed in each static step where it changes:
+    """The rigid rotation θ about z of ``nodes`` prescribed in each static step (``*STATIC``, ``*STEADY STATE
+    TRANSPORT``) where it changes:
     θ = Σ (x u_y − y u_x) / Σ (x² + y²) over the nodes with both in-plane values (u = θ e_z × x)."""
     pts = model.mesh.points
     out = []
     node_set = set(nodes.tolist())
     for s in model.steps:
-        if s.procedure != "STATIC":
+        if not s.static:
             continue
         u: dict[int, list] = {}
         where = ""

@@ -20,10 +20,14 @@ it came from:
   μ = the perturbation step's ``*CHANGE FRICTION`` μ (else ``*FRICTION``'s), kt = λ μ/μ_static (CalculiX's
   slip-state tangent across the sliding direction: λ/F with F = μ_static/μ, benchmarks/cea_calculix.py),
   sliding = the sign of the master part's prescribed rigid rotation about z in a static step, or of its
-  ``*MOTION, ROTATION, TYPE=VELOCITY`` rate about the z axis (the same direction: u = θ e_z × x);
-- a ``*STATIC`` step -> ``preload`` (NLGEOM: ``geometric_stiffness``); ``*STEP, PERTURBATION`` with
-  ``*COMPLEX FREQUENCY``, or with ``*FREQUENCY`` on a sliding frictional contact (CalculiX then solves the
-  non-symmetric problem), -> ``analyses.cea``; ``*FREQUENCY`` otherwise -> ``analyses.real_modes``.
+  ``*MOTION, ROTATION, TYPE=VELOCITY`` rate about the z axis, or of its ``*TRANSPORT VELOCITY`` ω in a
+  ``*STEADY STATE TRANSPORT`` step (about the disc axis z; the same direction: u = θ e_z × x); ω goes into
+  the comment only: the scene's operating.speed is read by friction damping, μ(V) laws and the gyroscopic
+  terms, none of which a deck gives (``FRICTION DAMPING``, ``INERTIA=YES`` are refused);
+- a ``*STATIC`` or ``*STEADY STATE TRANSPORT`` step -> ``preload`` (NLGEOM: ``geometric_stiffness``);
+  ``*STEP, PERTURBATION`` with ``*COMPLEX FREQUENCY``, or with ``*FREQUENCY`` on a sliding frictional
+  contact (CalculiX then solves the non-symmetric problem), -> ``analyses.cea``; ``*FREQUENCY`` otherwise
+  -> ``analyses.real_modes``.
 """
 from __future__ import annotations
 
@@ -158,10 +162,10 @@ def _scene(m: DeckModel) -> DeckScene:
 
     pressure = {}
     for st in m.steps:
-        if st.procedure != "STATIC" and st.dload:
+        if not st.static and st.dload:
             out.notes.append(f"{st.dload[0][3]}: *DLOAD in a *{st.procedure} step ignored (an eigenvalue step "
                              "takes no loads)")
-    for name, label, p, w in list(m.dload) + [r for s in m.steps if s.procedure == "STATIC" for r in s.dload]:
+    for name, label, p, w in list(m.dload) + [r for s in m.steps if s.static for r in s.dload]:
         if label != "P":
             raise AbaqusError(f"{w}: *DLOAD {name}, {label}: element-face pressure; define a *SURFACE and "
                               "write surface, P, pressure")
@@ -182,8 +186,8 @@ def _scene(m: DeckModel) -> DeckScene:
                 o.procedure == st.procedure for o in m.steps[:i]):
             raise AbaqusError(f"{st.procedure_where}: *{st.procedure}: a second one (one eigenvalue step of each "
                               "kind)")
-        if st.procedure == "STATIC" and any(o.procedure != "STATIC" for o in m.steps[:i]):
-            raise AbaqusError(f"{st.procedure_where}: *STATIC after an eigenvalue step is not supported")
+        if st.static and any(not o.static for o in m.steps[:i]):
+            raise AbaqusError(f"{st.procedure_where}: *{st.procedure} after an eigenvalue step is not supported")
     last = next((s for s in eig if s.procedure == "COMPLEX FREQUENCY"), eig[-1])
 
     def friction_at(name: str, upto) -> tuple:
@@ -211,7 +215,7 @@ def _scene(m: DeckModel) -> DeckScene:
                               "PRESSURE-OVERCLOSURE=LINEAR (the penalty slope)")
         mu_v, lam = friction_at(name, last)
         mu = float(mu_v.value) if mu_v is not None else 0.0
-        slid = [s for s in m.steps if s.procedure == "STATIC"]
+        slid = [s for s in m.steps if s.static]
         static_v = friction_at(name, slid[-1] if slid else None)[0]
         static_mu = float(static_v.value) if static_v is not None else mu
         kt = float(lam.value) * mu / static_mu if lam is not None and static_mu > 0 else 0.0
@@ -238,8 +242,8 @@ def _scene(m: DeckModel) -> DeckScene:
         origin[f"interfaces.{key}.sliding"] = (f"{turn[-1][1]}: *BOUNDARY, rigid rotation θ = "
                                                f"{turn[-1][0]:.4g} rad "
                                                "about z of the master part" if turn and len(turn[-1]) == 2 else
-                                               f"{turn[-1][1]}: *MOTION, ROTATION, TYPE=VELOCITY, ω = "
-                                               f"{turn[-1][0]:.4g} rad/s about z of the master part" if turn else
+                                               f"{turn[-1][1]}: *{turn[-1][2]}, ω = {turn[-1][0]:.4g} rad/s "
+                                               "about z of the master part" if turn else
                                                "no prescribed rotation of the master part: no sliding")
         sliding_friction |= mu > 0 and sliding != 0
         if not turn and mu > 0:
@@ -247,11 +251,11 @@ def _scene(m: DeckModel) -> DeckScene:
                              f"master part: sliding = 0 (set interfaces.{key}.sliding)")
     out.raw["interfaces"] = interfaces
 
-    statics = [s for s in m.steps if s.procedure == "STATIC"]
+    statics = [s for s in m.steps if s.static]
     if statics:
         contact = any(t["type"] == "contact" for t in interfaces.values())
         out.raw["preload"] = {"mode": "nonlinear" if contact else "all_closed"}
-        origin["preload.mode"] = (f"{statics[0].where}: *STATIC" + ("" if contact else
+        origin["preload.mode"] = (f"{statics[0].where}: *{statics[0].procedure}" + ("" if contact else
                                   " (rigid plates on a linear penalty: every point closed)"))
         if any(s.nlgeom for s in statics):
             out.raw["preload"]["geometric_stiffness"] = True
@@ -316,9 +320,9 @@ def _general_material(m: DeckModel, out: dict, origin: dict, p: str, mat: dict, 
 def _point_loads(m: DeckModel, origin: dict, notes: list) -> dict:
     """``loads.point.n<node>`` of the ``*CLOAD`` rows of the model and of its static steps (the force
     components of each node summed, in the node's coordinates)."""
-    rows = list(m.cload) + [r for s in m.steps if s.procedure == "STATIC" for r in s.cload]
+    rows = list(m.cload) + [r for s in m.steps if s.static for r in s.cload]
     for s in m.steps:
-        if s.procedure != "STATIC" and s.cload:
+        if not s.static and s.cload:
             notes.append(f"{s.cload[0][3]}: *CLOAD in a *{s.procedure} step ignored (an eigenvalue step takes "
                          "no loads)")
     force: dict[int, np.ndarray] = {}
@@ -336,13 +340,19 @@ def _point_loads(m: DeckModel, origin: dict, notes: list) -> dict:
 
 
 def _motion(m: DeckModel, nodes: np.ndarray) -> list[tuple[float, str, str]]:
-    """(ω about +z, where, "MOTION") of the ``*MOTION, ROTATION, TYPE=VELOCITY`` rows of static steps on
-    ``nodes`` (a rate about the z axis: the sliding direction of a rigid rotation of the same sign)."""
+    """(ω about +z, where, keyword) of the ``*MOTION, ROTATION, TYPE=VELOCITY`` rows of static steps and
+    the ``*TRANSPORT VELOCITY`` rows of steady-state transport steps on ``nodes`` (a rate about the z
+    axis: the sliding direction of a rigid rotation of the same sign).  The transport velocity turns
+    the material about the axis of Abaqus's ``*SYMMETRIC MODEL GENERATION``, which a deck here does
+    not have: the disc axis z of the scene."""
     out = []
     node_set = set(nodes.tolist())
     for s in m.steps:
-        if s.procedure != "STATIC":
+        if not s.static:
             continue
+        for name, omega, w in s.transport:
+            if omega != 0.0 and node_set & set(m.set_nodes(name, f"{w}: *TRANSPORT VELOCITY").tolist()):
+                out.append((float(omega), w, "TRANSPORT VELOCITY"))
         for name, omega, a, b, w in s.motion:
             if not node_set & set(m.set_nodes(name, f"{w}: *MOTION").tolist()):
                 continue
@@ -354,7 +364,7 @@ def _motion(m: DeckModel, nodes: np.ndarray) -> list[tuple[float, str, str]]:
                 raise AbaqusError(f"{w}: *MOTION, ROTATION: the axis must be the z axis (the disc axis; got "
                                   f"{list(a)} -> {list(b)})")
             if omega != 0.0:
-                out.append((float(omega * np.sign(d[2])), w, "MOTION"))
+                out.append((float(omega * np.sign(d[2])), w, "MOTION, ROTATION, TYPE=VELOCITY"))
     return out
 
 

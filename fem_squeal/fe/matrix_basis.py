@@ -10,8 +10,9 @@ too large for one process reduces under MPI: the same basis as the serial
 - the static corrections (K_s − σM_s)⁻¹ A_k Φ of every term A_k of K and C that is non-symmetric
   (‖A − Aᵀ‖₁ > 1e-14 ‖A‖₁, entrywise, as the serial path) or whose coefficient reads a parameter, by
   one factorisation of K_s − σM_s (:func:`fem_squeal.fe.assembly.direct_solver`) and block solves;
-- the whole M_s-orthonormalised (:func:`fem_squeal.reduced.matrix_reduction.orthonormal`, the Gram
-  matrices summed over the ranks) and every affine term projected, Vᵀ A_k V = Σ_ranks V_rᵀ (A_k,r V)
+- the whole M_s-orthonormalised column by column
+  (:func:`fem_squeal.reduced.matrix_reduction.orthonormal_columns`, the inner products summed over the
+  ranks) and every affine term projected, Vᵀ A_k V = Σ_ranks V_rᵀ (A_k,r V)
   (:func:`fem_squeal.reduced.matrix_reduction.project`).
 
 Every rank ends with the same :class:`~fem_squeal.reduced.matrix_reduction.ReducedMatrixModel` (the
@@ -31,7 +32,7 @@ from fem_squeal.fe.dense import apply, block_solve
 from fem_squeal.fe.eigen import solve_real_modes
 from fem_squeal.fe.matrix_operators import operators, petsc_matrix, symmetric_part
 from fem_squeal.reduced.matrix_model import MatrixModel
-from fem_squeal.reduced.matrix_reduction import ReducedMatrixModel, orthonormal, project
+from fem_squeal.reduced.matrix_reduction import ReducedMatrixModel, orthonormal_columns, project
 from fem_squeal.util.errors import ModelError
 
 #: the tolerance of the real modes: ARPACK's of the serial basis (the default of the real-modes analysis,
@@ -103,8 +104,7 @@ def modal_basis_rows(model: MatrixModel, rows: Mapping[str, sp.csr_matrix], comm
                     if t.parameters or _skew(A, comm, bs):
                         extra.append(solve(np.asfortranarray(A @ whole)))
         total = _total(comm)
-        V = orthonormal(np.hstack([Phi, *extra]), lambda X: total(X.T @ apply(Ms, np.asfortranarray(X))),
-                        lambda X: np.sqrt(total(np.einsum("ij,ij->j", X, X))))
+        V = orthonormal_columns(np.hstack([Phi, *extra]), lambda X: apply(Ms, np.asfortranarray(X)), total)
     finally:
         if ksp is not None:
             ksp.destroy()

@@ -9,11 +9,13 @@ Two bases:
   nominal point, K_s φ = ω² M_s φ (K_s = (K + Kᵀ)/2, M_s = (M + Mᵀ)/2, M_s positive definite), plus the
   static corrections (K_s − σM_s)⁻¹ A_k Φ of every term A_k of K and C that is non-symmetric or whose
   coefficient depends on a parameter (what the modes of K_s alone miss: the circulatory and gyroscopic
-  couplings and the parameter directions); the whole M_s-orthonormalised, directions under 1e-10 of the
-  largest dropped.
+  couplings and the parameter directions); the whole M_s-orthonormalised column by column
+  (:func:`orthonormal_columns`: Gram–Schmidt twice, a column dropped where less than 1e-5 of its
+  M_s-norm is new).
 - ``snapshots`` (none: M_s not positive definite, or asked for): the eigenvectors x of the
   non-symmetric problem itself at sampled parameter values (real and imaginary parts), from a sparse
-  shift-invert solve of its linearisation, orthonormalised.
+  shift-invert solve of its linearisation, orthonormalised column by column (under MPI the same basis
+  built on the ranks' rows: :mod:`fem_squeal.fe.matrix_snapshots`).
 
 :class:`ReducedMatrixModel` answers ``matrices(points, n)`` as :class:`fem_squeal.reduced.model.ReducedModel`
 does (K, C of λ²I + λC + K: the terms are pre-multiplied by M_r⁻¹ once when M does not depend on the
@@ -57,9 +59,39 @@ def orthonormal(V: np.ndarray, gram: Callable[[np.ndarray], np.ndarray],
     return V
 
 
-def _orthonormal(V: np.ndarray, W: sp.spmatrix | None = None, rtol: float = DROP_RTOL) -> np.ndarray:
-    """:func:`orthonormal` of a whole V, W-orthonormal when W is given (VᵀWV = I)."""
-    return orthonormal(V, lambda X: X.T @ (W @ X if W is not None else X), rtol=rtol)
+def orthonormal_columns(V: np.ndarray, mass: Callable[[np.ndarray], np.ndarray] | None = None,
+                        total: Callable[[np.ndarray], np.ndarray] | None = None, rtol: float = DROP_RTOL
+                        ) -> np.ndarray:
+    """A W-orthonormal basis Q (QᵀWQ = I) of the columns of V, W applied by ``mass`` (the identity where
+    None), by classical Gram–Schmidt twice, column by column in their order (the columns already kept
+    are not changed): a = v/‖v‖_W, a ← a − Q(QᵀWa) twice, kept as a/‖a‖_W where ‖a‖_W > √rtol (what is
+    new in the column), else dropped as dependent.  V may be the rows of one rank of a distributed
+    basis: ``total`` sums over the ranks (the same numbers on each).
+
+    Unlike :func:`orthonormal` (the eigen-decomposition of the Gram matrix VᵀWV, whose rounding of
+    ε‖G‖ moves a direction of relative weight d by ε/d), a kept direction is determined to ε/‖a‖_W ≥
+    ε/√rtol: the rounding of a different summation order (another number of ranks) moves the exported
+    brake's reduced eigenvalues by 1e-8 with :func:`orthonormal` (its Gram eigenvalues run without a gap
+    from 1e-13 to 1), by 1e-10 here."""
+    total = total or (lambda x: x)
+    mass = mass or (lambda x: x)
+    V = np.asarray(V, float)
+    WV = mass(V)
+    norms = np.sqrt(np.maximum(total(np.einsum("ij,ij->j", V, WV)), 0.0))
+    Q, WQ = np.empty_like(V), np.empty_like(V)
+    k, tol = 0, np.sqrt(rtol)
+    for j in range(V.shape[1]):
+        if not norms[j] > 0:
+            continue
+        a = V[:, j] / norms[j]
+        for _ in range(2):
+            a = a - Q[:, :k] @ total(WQ[:, :k].T @ a)
+        Wa = mass(a[:, None])[:, 0]
+        r = np.sqrt(max(float(total(np.array([a @ Wa]))[0]), 0.0))
+        if r > tol:
+            Q[:, k], WQ[:, k] = a / r, Wa / r
+            k += 1
+    return Q[:, :k]
 
 
 def modal_basis(model: MatrixModel, matrices: Mapping[str, sp.spmatrix], n_modes: int,
@@ -92,7 +124,7 @@ def modal_basis(model: MatrixModel, matrices: Mapping[str, sp.spmatrix], n_modes
                 A = sp.csr_matrix(matrices[t.matrix])
                 if t.parameters or abs(A - A.T).sum() > 1e-14 * abs(A).sum():
                     extra.append(np.column_stack([lu.solve(c) for c in (A @ Phi).T]))
-    V = _orthonormal(np.hstack([Phi, *extra]), Ms)
+    V = orthonormal_columns(np.hstack([Phi, *extra]), Ms.__matmul__)
     f = np.sign(w2) * np.sqrt(np.abs(w2)) / (2 * np.pi)
     return V, f, V.shape[1] - n_modes
 
@@ -110,15 +142,45 @@ def qep_eigs(ops: Mapping[str, sp.spmatrix], k: int, target_hz: float) -> tuple[
     return lam, Z[:n]
 
 
+def nearness(lam: np.ndarray, target_hz: float) -> np.ndarray:
+    """|ν| = |λ/(λ² + ω²)|, ω = 2π·target_hz: how near i·ω (and −i·ω) the eigenvalue λ is for the
+    shift-invert of the real linearisation at σ = iω that :func:`qep_eigs` runs (SciPy takes the real
+    part of (A − σB)⁻¹, whose eigenvalues are ½(1/(λ − σ) + 1/(λ − σ̄)) = ν, and returns the ``k`` of
+    largest |ν|: conjugates alike; at ω = 0 the smallest |λ|)."""
+    lam = np.asarray(lam, complex)
+    return np.abs(lam / (lam ** 2 + (2 * np.pi * target_hz) ** 2))
+
+
+def nearest(lam: np.ndarray, k: int, target_hz: float) -> np.ndarray:
+    """The indices of the ``k`` eigenvalues of ``lam`` of largest :func:`nearness`, nearest first (ties,
+    as conjugates: the larger Im λ first)."""
+    return np.lexsort((-np.asarray(lam).imag, -nearness(lam, target_hz)))[:k]
+
+
+def real_columns(X: np.ndarray, total: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
+    """[Re X', Im X'] of the eigenvectors X (columns; this rank's rows with ``total`` the sum over the
+    ranks) each turned to the phase where Σ x_i² is real and positive (x' = x e^(−i arg(Σx²)/2): Re x' ⟂
+    Im x', ‖Re x'‖ ≥ ‖Im x'‖), the same columns whatever phase a solver returned; the span of the pair is
+    that of x and x̄.  An imaginary part under 1e-8 of the real one (a real eigenvalue) is left out."""
+    total = total or (lambda x: x)
+    X = np.asarray(X, complex)
+    s = total(np.sum(X * X, axis=0))
+    X = X * np.exp(-0.5j * np.angle(s))[None, :]
+    re, im = np.ascontiguousarray(X.real), np.ascontiguousarray(X.imag)
+    n_re, n_im = (np.sqrt(total(np.einsum("ij,ij->j", A, A))) for A in (re, im))
+    return np.hstack([re, im[:, n_im > 1e-8 * n_re]])
+
+
 def snapshot_basis(model: MatrixModel, matrices: Mapping[str, sp.spmatrix], points: Sequence[Mapping[str, float]],
                    k: int, target_hz: float) -> np.ndarray:
-    """V: the real and imaginary parts of ``k`` eigenvectors of the non-symmetric problem nearest
-    ``target_hz`` at each of ``points`` (:func:`qep_eigs`), orthonormalised."""
+    """V: the real and imaginary parts (:func:`real_columns`) of ``k`` eigenvectors of the non-symmetric
+    problem nearest ±``target_hz`` (:func:`qep_eigs`, nearest first: :func:`nearest`) at each of ``points``,
+    orthonormalised (:func:`orthonormal_columns`)."""
     cols = []
     for p in points:
-        _, X = qep_eigs(model.assemble(matrices, p), k, target_hz)
-        cols += [X.real, X.imag]
-    return _orthonormal(np.hstack(cols))
+        lam, X = qep_eigs(model.assemble(matrices, p), k, target_hz)
+        cols.append(real_columns(X[:, nearest(lam, k, target_hz)]))
+    return orthonormal_columns(np.hstack(cols))
 
 
 @dataclass

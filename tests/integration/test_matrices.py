@@ -150,6 +150,40 @@ def test_snapshot_basis_of_the_non_symmetric_problem():
         assert np.max(np.min(np.abs(ref[:, None] - lam[None, :]), axis=1) / np.abs(ref)) <= 1e-6
 
 
+def resolved_difference(a, b, points) -> float:
+    """The largest relative difference between the reduced eigenvalues of ``a`` the basis resolves (within
+    1e-6 of the dense reference) and the nearest of ``b``'s, at the values ``points`` of W."""
+    worst = 0.0
+    for W in points:
+        ref = np.concatenate(dense_reference(W)[:1])
+        la, lb = (solve_points(r, {"W": np.array([W])})[0] for r in (a, b))
+        la = la[la.imag > 0]
+        good = la[np.min(np.abs(la[:, None] - ref[None, :]), axis=1) <= 1e-6 * np.abs(la)]
+        assert len(good) >= 3
+        worst = max(worst, float(np.max(np.min(np.abs(good[:, None] - lb[None, :]), axis=1) / np.abs(good))))
+    return worst
+
+
+def test_distributed_snapshot_basis_equals_the_serial_one():
+    """fem_squeal.fe.matrix_snapshots (SLEPc's TOAR on the rows, here on COMM_SELF; the 2-rank run:
+    tests/mpi/test_matrix_snapshots_mpi.py) against the SciPy snapshot basis: the same eigenpairs chosen
+    (14 nearest ±600 Hz, 6 nearest 0), the same size, the eigenvalues it resolves equal to 1e-10."""
+    from mpi4py import MPI
+
+    from fem_squeal.fe.matrix_snapshots import reduce_snapshot_rows
+
+    mats = matrices()
+    model = matrix_model({"M": "M", "C": "D1 + W*DG + (1/W - 1)*DR + D4/(2*pi*1600)",
+                          "K": "K1 + KR + (W**2 - 1)*KGEO"}, list(mats), {"W": 1.0}, {"W": (0.5, 3.0)})
+    points = [{"W": w} for w in np.linspace(0.5, 3.0, 5)]
+    for k, target in ((14, 600.0), (6, 0.0)):
+        a = reduce_matrix_model(model, mats, basis="snapshots", snapshot_modes=k, target_hz=target,
+                                snapshot_points=points)
+        b = reduce_snapshot_rows(model, mats, MPI.COMM_SELF, points, k, target)
+        assert b.info["basis"] == "snapshots" and a.size == b.size < 48
+        assert resolved_difference(a, b, (0.7, 1.0, 2.2)) <= 1e-10
+
+
 @pytest.mark.parametrize("sets, message", [
     (["analyses.sweep.parameter='X'"], "analyses.sweep.parameter: 'X' is not a parameter"),
     (["analyses.sweep.points=[0.5, 1.0]", "analyses.sweep.range=[0.5, 1.0]"],

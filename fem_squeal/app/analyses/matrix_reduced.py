@@ -8,9 +8,10 @@ reduced eigenvalues against the full sparse CEA of the assembled matrices at a p
 The basis: on one rank the matrices are reduced whole with SciPy
 (:func:`fem_squeal.reduced.matrix_reduction.reduce_matrix_model`); on several ranks the modal basis
 is built distributed, each rank on its rows, by PETSc/SLEPc (:func:`fem_squeal.fe.matrix_basis.reduce_rows`:
-the same subspace, the reduced eigenvalues equal to 1e-9), and the snapshot basis (or 'auto' where
-M's symmetric part is not positive definite) on rank 0 from the gathered matrices.  Every rank ends
-with the same reduced model, so serial and MPI runs give the same study."""
+the same subspace, the reduced eigenvalues equal to 1e-9), and so is the snapshot basis (or 'auto' where
+M's symmetric part is not positive definite: :func:`fem_squeal.fe.matrix_snapshots.reduce_snapshot_rows`,
+the eigenvalues it resolves equal to 1e-11).  Every rank ends with the same reduced model, so serial
+and MPI runs give the same study."""
 from __future__ import annotations
 
 import time
@@ -143,6 +144,12 @@ def reduced_model(ctx: Context, s: Mapping, points: Sequence[Mapping[str, float]
         basis = "snapshots"
     else:
         basis = s["basis"]
+    if red is None and ctx.comm.size > 1:
+        from fem_squeal.fe.matrix_snapshots import reduce_snapshot_rows  # heavy: FE stack
+
+        red = reduce_snapshot_rows(ctx.products["matrices"]["model"], ctx.products["matrices"]["rows"], ctx.comm,
+                                   list(points), s["snapshot_modes"], s["target_hz"],
+                                   bs=ctx.scene.matrices.block_size, options=ctx.scene.solver.petsc_options)
     if red is None:
         red = _on_rank0(ctx, s, points, basis, n_modes)
     memo[modal if red.info["basis"] == "modes" else snap] = red

@@ -8,7 +8,7 @@ root_locus.png, complex_plane.png), plus ``sweep_reduction``: the basis and the 
 eigenvalues against the full sparse CEA of the assembled matrices at ``check_points`` values of the
 sweep (relative error of every full eigenvalue in the band to the nearest reduced one, against
 ``tol``).  The basis: :func:`fem_squeal.app.analyses.matrix_reduced.reduced_model` (on several ranks
-the modal basis is built distributed, the snapshot basis on rank 0); every rank tracks the same
+the modal and the snapshot bases are built distributed); every rank tracks the same
 reduced model: serial and MPI runs give the same sweep."""
 from __future__ import annotations
 

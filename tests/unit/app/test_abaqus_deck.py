@@ -300,3 +300,74 @@ def test_orientation_cload_and_motion(deck):
 
     with pytest.raises(MeshError, match=r"motion.inp line \d+: \*MOTION, ROTATION: the axis must be the z axis"):
         deck_scene(motion)
+
+
+def _transport_decks(deck, omega: float) -> dict:
+    """The fixture's disc rotation (the second static step) as a *MOTION rate in a *STATIC step and as a
+    *TRANSPORT VELOCITY in a *STEADY STATE TRANSPORT step, same ω about +z: {"motion": text, "transport": text}."""
+    text = deck.read_text()
+    turn = text[text.index("*STATIC\n*BOUNDARY\n25, 1"):text.index("*END STEP\n*STEP, PERTURBATION")]
+    return {"motion": text.replace(turn, f"*STATIC\n*MOTION, ROTATION, TYPE=VELOCITY\nNPLATE, {omega}, "
+                                         "0., 0., 0., 0., 0., 1.\n"),
+            "transport": text.replace(turn, f"*STEADY STATE TRANSPORT, ELSET=PLATE\n0.1, 1.\n*TRANSPORT VELOCITY\n"
+                                            f"NPLATE, {omega}\n")}
+
+
+def test_transport_velocity_gives_the_scene_of_the_motion(deck):
+    """*TRANSPORT VELOCITY in a *STEADY STATE TRANSPORT step (Abaqus: node set, ω about the disc axis) gives
+    the scene the equivalent *MOTION deck gives (hence the same run): the sliding direction of ω's sign, the
+    steady-state step as the preload; convert writes it with the keyword and line it came from."""
+    from fem_squeal.app.deck import deck_scene, write_scene
+    from fem_squeal.app.scene import load_scene
+
+    for omega, sign in ((50.0, 1), (-50.0, -1)):
+        scenes = {}
+        for kind, text in _transport_decks(deck, omega).items():
+            (deck.parent / f"{kind}.inp").write_text(text)
+            scenes[kind] = deck_scene(deck.parent / f"{kind}.inp")
+        same = [{**ds.raw, "title": "", "geometry": {**ds.raw["geometry"], "file": ""}} for ds in scenes.values()]
+        assert same[0] == same[1]       # all but the deck's name
+        assert scenes["transport"].raw["interfaces"]["PADBOT_PLATETOP"]["sliding"] == sign
+        assert scenes["transport"].raw["preload"] == {"mode": "all_closed"}
+    ds = scenes["transport"]
+    where = ds.origin["interfaces.PADBOT_PLATETOP.sliding"]
+    assert where.startswith("transport.inp line 45:") and "*TRANSPORT VELOCITY, ω = -50 rad/s about z" in where
+    for kind in scenes:
+        write_scene(deck.parent / f"{kind}.inp", deck.parent / f"{kind}.toml")
+    text = (deck.parent / "transport.toml").read_text()
+    assert "*TRANSPORT VELOCITY, ω = -50 rad/s" in text
+    a, b = (load_scene(deck.parent / f"{k}.toml") for k in ("transport", "motion"))
+    assert a.interfaces == b.interfaces and a.preload == b.preload and a.analyses == b.analyses
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("*STEADY STATE TRANSPORT, ELSET=PLATE", "*STATIC"),
+     r"transport.inp line 45: \*TRANSPORT VELOCITY: only in a \*STEADY STATE TRANSPORT step"),
+    (("NPLATE, 50.0\n", "NPLATE, 50.0\n*MOTION, ROTATION, TYPE=VELOCITY\nNPLATE, 1., 0, 0, 0, 0, 0, 1\n"),
+     r"transport.inp line 47: \*MOTION in a \*STEADY STATE TRANSPORT step .* is not supported"),
+    (("TRANSPORT, ELSET=PLATE", "TRANSPORT, ELSET=PLATE, INERTIA=YES"),
+     r"transport.inp line 42: \*STEADY STATE TRANSPORT, INERTIA=YES: not supported"),
+    (("TRANSPORT, ELSET=PLATE", "TRANSPORT, ELSET=PAD"),
+     r"transport.inp line 45: \*TRANSPORT VELOCITY NPLATE: nodes outside the Eulerian element set ELSET=PAD"),
+    (("TRANSPORT, ELSET=PLATE", "TRANSPORT, ELSET=DISC"),
+     r"transport.inp line 42: \*STEADY STATE TRANSPORT, ELSET=DISC: no such element set"),
+    (("*TRANSPORT VELOCITY", "*TRANSPORT VELOCITY, AMPLITUDE=RAMP"),
+     r"transport.inp line 44: \*TRANSPORT VELOCITY, AMPLITUDE: parameter not supported"),
+    (("NPLATE, 50.0", "NPLATE, 50.0, 0., 0., 0., 0., 0., 1."),
+     r"transport.inp line 45: \*TRANSPORT VELOCITY: expected node set or node, ω \(the axis is \*SYMMETRIC MODEL "
+     "GENERATION"),
+    (("NPLATE, 50.0", "NOPE, 50.0"), r"transport.inp line 45: \*TRANSPORT VELOCITY: no node set or node 'NOPE'"),
+    (("*STEP, PERTURBATION\n", "*STEP, PERTURBATION\n*STEADY STATE TRANSPORT\n*END STEP\n*STEP, PERTURBATION\n"),
+     r"transport.inp line 48: \*STEADY STATE TRANSPORT: a static perturbation step is not supported"),
+])
+def test_transport_velocity_refused_combinations(deck, edit, message):
+    from fem_squeal.app.deck import deck_scene
+    from fem_squeal.util.errors import MeshError
+
+    text = _transport_decks(deck, 50.0)["transport"]
+    assert edit[0] in text
+    bad = deck.parent / "transport.inp"
+    bad.write_text(text.replace(edit[0], edit[1], 1))
+    with pytest.raises(MeshError, match=message) as e:
+        deck_scene(bad)
+    assert "\n" not in str(e.value)

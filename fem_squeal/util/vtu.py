@@ -41,7 +41,24 @@ def write_snapshots(path: Path, basis_field: dict, times: np.ndarray, q: np.ndar
         add_vtu_field_data(tmp, {"time": times})
     # inline XML data: meshio 7.0's HDF5 variant needs h5py and writes the .h5 into the working folder
     with atomic_path(path.with_suffix(".xdmf")) as tmp:
-        with meshio.xdmf.TimeSeriesWriter(tmp, data_format="XML") as w:
+        with _xml_series_writer(meshio)(tmp, data_format="XML") as w:
             w.write_points_cells(basis_field["points"], cells)
             for t, uk in zip(times, u):
                 w.write_data(float(t), point_data={"u": uk})
+
+
+def _xml_series_writer(meshio):
+    """meshio's XDMF time-series writer with its inline XML text formatted in one ``%`` operation per
+    array instead of ``numpy.savetxt``'s one per value (the same text, byte for byte: each value in
+    meshio's format for its dtype followed by a newline).  On the coarse brake's 20 transient
+    snapshots savetxt took 5.8 of the 6.6 s the snapshots cost."""
+    from meshio.xdmf.common import dtype_to_format_string  # heavy: meshio
+
+    class Writer(meshio.xdmf.TimeSeriesWriter):
+        def numpy_to_xml_string(self, data):
+            if self.data_format != "XML":
+                return super().numpy_to_xml_string(data)
+            flat = np.asarray(data).ravel()
+            return ((dtype_to_format_string[flat.dtype.name] + "\n") * flat.size) % tuple(flat.tolist())
+
+    return Writer

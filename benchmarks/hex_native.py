@@ -4,7 +4,7 @@ The plate b = 0.05 m <= r <= a = 0.1 m, h = 2 mm, steel (E 210 GPa, ν 0.3, ρ 7
 the inner cylinder (every node at r = b), free elsewhere; 6 x 96 x 2 elements.  The same file
 (:func:`geometry.hex_decks.annular_plate_hex20` / :func:`~geometry.hex_decks.annular_plate_hex8`,
 written with ``*MATERIAL``, ``*SOLID SECTION``, ``*BOUNDARY`` and ``*FREQUENCY``) runs in ``ccx`` as
-C3D20R, C3D20 and C3D8, and in fem_squeal through ``geometry.mesh_file`` on the native hexahedral
+C3D20R, C3D20, C3D8 and C3D8R, and in fem_squeal through ``geometry.mesh_file`` on the native hexahedral
 path (each displacement element and rule) and on the split into curved P2 tetrahedra.  The table:
 each variant's DOFs, wall time and max |f − f_ccx| / f_ccx over the ten lowest frequencies.
 
@@ -33,11 +33,11 @@ N_MODES = 10
 
 
 def write_plate(path: Path, element: str, grid=GRID, ccx: bool = True) -> None:
-    """The plate deck with ``element`` C3D20R, C3D20 or C3D8 (``ccx``: with the material, the clamp and a
+    """The plate deck with ``element`` C3D20R, C3D20, C3D8 or C3D8R (``ccx``: with the material, the clamp and a
     *FREQUENCY step of N_MODES + 2 modes for CalculiX; the mesh reader ignores them)."""
     from geometry.hex_decks import annular_plate_hex8, annular_plate_hex20, write_inp
 
-    make = annular_plate_hex8 if element == "C3D8" else annular_plate_hex20
+    make = annular_plate_hex8 if element.startswith("C3D8") else annular_plate_hex20
     pts, blocks, inner, outer = make(B, A, H, *grid)
     r = np.hypot(pts[:, 0], pts[:, 1])
     clamp = np.flatnonzero(np.abs(r - B) < 1e-9 * A)
@@ -97,6 +97,7 @@ VARIANTS = [
     ("split: curved P2 tetrahedra", "C3D20R", "C3D20R", ["discretisation.hexahedra=split"], None),
     ("native Q1, 2x2x2 (degree 1)", "C3D8", "C3D8", ["discretisation.degree=1"], None),
     ("native S2, 2x2x2 on the C3D8 deck", "C3D8", "C3D20R", [], None),
+    ("native Q1, one point + hourglass (degree 1)", "C3D8R", "C3D8R", ["discretisation.degree=1"], None),
 ]
 
 
@@ -130,7 +131,7 @@ def main(quick: bool, workdir: Path) -> dict:
     grid = (3, 48, 2) if quick else GRID
     workdir.mkdir(parents=True, exist_ok=True)
     ccx, rows = {}, []
-    for element in ("C3D20R", "C3D20", "C3D8"):
+    for element in ("C3D20R", "C3D20", "C3D8", "C3D8R"):
         write_plate(workdir / f"plate_{element}.inp", element, grid)
         f, t = run_ccx(workdir, f"plate_{element}")
         nodes = sum(1 for line in _node_lines(workdir / f"plate_{element}.inp"))

@@ -1,9 +1,9 @@
 """CalculiX's C3D8R: the 8-node hexahedron with one (mean-strain) point and hourglass control.
 
 As CalculiX 2.20 (Debian calculix-ccx, the ``ccx`` of benchmarks/hex_native.py) computes it in a frequency
-step (ccx source, src/: ``e_c3d.f`` with ``intscheme = 0`` as set in ``arpack.c``; ``shape8hr.f``;
-``hgstiffness.f``; Flanagan & Belytschko, IJNME 17 (1981) 679-706), for an element of nodes x_a
-(a = 1..8) and isotropic E, ν, ρ:
+step (ccx source, github.com/Dhondtguido/CalculiX src/: ``e_c3d.f`` with ``intscheme = 0`` as set in
+``arpack.c``; ``shape8hr.f`` as it was before commit 2465dbb; ``hgstiffness.f``; Flanagan & Belytschko,
+IJNME 17 (1981) 679-706), for an element of nodes x_a (a = 1..8) and isotropic E, ν, ρ:
 
 - volume and mean-strain operator (``shape8hr.f``, F&B eqs 15-16): V = ∫_e dV and
   b̄_a = (1/V) ∫_e ∇N_a dV = (1/V) ∂V/∂x_a (the exact volume average of the trilinear gradients, not
@@ -13,13 +13,15 @@ step (ccx source, src/: ``e_c3d.f`` with ``intscheme = 0`` as set in ``arpack.c`
 - hourglass stiffness (``shape8hr.f``, ``hgstiffness.f``): with the base vectors Γ = [ηζ, ξζ, ξη, ξηζ]
   at the nodes (8 × 4) and z_a the nodes' third coordinates,
   γ_ak = Γ_ak − b̄_a3 Σ_c z_c Γ_ck,  α = 0.0005 V Σ_a |b̄_a|²,  K^hg_(a,i)(b,j) = δ_ij E α Σ_k γ_ak γ_bk
-  (``elas(1)`` = E for an isotropic material).  This is the ``shape8hr.f`` of ccx 2.20 (copyright
-  1998-2020): its loop resets γ_ak = Γ_ak for each coordinate j before subtracting b̄_aj Σ_c x_cj Γ_ck,
-  so only j = 3 stays (F&B eq 49 subtracts all three), and its factor is 0.0005 (the comment says
-  Abaqus uses 0.005).  Later ccx (github.com/Dhondtguido/CalculiX, 2024-) has γ = Γ − b̄ (Xᵀ Γ) and
-  0.005: ten times stiffer hourglass modes; not what the installed ccx runs.  Checked against ccx 2.20's
-  own element matrices (``*FREQUENCY, SOLVER=MATRIXSTORAGE``: the .sti/.mas files) on a distorted
-  element to 1.5e-14 (tests/unit/fe/test_c3d8r.py);
+  (``elas(1)`` = E for an isotropic material).  This is the ``shape8hr.f`` of ccx 2.20: its loop resets
+  γ_ak = Γ_ak for each coordinate j before subtracting b̄_aj Σ_c x_cj Γ_ck, so only j = 3 stays (F&B
+  eq 49 subtracts all three), and its factor is 0.0005 V Σ|b̄|² (the comment says Abaqus uses 0.005).
+  So on a cell that is not a parallelepiped it resists fields linear in x or y, every rigid rotation
+  among them (weakly: 0.0005), and it depends on which axis is z.  CalculiX's commit 2465dbb
+  (2025-10-10) changed both: γ = Γ − b̄ (Xᵀ Γ) and 0.005 V Σ|b̄|² (ten times stiffer hourglass modes);
+  that is not what the installed ccx 2.20 runs.  Checked against ccx 2.20's own element matrices
+  (``*FREQUENCY, SOLVER=MATRIXSTORAGE``: the .sti/.mas files) on a distorted element to 1.5e-14
+  (tests/unit/fe/test_c3d8r.py);
 - mass (``e_c3d.f``: the same single point, shape functions 1/8, weight 8, xsj = V/8):
   M_(a,i)(b,j) = δ_ij ρ V / 64 — a rank-one consistent mass per component, not a lumped one, and not
   the 2 × 2 × 2 rule (that is ``intscheme = 1``: the initial acceleration of a dynamic step only).
@@ -32,7 +34,8 @@ NumPy, the differences to CalculiX's element (mean strain instead of the centre 
 V_c) plus the hourglass stiffness, and :func:`add_cell_matrices` adds them into the assembled PETSc
 matrices (owned cells only, ``ADD_VALUES``, Dirichlet rows and columns left out): the same on any
 number of ranks.  V and b̄ are integrated with 2 × 2 × 2 Gauss points, exact for them (the integrands'
-degree is at most 3 in each reference coordinate).
+degree is at most 3 in each reference coordinate).  The other volume forms (rotation, stress stiffening)
+keep the 2 × 2 × 2 rule of C3D8.
 """
 from __future__ import annotations
 
@@ -133,9 +136,9 @@ def corrections(X: np.ndarray, E: np.ndarray, nu: np.ndarray, rho: np.ndarray) -
     return dK, dM
 
 
-def cell_dofs(V) -> tuple[np.ndarray, np.ndarray]:
-    """(owned cells' nodal coordinates (m, 8, 3), their global unrolled DOFs (m, 24), 3a + i) of a Q1
-    vector space V."""
+def cell_dofs(V) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(owned cells' nodal coordinates (m, 8, 3), their global unrolled DOFs (m, 24), 3a + i, their local
+    blocked DOFs (m, 8)) of a Q1 vector space V."""
     dm = V.dofmap
     m = V.mesh.topology.index_map(3).size_local
     blocks = dm.list.array.reshape(-1, 8)[:m]

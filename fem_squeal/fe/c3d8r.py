@@ -150,15 +150,18 @@ def cell_dofs(V) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def add_cell_matrices(A: PETSc.Mat, V, cells: np.ndarray, Ae: np.ndarray, bc_dofs: np.ndarray) -> None:
     """A += Σ over owned ``cells`` of the element matrices ``Ae`` (len(cells), 24, 24) on V's DOFs,
-    leaving out the rows and columns of the (local, unrolled) ``bc_dofs``; assembles A."""
+    leaving out the rows and columns of the (local, unrolled) ``bc_dofs``; assembles A.  Element DOFs
+    whose row and column are zero in every ``Ae`` (the x, y components of the axial mass) are not sent:
+    PETSc keeps zero diagonal entries even when told to ignore zeros, and A's pattern may lack them."""
     _, glob, blocks = cell_dofs(V)
     bs = V.dofmap.index_map_bs
     local = (blocks[:, :, None] * bs + np.arange(bs)).reshape(len(blocks), -1)
     rows = np.where(np.isin(local, bc_dofs), -1, glob).astype(PETSc.IntType)
+    used = np.flatnonzero(np.any(Ae != 0, axis=(0, 1)) | np.any(Ae != 0, axis=(0, 2)))
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
     A.setOption(PETSc.Mat.Option.IGNORE_ZERO_ENTRIES, True)
-    for c, Ke in zip(cells.tolist(), Ae):
-        A.setValues(rows[c], rows[c], Ke, addv=PETSc.InsertMode.ADD_VALUES)
+    for c, Ke in zip(cells.tolist(), Ae[:, used][:, :, used]):
+        A.setValues(rows[c, used], rows[c, used], Ke, addv=PETSc.InsertMode.ADD_VALUES)
     A.assemble()
     A.setOption(PETSc.Mat.Option.IGNORE_ZERO_ENTRIES, False)
 

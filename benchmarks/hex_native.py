@@ -4,7 +4,7 @@ The plate b = 0.05 m <= r <= a = 0.1 m, h = 2 mm, steel (E 210 GPa, ν 0.3, ρ 7
 the inner cylinder (every node at r = b), free elsewhere; 6 x 96 x 2 elements.  The same file
 (:func:`geometry.hex_decks.annular_plate_hex20` / :func:`~geometry.hex_decks.annular_plate_hex8`,
 written with ``*MATERIAL``, ``*SOLID SECTION``, ``*BOUNDARY`` and ``*FREQUENCY``) runs in ``ccx`` as
-C3D20R, C3D20 and C3D8, and in fem_squeal through ``geometry.mesh_file`` on the native hexahedral
+C3D20R, C3D20, C3D8 and C3D8R, and in fem_squeal through ``geometry.mesh_file`` on the native hexahedral
 path (each displacement element and rule) and on the split into curved P2 tetrahedra.  The table:
 each variant's DOFs, wall time and max |f − f_ccx| / f_ccx over the ten lowest frequencies.
 
@@ -32,15 +32,21 @@ GRID = (6, 96, 2)
 N_MODES = 10
 
 
-def write_plate(path: Path, element: str, grid=GRID, ccx: bool = True) -> None:
-    """The plate deck with ``element`` C3D20R, C3D20 or C3D8 (``ccx``: with the material, the clamp and a
-    *FREQUENCY step of N_MODES + 2 modes for CalculiX; the mesh reader ignores them)."""
+def write_plate(path: Path, element: str, grid=GRID, ccx: bool = True, thickness: float = H,
+                jitter: float = 0.0) -> None:
+    """The plate deck with ``element`` C3D20R, C3D20, C3D8 or C3D8R (``ccx``: with the material, the clamp and a
+    *FREQUENCY step of N_MODES + 2 modes for CalculiX; the mesh reader ignores them).  ``jitter``: every node
+    off the clamp moves by up to that fraction of the smallest element edge along each axis (seeded)."""
     from geometry.hex_decks import annular_plate_hex8, annular_plate_hex20, write_inp
 
-    make = annular_plate_hex8 if element == "C3D8" else annular_plate_hex20
-    pts, blocks, inner, outer = make(B, A, H, *grid)
+    make = annular_plate_hex8 if element.startswith("C3D8") else annular_plate_hex20
+    pts, blocks, inner, outer = make(B, A, thickness, *grid)
     r = np.hypot(pts[:, 0], pts[:, 1])
     clamp = np.flatnonzero(np.abs(r - B) < 1e-9 * A)
+    if jitter:
+        h = min((A - B) / grid[0], 2 * np.pi * B / grid[1], thickness / grid[2])
+        free = np.setdiff1d(np.arange(len(pts)), clamp)
+        pts[free] += jitter * h * np.random.default_rng(0).uniform(-1, 1, (len(free), 3))
     write_inp(path, pts, blocks, elsets={"PLATE": np.arange(len(blocks[0][1]))}, nsets={"CLAMP": clamp},
               surfaces={"INNER": [(e, "S6") for e in inner]}, types={blocks[0][0]: element})
     if ccx:
@@ -97,7 +103,15 @@ VARIANTS = [
     ("split: curved P2 tetrahedra", "C3D20R", "C3D20R", ["discretisation.hexahedra=split"], None),
     ("native Q1, 2x2x2 (degree 1)", "C3D8", "C3D8", ["discretisation.degree=1"], None),
     ("native S2, 2x2x2 on the C3D8 deck", "C3D8", "C3D20R", [], None),
+    ("native Q1, one point + hourglass (degree 1)", "C3D8R", "C3D8R", ["discretisation.degree=1"], None),
+    ("native Q1, one point + hourglass (degree 1)", "C3D8R_thick_distorted", "C3D8R_thick_distorted",
+     ["discretisation.degree=1"], None),
 ]
+#: the decks: name -> (element type, write_plate options).  The second C3D8R deck (h = 10 mm, three elements
+#: through the thickness, nodes moved by up to 20 % of the smallest edge) checks the element on
+#: non-affine cells (mean strain, hourglass vectors and volume all differ from the centre's there).
+DECKS = {"C3D20R": ("C3D20R", {}), "C3D20": ("C3D20", {}), "C3D8": ("C3D8", {}), "C3D8R": ("C3D8R", {}),
+         "C3D8R_thick_distorted": ("C3D8R", {"thickness": 0.01, "jitter": 0.2, "n_z": 3})}
 
 
 def run_fem_squeal(folder: Path, deck: Path, overrides: list[str],
@@ -130,12 +144,14 @@ def main(quick: bool, workdir: Path) -> dict:
     grid = (3, 48, 2) if quick else GRID
     workdir.mkdir(parents=True, exist_ok=True)
     ccx, rows = {}, []
-    for element in ("C3D20R", "C3D20", "C3D8"):
-        write_plate(workdir / f"plate_{element}.inp", element, grid)
-        f, t = run_ccx(workdir, f"plate_{element}")
-        nodes = sum(1 for line in _node_lines(workdir / f"plate_{element}.inp"))
-        ccx[element] = f[:N_MODES]
-        rows.append({"variant": f"CalculiX {element}", "deck": element, "reference": element, "dofs": 3 * nodes,
+    for deck, (element, opts) in DECKS.items():
+        opts = dict(opts)
+        g = (*grid[:2], opts.pop("n_z", grid[2]))
+        write_plate(workdir / f"plate_{deck}.inp", element, g, **opts)
+        f, t = run_ccx(workdir, f"plate_{deck}")
+        nodes = sum(1 for line in _node_lines(workdir / f"plate_{deck}.inp"))
+        ccx[deck] = f[:N_MODES]
+        rows.append({"variant": f"CalculiX {element}", "deck": deck, "reference": deck, "dofs": 3 * nodes,
                      "seconds": t, "max_rel": 0.0, "f_hz": f[:N_MODES].tolist()})
     for label, deck, ref, overrides, family in VARIANTS:
         f, dofs, t = run_fem_squeal(workdir, workdir / f"plate_{deck}.inp", overrides, family)
@@ -143,7 +159,8 @@ def main(quick: bool, workdir: Path) -> dict:
         rows.append({"variant": label, "deck": deck, "reference": ref, "dofs": dofs, "seconds": t, "max_rel": err,
                      "f_hz": f[:N_MODES].tolist()})
     lines = [f"Annular plate b = {B} m, a = {A} m, h = {H * 1e3:g} mm, {grid[0]} x {grid[1]} x {grid[2]} "
-             f"elements, clamped at r = b; ten lowest frequencies against CalculiX 2.20 on the same deck",
+             f"elements, clamped at r = b; ten lowest frequencies against CalculiX 2.20 on the same deck "
+             f"(deck C3D8R_thick_distorted: h = 10 mm, {grid[0]} x {grid[1]} x 3 elements, nodes moved)",
              "", "| element / path | deck | DOFs | seconds | max abs(f - f_ccx)/f_ccx | against |",
              "|---|---|---:|---:|---:|---|"]
     for r in rows:

@@ -72,13 +72,18 @@ def integration_rule(mtype: str, element_types: list[str]) -> tuple[str, str]:
 
     20-node hexahedra: C3D20R is the 2 × 2 × 2 Gauss rule ("reduced"), C3D20 the 3 × 3 × 3 one ("full");
     a deck of both runs with the reduced rule (the one most squeal decks use), and says so; a file
-    without Abaqus types (gmsh, Nastran, VTK) too.  8-node hexahedra: C3D8's 2 × 2 × 2 rule ("full")
-    always; C3D8R's one point with hourglass control has no counterpart (C3D8's rule, said so)."""
+    without Abaqus types (gmsh, Nastran, VTK) too.  8-node hexahedra: C3D8's 2 × 2 × 2 rule ("full"); a
+    deck of C3D8R only: "one-point", CalculiX's C3D8R (one mean-strain point with hourglass control,
+    ``fem_squeal.fe.c3d8r``) at discretisation.degree = 1; a deck of both: C3D8's rule for all, said so."""
     named = sorted({t for t in element_types if t})
     if mtype == "hexahedron":
-        if any(t.endswith("R") for t in named):
-            return "full", (f"{', '.join(named)}: C3D8's 2x2x2 Gauss rule (C3D8R's one point with hourglass "
-                            "control is not available; degree 2 avoids the locking of C3D8 in bending)")
+        reduced = [t for t in named if t.endswith("R")]
+        if reduced and len(reduced) == len(named):
+            return "one-point", (f"{', '.join(named)}: one point with hourglass control (CalculiX C3D8R) at "
+                                 "discretisation.degree = 1; degree 2 runs S2 with 2x2x2 Gauss points")
+        if reduced:
+            return "full", (f"both {', '.join(named)} in the file: C3D8's 2x2x2 Gauss rule for all (C3D8R's one "
+                            "point with hourglass control needs a deck of C3D8R only)")
         return "full", "2x2x2 Gauss points (CalculiX/Abaqus C3D8)"
     if not named:
         return "reduced", "the file does not name the integration: 2x2x2 Gauss points (C3D20R)"

@@ -26,6 +26,7 @@ from petsc4py import PETSc
 from ufl.algorithms.map_integrands import map_integrand_dags
 from ufl.corealg.multifunction import MultiFunction
 
+from fem_squeal.fe import c3d8r as c8r
 from fem_squeal.fe import cell_assembly, forms, hexahedra, kernels
 from fem_squeal.fe import interface as itf
 from fem_squeal.fe.factorisation import LU, factor_solver
@@ -323,6 +324,33 @@ def dirichlet_conditions(V, mesh_data, spec: ModelSpec) -> tuple[list, np.ndarra
     return bcs, np.unique(np.concatenate(dofs_all)).astype(np.int32)
 
 
+def _check_c3d8r(mesh, spec: ModelSpec) -> None:
+    """C3D8R runs on Q1 hexahedra (degree 1), the cell rule not set, isotropic materials (``hgstiffness.f``
+    takes E from an isotropic material's constants): a named error otherwise."""
+    if not hexahedra.is_hexahedral(mesh) or spec.degree != 1 or spec.quadrature_degree is not None:
+        raise ModelError("C3D8R (one point with hourglass control) needs native hexahedra at "
+                         "discretisation.degree = 1 "
+                         "without discretisation.quadrature_degree")
+    odd = sorted(p for p, m in spec.materials.items()
+                 if getattr(m, "anisotropic", False) or getattr(m, "transversely_isotropic", False))
+    if odd:
+        raise ModelError(f"materials.{odd[0]}: C3D8R's hourglass stiffness (CalculiX hgstiffness.f) is defined "
+                         "here for isotropic materials only; use discretisation.degree = 2")
+
+
+def _c3d8r_corrections(V, mesh_data, spec: ModelSpec) -> dict:
+    """part -> (owned cells, ΔK (m, 24, 24), scalar ΔM (m, 8, 8)) of :func:`fem_squeal.fe.c3d8r.corrections`."""
+    X, _, _ = c8r.cell_dofs(V)
+    tags = mesh_data.cell_tags
+    out = {}
+    for part, mat in spec.materials.items():
+        cells = tags.indices[(tags.values == mesh_data.volumes[part]) & (tags.indices < len(X))]
+        one = np.ones(len(cells))
+        dK, dM = c8r.corrections(X[cells], mat.E * one, mat.nu * one, mat.rho * one)
+        out[part] = (cells, dK, dM)
+    return out
+
+
 def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
                        describe_part: str | None = None, timings: dict | None = None) -> Operators:
     """Build V = [P_degree]³ on the mesh (on hexahedra: :func:`fem_squeal.fe.hexahedra.displacement_space`)
@@ -334,7 +362,9 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
 
     t0 = time.perf_counter()
     mesh, cell_tags, facet_tags = mesh_data.mesh, mesh_data.cell_tags, mesh_data.facet_tags
-    if spec.degree == 1 and hexahedra.is_hexahedral(mesh):
+    if spec.c3d8r:
+        _check_c3d8r(mesh, spec)
+    elif spec.degree == 1 and hexahedra.is_hexahedral(mesh):
         warnings.warn("degree 1 on hexahedra: Q1 with 2x2x2 Gauss points (CalculiX C3D8) locks in bending "
                       "(benchmarks/hex_native.py: the thin plate's frequencies 2.4x C3D20R's); use degree 2",
                       stacklevel=2)
@@ -402,12 +432,17 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
     bcs, bc_dofs = dirichlet_conditions(V, mesh_data, spec)
 
     qd = spec.quadrature_degree
+    if spec.c3d8r:   # the one-point rule on the cell integrals (fem_squeal.fe.c3d8r adds the rest)
+        a_K, a_M, a_Mz = (hexahedra.with_cell_rule(a, c8r.ONE_POINT) for a in (a_K, a_M, a_Mz))
+        if a_C is not None:
+            a_C = hexahedra.with_cell_rule(a_C, c8r.ONE_POINT)
     fK = _compile(a_K, qd)
     K = _assemble(fK, fK, bcs, 1.0, bc_dofs)
 
     def scalar_mass(us, vs):
         terms = [forms.mass_form(us, vs, m.rho, dx(mesh_data.volumes[p])) for p, m in spec.materials.items()]
-        return functools.reduce(operator.add, terms)
+        a = functools.reduce(operator.add, terms)
+        return hexahedra.with_cell_rule(a, c8r.ONE_POINT) if spec.c3d8r else a
     masses = _block_masses(V, scalar_mass, qd, [np.eye(V.dofmap.index_map_bs), np.outer(spec.axis, spec.axis)],
                            bc_dofs, K)
     if masses is not None:
@@ -417,6 +452,17 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
         Mz = _assemble(_compile(a_Mz, qd), fK, bcs, 0.0)
     C = _assemble(_compile(a_C, qd), fK, bcs, 0.0) if a_C is not None else None
     Kf = _assemble(_compile(a_f, qd), fK, bcs, 0.0) if a_f is not None else None
+    c3 = _c3d8r_corrections(V, mesh_data, spec) if spec.c3d8r else {}
+    for part, (cells, dK, dM) in c3.items():
+        mat = spec.materials[part]
+        c8r.add_cell_matrices(K, V, cells, dK, bc_dofs)
+        c8r.add_cell_matrices(M, V, cells, c8r.vector_mass(dM, np.eye(3)), bc_dofs)
+        c8r.add_cell_matrices(Mz, V, cells, c8r.vector_mass(dM, np.outer(spec.axis, spec.axis)),
+                                        bc_dofs)
+        if C is not None:
+            c8r.add_cell_matrices(
+                C, V, cells, mat.rayleigh_alpha * c8r.vector_mass(dM, np.eye(3)) + mat.rayleigh_beta * dK,
+                bc_dofs)
 
     f = None
     if L is not None:
@@ -451,8 +497,11 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
     if parts:
         K_parts = {}
         for part, mat in spec.materials.items():
-            fp = _compile(forms.material_stiffness_form(u, v, mat, dx(mesh_data.volumes[part]), qd), qd)
+            a_p = forms.material_stiffness_form(u, v, mat, dx(mesh_data.volumes[part]), qd)
+            fp = _compile(hexahedra.with_cell_rule(a_p, c8r.ONE_POINT) if spec.c3d8r else a_p, qd)
             K_parts[part] = _assemble(fp, fp, [], 0.0)
+            if part in c3:
+                c8r.add_cell_matrices(K_parts[part], V, c3[part][0], c3[part][1], np.zeros(0, np.int32))
         plate_parts = {}
         for plate in spec.plates:
             if plate.kn > 0 and plate.name:
@@ -466,10 +515,15 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
         if describe_part not in spec.materials:
             raise UnknownNameError(f"describe_part: no part {describe_part!r}; parts: {sorted(spec.materials)}")
         mat, dxp = spec.materials[describe_part], dx(mesh_data.volumes[describe_part])
-        fm = _compile(forms.mass_form(u, v, mat.rho, dxp), qd)
-        M_parts = {describe_part: (_assemble(fm, fm, [], 0.0),
-                                   _assemble(_compile(forms.axial_mass_form(u, v, mat.rho, dxp, axis_c), qd),
-                                             fm, [], 0.0))}
+        a_m, a_mz = forms.mass_form(u, v, mat.rho, dxp), forms.axial_mass_form(u, v, mat.rho, dxp, axis_c)
+        if spec.c3d8r:
+            a_m, a_mz = (hexahedra.with_cell_rule(a, c8r.ONE_POINT) for a in (a_m, a_mz))
+        fm = _compile(a_m, qd)
+        M_parts = {describe_part: (_assemble(fm, fm, [], 0.0), _assemble(_compile(a_mz, qd), fm, [], 0.0))}
+        if describe_part in c3:
+            cells, _, dM = c3[describe_part]
+            for A, W in zip(M_parts[describe_part], (np.eye(3), np.outer(spec.axis, spec.axis))):
+                c8r.add_cell_matrices(A, V, cells, c8r.vector_mass(dM, W), np.zeros(0, np.int32))
     if timings is not None:
         timings.update(volume_forms=t1 - t0 + time.perf_counter() - t2, interfaces=t2 - t1)
     return Operators(V, K, Kf, M, C, Mz, bc_dofs, f, tuple(contacts), K_parts, M_parts,

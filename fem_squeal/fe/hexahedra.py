@@ -6,9 +6,10 @@ C3D20R, against CalculiX 2.20 on the same deck, ten lowest frequencies):
 - degree 2: the 20-node serendipity space (basix family "S": the polynomial space of C3D20) with
   2 × 2 × 2 Gauss points, CalculiX's C3D20R: within 1e-7 of it.  Q2 Lagrange (27 nodes) is 0.55 %
   (3 × 3 × 3) or 0.57 % (2 × 2 × 2) above C3D20R; S2 with 3 × 3 × 3 points is C3D20 (3e-6 from ccx's).
-- degree 1: Q1 (8 nodes) with 2 × 2 × 2 Gauss points, CalculiX's C3D8 (3e-7).  C3D8R (one point with
-  hourglass control) has no counterpart here: a C3D8R deck at degree 1 runs as C3D8, which locks in
-  bending where C3D8R does not; degree 2 (S2 on the trilinear geometry) is the accurate choice.
+- degree 1: Q1 (8 nodes) with 2 × 2 × 2 Gauss points, CalculiX's C3D8 (3e-7); on a C3D8R deck, CalculiX's
+  C3D8R: one mean-strain point with hourglass stiffness (:mod:`fem_squeal.fe.c3d8r`).  Degree 2 on an
+  8-node deck (S2 on the trilinear geometry) is the accurate choice: both 8-node elements are stiff or
+  soft in bending.
 
 The rule is UFL's quadrature degree 3 on hexahedra (basix: 2 points per direction; 5 gives 3 × 3 × 3), set
 on the cell integrals of every form whose scene leaves ``discretisation.quadrature_degree`` unset.
@@ -44,9 +45,15 @@ def displacement_space(mesh, degree: int) -> fem.FunctionSpace:
     return fem.FunctionSpace(mesh, ufl.VectorElement(ELEMENTS[degree][0], mesh.ufl_cell(), degree))
 
 
-def element_description(V, quadrature_degree: int | None) -> str:
+#: what runs for a C3D8R deck at degree 1 (:mod:`fem_squeal.fe.c3d8r`).
+C3D8R = "Q1 (8 nodes), one point (mean strain) with hourglass control: CalculiX C3D8R"
+
+
+def element_description(V, quadrature_degree: int | None, c3d8r: bool = False) -> str:
     """What runs on a hexahedral mesh, for the results and the log."""
     degree = V.ufl_element().degree()
+    if c3d8r:
+        return C3D8R
     if quadrature_degree is None:
         return ELEMENTS[degree][1]
     if degree == 2 and quadrature_degree == GAUSS_3X3X3:
@@ -54,12 +61,12 @@ def element_description(V, quadrature_degree: int | None) -> str:
     return f"{ELEMENTS[degree][1].split(',')[0]}, quadrature degree {quadrature_degree} (discretisation)"
 
 
-def with_cell_rule(form: ufl.Form) -> ufl.Form:
-    """``form`` with the 2 × 2 × 2 Gauss rule on its cell integrals when its domain is hexahedral
-    (no rule set there yet); unchanged otherwise."""
+def with_cell_rule(form: ufl.Form, degree: int = GAUSS_2X2X2) -> ufl.Form:
+    """``form`` with the 2 × 2 × 2 Gauss rule (or the rule of quadrature ``degree``) on its cell integrals
+    when its domain is hexahedral (no rule set there yet); unchanged otherwise."""
     if form.ufl_domain().ufl_cell().cellname() != "hexahedron":
         return form
-    return ufl.Form([itg.reconstruct(metadata={"quadrature_degree": GAUSS_2X2X2, **itg.metadata()})
+    return ufl.Form([itg.reconstruct(metadata={"quadrature_degree": degree, **itg.metadata()})
                      if itg.integral_type() == "cell" else itg for itg in form.integrals()])
 
 

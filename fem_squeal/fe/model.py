@@ -438,6 +438,7 @@ class ModelSpec:
     interface_quadrature_degree: int = 4
     fixed: tuple[FixedFace, ...] = ()     # component-wise Dirichlet conditions (clamped: all three)
     point_loads: tuple[PointLoad, ...] = ()
+    c3d8r: bool = False                   # CalculiX C3D8R on Q1 hexahedra (fem_squeal.fe.c3d8r)
 
     def __post_init__(self):
         held: dict[str, set[int]] = {}

@@ -42,7 +42,11 @@ def spec_for_hexahedra(spec, hexahedra: dict):
     """The model description with the cell rule of a native hexahedral deck: a C3D20 deck (full
     integration, ``geometry.hexahedra.integration_rule``) at degree 2 gets the 3 × 3 × 3 Gauss rule
     unless ``discretisation.quadrature_degree`` is set; anything else is unchanged (the 2 × 2 × 2 rule of
-    C3D20R and C3D8, :mod:`fem_squeal.fe.hexahedra`)."""
+    C3D20R and C3D8, :mod:`fem_squeal.fe.hexahedra`).  A C3D8R deck (integration "one-point") at degree 1
+    without a set rule runs CalculiX's C3D8R (:mod:`fem_squeal.fe.c3d8r`)."""
+    if (spec is not None and hexahedra.get("path") == "native" and hexahedra.get("integration") == "one-point"
+            and spec.degree == 1 and spec.quadrature_degree is None):
+        return dataclasses.replace(spec, c3d8r=True)
     if (spec is None or hexahedra.get("path") != "native" or hexahedra.get("integration") != "full"
             or spec.degree != 2 or spec.quadrature_degree is not None):
         return spec

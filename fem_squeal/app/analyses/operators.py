@@ -41,7 +41,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     ncells = md.mesh.topology.index_map(3).size_global
     element = f"P{spec.degree}"
     if is_hexahedral(md.mesh):
-        element = element_description(ops.V, spec.quadrature_degree)
+        element = element_description(ops.V, spec.quadrature_degree, spec.c3d8r)
     ctx.say(f"[fem_squeal] {ncells} cells, {ndofs} DOFs ({element}) on {ctx.comm.size} rank(s); "
             f"assembly {timings['assembly']:.2f} s")
     ratios = penalty_ratios(md, spec)

@@ -218,7 +218,8 @@ SECTIONS = {
         "interface_quadrature_degree": Field(int, 4, positive, "slave-surface quadrature of interfaces"),
         "hexahedra": Field(str, "auto", one_of("auto", "native", "split"),
                            "hexahedral mesh files: 'native' runs hexahedra as they are (degree 2: serendipity S2 "
-                           "with 2x2x2 Gauss points = C3D20R; degree 1: Q1 2x2x2 = C3D8), 'split' cuts them into "
+                           "with 2x2x2 Gauss points = C3D20R; degree 1: Q1 2x2x2 = C3D8, on a C3D8R deck C3D8R's "
+                           "one point with hourglass control), 'split' cuts them into "
                            "curved tetrahedra; 'auto' (default): native when every element is a hexahedron of one "
                            "order (interfaces of every type run on both), else split; "
                            "results.json mesh.import.hexahedra says which ran and why"),

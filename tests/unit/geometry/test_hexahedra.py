@@ -94,11 +94,12 @@ def test_path_choice_and_its_reasons():
     ("hexahedron20", ["C3D20", "C3D20R"], "reduced", "quadrature_degree = 5"),
     ("hexahedron20", [], "reduced", "does not name"),
     ("hexahedron", ["C3D8"], "full", "C3D8"),
-    ("hexahedron", ["C3D8R"], "full", "hourglass"),
+    ("hexahedron", ["C3D8R"], "one-point", "hourglass"),
+    ("hexahedron", ["C3D8", "C3D8R"], "full", "C3D8R only"),
 ])
 def test_the_deck_names_the_cell_rule(mtype, types, rule, words):
     """C3D20R decks run with 2x2x2 Gauss points and C3D20 decks with 3x3x3 (CalculiX's own rules, as
     benchmarks/hex_native.py measures), a deck of both or a file without Abaqus types with 2x2x2,
-    saying so; 8-node hexahedra always with C3D8's 2x2x2."""
+    saying so; 8-node hexahedra with C3D8's 2x2x2, C3D8R-only decks with C3D8R's one point."""
     got, why = integration_rule(mtype, types)
     assert got == rule and words in why

@@ -6,8 +6,7 @@ installation goes on without it and the package takes the library path it replac
 product, dolfinx's assembly, PETSc's CHOLMOD or MUMPS); ``results.json`` says which path ran.
 
 Headers and libraries: Debian's ``libsuitesparse-dev`` (cholmod.h, -lcholmod), found through
-``SUITESPARSE_INCLUDE`` or the usual folders; Debian's ``libmumps-dev`` (dmumps_c.h, -ldmumps: the
-MUMPS PETSc links), through ``MUMPS_INCLUDE`` or the usual folders."""
+``SUITESPARSE_INCLUDE`` or the usual folders."""
 from __future__ import annotations
 
 import os
@@ -16,8 +15,6 @@ from setuptools import Extension, setup
 
 SUITESPARSE = [d for d in (os.environ.get("SUITESPARSE_INCLUDE", ""), "/usr/include/suitesparse",
                            "/usr/local/include/suitesparse") if d and os.path.isfile(os.path.join(d, "cholmod.h"))]
-MUMPS = [d for d in (os.environ.get("MUMPS_INCLUDE", ""), "/usr/include", "/usr/local/include")
-         if d and os.path.isfile(os.path.join(d, "dmumps_c.h"))]
 KERNELS = "fem_squeal/fe/kernels"
 
 
@@ -34,8 +31,5 @@ ext_modules = [
 if SUITESPARSE:
     ext_modules.append(kernel("cholmod_shim", ["cholmod_shim.c"], "-O2", include_dirs=SUITESPARSE[:1],
                               libraries=["cholmod"]))
-
-if MUMPS:
-    ext_modules.append(kernel("mumps_shim", ["mumps_shim.c"], "-O2", include_dirs=MUMPS[:1], libraries=["dmumps"]))
 
 setup(ext_modules=ext_modules)

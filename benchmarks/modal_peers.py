@@ -194,7 +194,6 @@ def run_fem(scene_file: str, tol: str = "scene") -> dict:
 
     from fem_squeal.app.analyses.mesh import build_mesh
     from fem_squeal.app.scene import load_scene, model_spec
-    from fem_squeal.fe import kernels
     from fem_squeal.fe.assembly import assemble_operators
     from fem_squeal.fe.eigen import solve_real_modes
 
@@ -218,9 +217,7 @@ def run_fem(scene_file: str, tol: str = "scene") -> dict:
     bs, im = ops.V.dofmap.index_map_bs, ops.V.dofmap.index_map
     clamped = comm.allreduce(int(np.count_nonzero(np.asarray(ops.bc_dofs) < im.size_local * bs)), op=MPI.SUM)
     rss = comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.SUM) / 1024
-    paths = kernels.tally()
-    return {"paths": {op: sorted(paths[op]) for op in ("assembly", "factorisation", "block_solve") if op in paths},
-            "code": "fem_squeal", "quadrature": spec.quadrature_degree or "auto", "parallel": comm.size,
+    return {"code": "fem_squeal", "quadrature": spec.quadrature_degree or "auto", "parallel": comm.size,
             "dofs": im.size_global * bs, "free_dofs": im.size_global * bs - clamped,
             "t_read": t1 - t0, "t_assembly": t2 - t1, "t_eig": t3 - t2, "t_e2e": t3 - t0,
             "t_factor": rm.seconds.get("factor", float("nan")), "solver": rm.solver, "tol": tol,
@@ -702,59 +699,6 @@ def run_speed(sizes: list[float], n_modes: int, repeats: int, workdir: Path, cod
     return meshes, runs
 
 
-MPI_SPEED_SIZE = 0.006          # --mpi-speed: the 87k-DOF disc of issue #34
-
-
-def run_mpi_speed(h: float, n_modes: int, repeats: int, workdir: Path) -> tuple[dict, list[dict]]:
-    """--mpi-speed (issue #34): fem_squeal on 1 rank and on 2 ranks (one thread per rank) on the same
-    mesh, and on 2 ranks with PETSc's MUMPS (the N-rank path before #34), ``repeats`` times interleaved."""
-    mesh = spawn(["mesh", h, workdir, n_modes])
-    s = mesh["stem"]
-    new = workdir / f"{s}_q{AUTO}.toml"
-    new.write_text(scene_text(f"{s}.msh", n_modes, AUTO))
-    petsc = workdir / f"{s}_petsc_mumps.toml"
-    petsc.write_text(scene_text(f"{s}.msh", n_modes, AUTO, {"real_st_pc_factor_mat_solver_type": "mumps"}))
-    fem_case(workdir, s, n_modes, AUTO, 1)       # warm the JIT cache
-    cases = {"1 rank": (new, 1), "2 ranks": (new, 2), "2 ranks, PETSc MUMPS": (petsc, 2)}
-    runs = []
-    for rep in range(repeats):
-        for name, (scene, ranks) in cases.items():
-            r = spawn(["fem", scene, "default"], ranks)
-            r.update(name=name, rep=rep, ranks=ranks)
-            runs.append(r)
-            print(f"{s} #{rep} {name}: {speed_total(r):.2f} s", file=sys.stderr, flush=True)
-    return mesh, runs
-
-
-def render_mpi_speed(mesh: dict, runs: list[dict], n_modes: int, repeats: int, load: str) -> None:
-    """The --mpi-speed table: per case its fastest repeat (by assembly + eigensolve), the speed-up
-    of 2 ranks over 1, and the frequencies against the 1-rank run."""
-    names = list(dict.fromkeys(r["name"] for r in runs))
-    best = {n: min((r for r in runs if r["name"] == n), key=speed_total) for n in names}
-    one = best["1 rank"]
-    L = [f"## Real modes on 1 and 2 ranks: clamped disc, {mesh['free_dofs']} free DOFs, {n_modes} modes, "
-         "curved P2, 1 thread per rank", "",
-         f"{repeats} interleaved repeats, the fastest kept (by assembly + eigensolve; spread: slowest/fastest).  "
-         f"Times in s.  e2e = read + assembly + eigensolve.  Speed-up: 1 rank's time / this case's.  Δf: max "
-         f"relative frequency difference against the 1-rank run.  Load (uptime) at the end: {load}.", "",
-         "| case | factorisation | block solves | assembly path | read | assembly | factor | eigensolve | "
-         "assembly + eigensolve | e2e | speed-up (asm + eig) | speed-up (e2e) | Δf |",
-         "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for n in names:
-        b = best[n]
-        mine = [r for r in runs if r["name"] == n]
-        spread = max(map(speed_total, mine)) / speed_total(b)
-        p = b.get("paths", {})
-        L.append(f"| {n} | {', '.join(p.get('factorisation', [b['solver']]))} | "
-                 f"{', '.join(p.get('block_solve', ['petsc']))} | {', '.join(p.get('assembly', []))} | "
-                 f"{b['t_read']:.2f} | {b['t_assembly']:.2f} | {b['t_factor']:.2f} | "
-                 f"{b['t_eig'] - b['t_factor']:.2f} | {speed_total(b):.2f} ({spread:.2f}) | {b['t_e2e']:.2f} | "
-                 f"{speed_total(one) / speed_total(b):.2f}× | {one['t_e2e'] / b['t_e2e']:.2f}× | "
-                 f"{rel_diff(b['freqs'], one['freqs']):.1e} |")
-    rows = [{"kind": "mesh", **mesh}] + [{"kind": "run", **r} for r in runs]
-    casework.save("modal_mpi_speed", L, rows, 2, False)
-
-
 def _s(v: float) -> str:
     return "—" if v != v else f"{v:.2f}"
 
@@ -862,9 +806,7 @@ def main() -> None:
     ap.add_argument("--render", metavar="JSON", help="only re-write the tables and plot from a saved .json")
     ap.add_argument("--speed", action="store_true", help="real modes against the fastest peer (issue #23): "
                     "26k, 87k, 260k DOFs, every code on 1 thread, interleaved repeats")
-    ap.add_argument("--mpi-speed", action="store_true", help="real modes on 1 and 2 ranks (issue #34): the "
-                    "87k-DOF disc, one thread per rank, interleaved repeats")
-    ap.add_argument("--repeats", type=int, default=3, help="--speed, --mpi-speed: repeats of each case")
+    ap.add_argument("--repeats", type=int, default=3, help="--speed: repeats of each code")
     ap.add_argument("--codes", nargs="+", help="--speed: the peers to run (GetFEM, scikit-fem, CalculiX; "
                     "default all)")
     ap.add_argument("--sizes", type=float, nargs="+", help=f"--speed: mesh sizes [m] (default {SPEED_SIZES})")
@@ -885,16 +827,6 @@ def main() -> None:
         return
     n_modes = QUICK_MODES if a.quick else N_MODES
     t_start = time.perf_counter()
-    if a.mpi_speed:
-        with contextlib.ExitStack() as stack:
-            workdir = Path(a.workdir or stack.enter_context(tempfile.TemporaryDirectory(prefix="modal_mpi_")))
-            workdir.mkdir(parents=True, exist_ok=True)
-            h = (a.sizes or [MPI_SPEED_SIZE])[0]
-            mesh, runs = run_mpi_speed(h, n_modes, a.repeats, workdir.resolve())
-        load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-        render_mpi_speed(mesh, runs, n_modes, a.repeats, load)
-        print(json.dumps({"wall_s": time.perf_counter() - t_start}), file=sys.stderr)
-        return
     if a.speed and a.render:
         rows = json.loads(Path(a.render).read_text())
         meshes = [{k: v for k, v in r.items() if k != "kind"} for r in rows if r["kind"] == "mesh"]

@@ -1,6 +1,6 @@
-"""Real modes K φ = ω² M φ: block Lanczos on CHOLMOD (one rank) or on MUMPS called directly (N ranks;
-PETSc's factorisation where the shims are missing), SLEPc's Krylov-Schur where it does not answer; the
-modes on a shared band-centre factorisation."""
+"""Real modes K φ = ω² M φ: block Lanczos on CHOLMOD (one rank) or on PETSc's factorisation (MUMPS on N
+ranks), SLEPc's Krylov-Schur where it does not answer; the modes on a shared band-centre
+factorisation."""
 from __future__ import annotations
 
 import time
@@ -12,7 +12,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 from slepc4py import SLEPc
 
-from fem_squeal.fe import cholmod, kernels, mumps
+from fem_squeal.fe import cholmod, kernels
 from fem_squeal.fe.csr import block_product, csr_view
 from fem_squeal.fe.dense import apply, block_solve, product_of
 from fem_squeal.fe.eigen.block_krylov import _block_columns, _block_lanczos, block_size
@@ -77,12 +77,8 @@ def _solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: f
     except cholmod.NotPositiveDefinite:
         # σ above the lowest mode, or a free body: neither is K − σ'M definite for σ' ≥ σ: MUMPS below
         direct, definite = None, False
-    solver = "cholmod"
-    if direct is None and b > 0:
-        direct = _mumps_block_lanczos(K, Ms, nev, sigma, tol, b, prefix, definite, lam_max)
-        solver = "mumps"
     if direct is not None:
-        rm = _checked_modes(K, Ms, *direct[:2], max_residual, solver, direct[2]["factor"], time.perf_counter(),
+        rm = _checked_modes(K, Ms, *direct[:2], max_residual, "cholmod", direct[2]["factor"], time.perf_counter(),
                             direct[2]["solve"], b) if direct[0] is not None else None
         if rm is not None:
             if Ms is not M:
@@ -212,57 +208,6 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
             factor.close()
     seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1}
     return (None, None, seconds) if got is None else (*got, seconds)
-
-
-def _mumps_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, tol: float, b: int, prefix: str,
-                         definite: bool, lam_max: float | None = None
-                         ) -> tuple[np.ndarray | None, np.ndarray | None, dict] | None:
-    """Block Lanczos (:func:`_block_lanczos`) on MUMPS's LDLᵀ of K − σM on more than one rank, called
-    directly (:class:`fem_squeal.fe.mumps.LDLT`): each rank's rows of one triangle in, SYM = 1 (no
-    pivoting) unless K − σM is known to be indefinite (``definite`` False), SYM = 2 where SYM = 1
-    meets a pivot that is not positive; the block solves on each rank's own rows (PETSc's MatMatSolve
-    gathers them on rank 0), M applied by the compiled products on each rank's rows
-    (:func:`fem_squeal.fe.dense.product_of`).  The path of more than one rank where no factorisation
-    is chosen (``<prefix>st_pc_factor_mat_solver_type``) and no MUMPS option is given
-    (``<prefix>st_mat_mumps_*``: PETSc's interface reads them).  Returns None where it does not apply
-    (one rank, another matrix type, the shim not built); else (λ, rows of the vectors, seconds), λ and
-    rows None where the Lanczos did not converge within its budget."""
-    comm = K.getComm().tompi4py()
-    if (comm.size == 1 or "aij" not in K.getType() or "aij" not in Ms.getType() or not mumps.available()
-            or user_option(f"{prefix}st_pc_factor_mat_solver_type") is not None
-            or any(k.startswith(f"{prefix}st_mat_mumps_") for k in PETSc.Options().getAll())):
-        return None
-    t0 = time.perf_counter()
-    n, rows = K.getSize()[0], K.getOwnershipRange()
-    A = _owned_rows(K, n)
-    if sigma != 0.0:
-        A = (A - sigma * _owned_rows(Ms, n)).tocsr()
-    triplets = mumps.lower_triplets(rows, (A.indptr, A.indices, A.data))
-    del A
-    factor = None
-    if definite:
-        try:
-            factor = mumps.LDLT(comm, n, rows, triplets, True)
-        except mumps.NotPositiveDefinite:
-            pass        # σ above the lowest mode, or a free body: the pivoting LDLᵀ
-    if factor is None:
-        factor = mumps.LDLT(comm, n, rows, triplets, False)
-    del triplets
-    kernels.note("factorisation", f"mumps-direct, SYM={1 if factor.definite else 2}")
-    t1 = time.perf_counter()
-    try:
-        got = _block_lanczos(factor.solve, product_of(Ms), comm, rows, n, nev, sigma, tol, b, lam_max)
-    finally:
-        factor.close()
-    seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1}
-    return (None, None, seconds) if got is None else (*got, seconds)
-
-
-def _owned_rows(A: PETSc.Mat, n: int) -> sp.csr_matrix:
-    """This rank's rows of the AIJ matrix ``A`` (global column indices) as a SciPy CSR matrix with ``n``
-    columns."""
-    indptr, indices, data = A.getValuesCSR()
-    return sp.csr_matrix((data, indices, indptr), shape=(len(indptr) - 1, n))
 
 
 def _fill_reducing_order(K: PETSc.Mat, prefix: str, definite: bool,

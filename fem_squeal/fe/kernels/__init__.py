@@ -13,8 +13,6 @@ library                what it does                                             
 ``cholmod_shim``       CHOLMOD's factorisation and solve behind plain functions  PETSc's CHOLMOD or
                        (:mod:`fem_squeal.fe.cholmod`), compiled against the      MUMPS
                        cholmod.h of the CHOLMOD it links
-``mumps_shim``         MUMPS's distributed LDLᵀ and block solves with            PETSc's MUMPS
-                       distributed right-hand sides (:mod:`fem_squeal.fe.mumps`)
 =====================  ========================================================  =======================
 
 :func:`library` gives a loaded kernel or None; :func:`status` says which were built.  Each place
@@ -31,7 +29,7 @@ from importlib.machinery import EXTENSION_SUFFIXES
 from pathlib import Path
 
 FOLDER = Path(__file__).resolve().parent
-NAMES = ("csr_block", "cell_assembly", "supernodal_solve", "cholmod_shim", "mumps_shim")
+NAMES = ("csr_block", "cell_assembly", "supernodal_solve", "cholmod_shim")
 _TALLY: Counter[tuple[str, str]] = Counter()     # (operation, path) -> times chosen in this process
 
 

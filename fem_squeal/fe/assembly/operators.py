@@ -1,17 +1,8 @@
-"""Assemble the PETSc operators of a model: K (elastic + springs), K_f, M, C, loads, interfaces.
-
-The operator is λ²M + λC + (K + K_f): ``Kf`` is stored with the sign it has in the operator.
-Volume forms are assembled into the cell sparsity pattern of K; spring and bonded interfaces
-(built from the interface operator G) add entries between bodies.  Contact interfaces are kept
-apart as :class:`~fem_squeal.fe.interface.InterfaceOperator` s: their K_c, K_f depend on which
-points are closed, which the preload decides (:func:`linearise`).  Dirichlet (clamped) DOFs
-get 1 on the diagonal of K and 0 on those of M, C, K_f and the interface matrices: they become
-infinite eigenvalues that shift-invert never returns.
-"""
+"""The model's operators on its mesh: K (elastic + springs), K_f, M, C, the loads and the interfaces
+(:func:`assemble_operators`), with the Dirichlet conditions and the point loads."""
 from __future__ import annotations
 
 import functools
-import logging
 import operator
 import time
 import warnings
@@ -23,20 +14,13 @@ from dolfinx import fem, la
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
-from ufl.algorithms.map_integrands import map_integrand_dags
-from ufl.corealg.multifunction import MultiFunction
 
 from fem_squeal.fe import c3d8r as c8r
-from fem_squeal.fe import cell_assembly, forms, hexahedra, kernels
+from fem_squeal.fe import forms, hexahedra
 from fem_squeal.fe import interface as itf
-from fem_squeal.fe.factorisation import LU, factor_solver
+from fem_squeal.fe.assembly.compiled import _add, _assemble, _block_masses, _compile, _owned_global_rows
 from fem_squeal.fe.model import Interface, ModelSpec, RigidPlate, sliding_speed, speed_friction
 from fem_squeal.util.errors import ModelError, UnknownNameError
-
-# The JIT's compiler driver logs INFO lines through the root logger: keep only warnings from it.
-logging.getLogger().addFilter(lambda rec: rec.name != "root" or rec.levelno >= logging.WARNING)
-
-JIT_PARAMS = {"cffi_extra_compile_args": ["-O2"]}
 
 
 class PlateMatrices(NamedTuple):
@@ -77,102 +61,6 @@ class Operators(NamedTuple):
         return A
 
 
-class _LiftFloats(MultiFunction):
-    """Each real literal of a form (material values, k_n, μ, ... given as Python floats) becomes a
-    ``fem.Constant`` holding it: the form's signature, which keys FFCx's compiled-form cache
-    (``~/.cache/fenics``, or ``$XDG_CACHE_HOME/fenics``), then depends on the form's structure only, so
-    a scene run with another E or μ, in this process or another, reuses the compiled code."""
-
-    expr = MultiFunction.reuse_if_untouched
-
-    def __init__(self, domain):
-        super().__init__()
-        self.domain = domain
-
-    def float_value(self, o):
-        return fem.Constant(self.domain, PETSc.ScalarType(float(o)))
-
-
-def _compile(a, quadrature_degree):
-    """JIT-compile ``a``; ``quadrature_degree`` (``discretisation.quadrature_degree``) goes into each
-    integral's metadata: FFCx 0.5 ignores it as a form-compiler parameter (it was silently unused).
-    Real literals are lifted into constants (:class:`_LiftFloats`): compiled once per form structure.
-    Not set, on a hexahedral mesh: the 2 × 2 × 2 Gauss rule on the cell integrals
-    (:mod:`~fem_squeal.fe.hexahedra`)."""
-    if quadrature_degree is not None:
-        a = ufl.Form([itg.reconstruct(metadata={"quadrature_degree": quadrature_degree, **itg.metadata()})
-                      for itg in a.integrals()])
-    else:
-        a = hexahedra.with_cell_rule(a)
-    a = map_integrand_dags(_LiftFloats(a.ufl_domain()), a)
-    return fem.form(a, form_compiler_params={}, jit_params=JIT_PARAMS)
-
-
-def _assemble(form, pattern: fem.FormMetaClass, bcs, diagonal: float, bc_dofs: np.ndarray | None = None
-              ) -> PETSc.Mat:
-    """The matrix of ``form`` on the sparsity of ``pattern``, Dirichlet rows and columns of ``bcs``
-    zero with ``diagonal`` on them.  On one rank, a cell-integral form on its own pattern goes
-    through :mod:`fem_squeal.fe.cell_assembly` (the same matrix, bit for bit, without PETSc's
-    per-entry insertion); it needs the unrolled DOFs of ``bcs`` as ``bc_dofs``."""
-    if pattern is form and (not bcs or bc_dofs is not None):
-        A = cell_assembly.assemble_matrix(form, bc_dofs if bcs else np.zeros(0, dtype=np.int32), diagonal)
-        if A is not None:
-            kernels.note("assembly", "compiled")
-            return A
-    kernels.note("assembly", "dolfinx")
-    A = fem_petsc.create_matrix(pattern)
-    fem_petsc.assemble_matrix(A, form, bcs=bcs, diagonal=diagonal)
-    A.assemble()
-    return A
-
-
-def _owned_global_rows(A: PETSc.Mat, V, local_dofs: np.ndarray) -> np.ndarray:
-    bs = V.dofmap.index_map_bs
-    n_owned = V.dofmap.index_map.size_local * bs
-    lo = A.getOwnershipRange()[0]
-    local_dofs = np.asarray(local_dofs)
-    return (local_dofs[local_dofs < n_owned] + lo).astype(PETSc.IntType)
-
-
-def _add(A: PETSc.Mat, B: PETSc.Mat, alpha: float = 1.0) -> None:
-    A.axpy(alpha, B, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-
-
-def _block_masses(V, a_scalar, quadrature_degree, weights: list[np.ndarray], bc_dofs: np.ndarray,
-                  pattern: PETSc.Mat) -> list[PETSc.Mat] | None:
-    """The vector masses M_W = M_s ⊗ W (one per b×b weight W) from ONE assembly of the scalar mass
-    M_s = ∫ ρ φ_i φ_j dx (``a_scalar``, on the scalar space of V's element): ∫ ρ (W u)·v dx has
-    the block W M_s(i, j) between nodes i and j.  W = I gives M = ∫ ρ u·v dx, W = a aᵀ the axial
-    mass ∫ ρ (u·a)(v·a) dx.  Only W's non-zero entries are stored (M: b× fewer than on K's 3×3
-    blocks), and the rows and columns of ``bc_dofs`` are left out (as a Dirichlet assembly with
-    diagonal 0 leaves them zero).  Inserting the b²× smaller element matrices of the scalar form is
-    what saves the time: 255k DOFs, P2: 0.17 s for M_s against 1.0 s for each vector mass; the
-    expansion (:func:`fem_squeal.fe.cell_assembly.kronecker`) takes 0.05 s.
-
-    None on more than one rank (the vector forms are assembled instead: the expansion of ghost
-    rows and columns failed its 2-rank check and is not used), when the scalar space does not
-    number its nodes as V numbers its blocks, or where the compiled expansion cannot be had."""
-    if V.mesh.comm.size > 1:
-        return None
-    S = fem.FunctionSpace(V.mesh, V.ufl_element().sub_elements()[0])
-    bs = V.dofmap.index_map_bs
-    if not np.array_equal(S.dofmap.list.array, V.dofmap.list.array):
-        return None
-    u, v = ufl.TrialFunction(S), ufl.TestFunction(S)
-    f = _compile(a_scalar(u, v), quadrature_degree)
-    Ms = _assemble(f, f, [], 0.0)
-    flag = np.zeros(bs * Ms.getSize()[0], dtype=bool)   # the Dirichlet DOFs
-    flag[bc_dofs] = True
-    out = [cell_assembly.kronecker(Ms, W, flag, pattern) for W in weights]
-    Ms.destroy()
-    if any(M is None for M in out):
-        for M in out:
-            if M is not None:
-                M.destroy()
-        return None
-    return out
-
-
 def _face_tag(mesh_data, face: str, present: set[int], where: str) -> int:
     if face not in mesh_data.faces:
         raise UnknownNameError(f"{where}: face {face!r} not in mesh; faces: {sorted(mesh_data.faces)}")
@@ -193,39 +81,6 @@ def build_interface(V, mesh_data, spec: ModelSpec, it: Interface) -> itf.Interfa
                                   quadrature_degree=spec.interface_quadrature_degree, name=it.name)
 
 
-def contact_matrices(ops: Operators, stiffness: dict[str, np.ndarray] | None = None,
-                     friction: bool = True) -> tuple[PETSc.Mat | None, PETSc.Mat | None]:
-    """Σ K_c and Σ K_f over the contact interfaces, zero on the clamped DOFs.
-
-    ``stiffness[name]`` is the normal stiffness dσ/dg at each quadrature point of that contact
-    (k_n where closed, 0 where open, for the linear penalty); None: k_n everywhere (all closed).
-    K_c includes the tangential penalty k_t of the points where dσ/dg > 0 (the closed ones):
-    k_t G_t₂ᵀ W G_t₂ for a sliding contact, k_t (G_t₁ᵀ W G_t₁ + G_t₂ᵀ W G_t₂) for sliding = 0.
-    K_f only for ``friction`` and interfaces with friction; None where there is nothing to add."""
-    bc_rows = _owned_global_rows(ops.K, ops.V, ops.bc_dofs)
-    total: list[PETSc.Mat | None] = [None, None]
-    for it, op in ops.contacts:
-        k = it.kn if stiffness is None else stiffness[it.name]
-        mats = [itf.contact_stiffness(op, k)]
-        if it.kt > 0:   # tangential penalty on the closed points (dσ/dg > 0), μ-independent: in K_c
-            closed = 1.0 if stiffness is None else (np.asarray(k) > 0).astype(float)
-            T = itf.tangential_stiffness(op, it.kt * closed, it.sliding != 0)
-            _add(mats[0], T)
-            T.destroy()
-        mu = it.mu if it.law is None else it.friction_coefficient(op.x)    # μ(V) at V = Ω r per point
-        mats.append(itf.friction_stiffness(op, k, mu) if friction and it.has_friction else None)
-        for j, A in enumerate(mats):
-            if A is None:
-                continue
-            A.zeroRowsColumns(bc_rows, diag=0.0)
-            if total[j] is None:
-                total[j] = A
-            else:
-                _add(total[j], A)
-                A.destroy()
-    return total[0], total[1]
-
-
 def plate_friction_fields(V, plate) -> tuple[fem.Function, fem.Function]:
     """μ(V) and dμ/dV of a rigid plate's friction law at V = Ω r, interpolated into the scalar
     Lagrange space of V's degree (the law's own ``coefficient``, not a second UFL copy of it)."""
@@ -236,31 +91,6 @@ def plate_friction_fields(V, plate) -> tuple[fem.Function, fem.Function]:
         f.interpolate(lambda x, j=j: speed_friction(plate.mu, plate.law, sliding_speed(x.T, plate.speed))[j])
         out.append(f)
     return out[0], out[1]
-
-
-def linearise(ops: Operators, active: dict[str, np.ndarray] | None = None,
-              friction: bool = True) -> Operators:
-    """Operators with the contact interfaces' K_c and K_f added for the closed points.
-
-    ``active[name]`` flags the closed quadrature points of each contact (None: all closed, the
-    linear route).  Returns new K and K_f (the inputs are not modified)."""
-    if not ops.contacts:
-        return ops
-    stiffness = None if active is None else \
-        {it.name: it.kn * active[it.name].astype(float) for it, _ in ops.contacts}
-    Kc, Fc = contact_matrices(ops, stiffness, friction)
-    K = ops.K.copy()
-    _add(K, Kc)
-    Kc.destroy()
-    Kf = ops.Kf
-    if Fc is not None:
-        if Kf is None:
-            Kf = Fc
-        else:
-            Kf = Kf.copy()
-            _add(Kf, Fc)
-            Fc.destroy()
-    return ops._replace(K=K, Kf=Kf)
 
 
 #: ν above which displacement tetrahedra of each degree are warned about (benchmarks/stress_extremes.py,
@@ -546,61 +376,6 @@ def _plate_forms(u, v, x, n, dsp, plate: RigidPlate, spec: ModelSpec, kt, mu):
     return forms.contact_form(u, v, plate.kn, n, dsp), a_t, a_f1
 
 
-class RotationMatrices(NamedTuple):
-    """Per-unit-speed operators of the parts spinning about z (:mod:`fem_squeal.fe.forms`, rotation):
-    the damping matrix is Ω G, the stiffness gains −Ω² S, the centrifugal load is Ω² f."""
-
-    G: PETSc.Mat    # skew: transport G₁ (frame "fixed") or Coriolis G_c (frame "rotating")
-    S: PETSc.Mat    # symmetric positive semi-definite: K_L ("fixed") or M_r ("rotating")
-    f: PETSc.Vec    # centrifugal load per unit Ω², 0 on the clamped DOFs
-
-
-def _part_measure(mesh_data, spec: ModelSpec, parts, where: str):
-    dx = ufl.Measure("dx", domain=mesh_data.mesh, subdomain_data=mesh_data.cell_tags)
-    for p in parts:
-        if p not in mesh_data.volumes or p not in spec.materials:
-            raise UnknownNameError(f"{where}: no part {p!r}; parts: {sorted(mesh_data.volumes)}")
-    return [(spec.materials[p], dx(mesh_data.volumes[p])) for p in parts]
-
-
-def rotation_matrices(ops: Operators, mesh_data, spec: ModelSpec, parts, frame: str = "fixed") -> RotationMatrices:
-    """G, S and f of the spinning ``parts`` (about z through the origin), per unit Ω and Ω².
-
-    ``frame`` "fixed": the transport form of a part turning under stationary observers (the disc under
-    the pads): G₁ = ∫ρ [(L u)·v − u·(L v)], S = K_L = ∫ρ (L u)·(L v), L = x ∂_y − y ∂_x.
-    ``frame`` "rotating": the co-rotating frame (CalculiX ``*COMPLEX FREQUENCY, CORIOLIS``):
-    G_c = 2∫ρ (e_z × u)·v, S = M_r = ∫ρ (u − u_z e_z)·(v − v_z e_z).  Both: f = ∫ρ (x − x_z e_z)·v.
-    Rows and columns of the clamped DOFs are zero."""
-    if frame not in ("fixed", "rotating"):
-        raise ModelError(f"frame: must be 'fixed' or 'rotating' (got {frame!r})")
-    V = ops.V
-    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    x = ufl.SpatialCoordinate(V.mesh)
-    a = fem.Constant(V.mesh, np.array([0.0, 0.0, 1.0], dtype=PETSc.ScalarType))
-    a_G = a_S = L = None
-    for mat, dxp in _part_measure(mesh_data, spec, parts, "operating.rotating_parts"):
-        if frame == "fixed":
-            g, s = forms.gyroscopic_form(u, v, mat.rho, x, dxp), forms.convective_form(u, v, mat.rho, x, dxp)
-        else:
-            g, s = forms.coriolis_form(u, v, mat.rho, a, dxp), forms.spin_softening_form(u, v, mat.rho, a, dxp)
-        lc = forms.centrifugal_load_form(v, mat.rho, x, a, dxp)
-        a_G, a_S, L = (g, s, lc) if a_G is None else (a_G + g, a_S + s, L + lc)
-    if a_G is None:
-        raise ModelError("operating.rotating_parts: no part rotates")
-    bc_rows = _owned_global_rows(ops.K, V, ops.bc_dofs)
-    mats = []
-    for form in (a_G, a_S):
-        c = _compile(form, spec.quadrature_degree)
-        A = _assemble(c, c, [], 0.0)
-        A.zeroRowsColumns(bc_rows, diag=0.0)
-        mats.append(A)
-    f = fem_petsc.assemble_vector(_compile(L, spec.quadrature_degree))
-    f.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    f.setValues(bc_rows, np.zeros(len(bc_rows)))
-    f.assemble()
-    return RotationMatrices(mats[0], mats[1], f)
-
-
 def point_load_nodes(V, loads) -> list[np.ndarray]:
     """Per load, the local (owned) block index of the DOF node at its point (empty on the ranks that do not
     own it); a point that is no node of V's on any rank is a :class:`ModelError` naming the load.  Nodes of an
@@ -642,174 +417,3 @@ def add_point_loads(f: PETSc.Vec, V, loads) -> None:
             rows = (lo + bs * int(node) + np.arange(3)).astype(PETSc.IntType)
             f.setValues(rows, np.asarray(load.force), addv=PETSc.InsertMode.ADD_VALUES)
     f.assemble()
-
-
-def direct_solver(A: PETSc.Mat, options: dict | None, prefix: str) -> PETSc.KSP:
-    """A direct solver of A, factorised (:func:`fem_squeal.fe.factorisation.factor_solver`: MUMPS LU
-    by default; PETSc options under ``prefix`` override it)."""
-    return factor_solver(A, LU, prefix, options)
-
-
-def static_displacement(K: PETSc.Mat, f: PETSc.Vec, options: dict | None = None,
-                        prefix: str = "prestress_") -> PETSc.Vec:
-    """u with K u = f (direct LU; K with the clamped rows as identity and f zero there).  Raises
-    :class:`ModelError` when the solve fails or its residual exceeds 1e-6‖f‖ (a part not held against
-    rigid-body motion under a load that is not self-equilibrated).  A free body under a self-equilibrated
-    load (the centrifugal load of a free disc) gets one solution: its rigid part carries no stress."""
-    ksp = None
-    u = K.createVecRight()
-    r = K.createVecLeft()
-    try:
-        ksp = direct_solver(K, options, prefix)
-        ksp.solve(f, u)
-        K.mult(u, r)
-        r.axpy(-1.0, f)
-        fn = f.norm()
-        bad = ksp.getConvergedReason() < 0 or not np.isfinite(u.norm()) or (fn > 0 and r.norm() > 1e-6 * fn)
-    except PETSc.Error:
-        bad = True
-    finally:
-        if ksp is not None:
-            ksp.destroy()
-        r.destroy()
-    if bad:
-        u.destroy()
-        raise ModelError("prestress: the static problem K u = f has no unique solution (is every part held "
-                         "against rigid-body motion? the centrifugal and preload stresses need it)")
-    return u
-
-
-def geometric_stiffness(ops: Operators, mesh_data, spec: ModelSpec, u0: PETSc.Vec) -> PETSc.Mat:
-    """K_σ = Σ_parts ∫ σ₀_ij ∂_i u_k ∂_j v_k dx with σ₀ = C ε(u₀) of each part's material (the initial
-    stress of the static displacement u₀); zero rows and columns on the clamped DOFs."""
-    V = ops.V
-    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    u0h = fem.Function(V)
-    n = u0.getLocalSize()
-    u0h.x.array[:n] = u0.array_r
-    u0h.x.scatter_forward()
-    a = None
-    for mat, dxp in _part_measure(mesh_data, spec, list(spec.materials), "materials"):
-        k = forms.geometric_stiffness_form(u, v, forms.material_stress(u0h, mat), forms.varying_frame_measure(
-            dxp, u, mat, spec.quadrature_degree))
-        a = k if a is None else a + k
-    c = _compile(a, spec.quadrature_degree)
-    A = _assemble(c, c, [], 0.0)
-    A.zeroRowsColumns(_owned_global_rows(ops.K, V, ops.bc_dofs), diag=0.0)
-    return A
-
-
-class OperatingTerms(NamedTuple):
-    """The disc's rotation and the stress stiffening per unit speed (issue 20 items 4–6):
-
-        C(Ω) = C₀ + Ω G,   K(Ω) = K₀ + K_f + K_σ0 + Ω² (K_σc − S).
-
-    G, S of the rotating parts in the transport form (:func:`rotation_matrices`, frame "fixed"),
-    K_σ0 = K_σ(u_static) the stress stiffening of the preload, K_σc = K_σ(u_c¹) that of the
-    centrifugal displacement per unit Ω² (K_total u_c¹ = f_c¹; K_σ is linear in u).  A term that the
-    scene does not ask for is None."""
-
-    G: PETSc.Mat | None      # gyroscopic, per unit Ω (skew)
-    S: PETSc.Mat | None      # convective stiffness K_L, per unit Ω² (enters as −Ω² S)
-    Ks0: PETSc.Mat | None    # K_σ of the preload displacement
-    Ksc: PETSc.Mat | None    # K_σ of the centrifugal displacement per unit Ω²
-    uc_max: float = 0.0      # max |u_c¹| [m per (rad/s)²]
-
-    def stiffness_per_speed2(self) -> PETSc.Mat | None:
-        """K_σc − S: the stiffness per unit Ω² (a new matrix; None without rotation)."""
-        if self.S is None:
-            return None
-        out = self.S.copy()
-        out.scale(-1.0)
-        if self.Ksc is not None:
-            _add(out, self.Ksc)
-        return out
-
-    def destroy(self) -> None:
-        for A in (self.G, self.S, self.Ks0, self.Ksc):
-            if A is not None:
-                A.destroy()
-
-
-def operating_terms(ops: Operators, mesh_data, spec: ModelSpec, *, gyroscopic: bool = False,
-                    rotating_parts=("disc",), stress_stiffening: bool = False,
-                    u_static: PETSc.Vec | None = None, options: dict | None = None) -> OperatingTerms:
-    """The :class:`OperatingTerms` of a scene: G, S of the ``rotating_parts`` when ``gyroscopic``;
-    K_σ0 when ``stress_stiffening`` (u_static the preload displacement; None: K_total u = f when there
-    is a load), and K_σc with both."""
-    G = S = Ks0 = Ksc = None
-    uc_max = 0.0
-    K = ops.K_total() if stress_stiffening else None
-    if stress_stiffening:
-        u0 = u_static.copy() if u_static is not None else None
-        if u0 is None and ops.f is not None and ops.f.norm() > 0:
-            u0 = static_displacement(K, ops.f, options)
-        if u0 is not None:
-            Ks0 = geometric_stiffness(ops, mesh_data, spec, u0)
-            u0.destroy()
-    if gyroscopic:
-        rot = rotation_matrices(ops, mesh_data, spec, list(rotating_parts), "fixed")
-        G, S = rot.G, rot.S
-        if stress_stiffening:
-            uc = static_displacement(K, rot.f, options)
-            uc_max = uc.norm(PETSc.NormType.INFINITY)
-            Ksc = geometric_stiffness(ops, mesh_data, spec, uc)
-            uc.destroy()
-        rot.f.destroy()
-    if K is not None and K is not ops.K:
-        K.destroy()
-    return OperatingTerms(G, S, Ks0, Ksc, uc_max)
-
-
-def operating_operators(ops: Operators, mesh_data, spec: ModelSpec, *, speed: float = 0.0,
-                        gyroscopic: bool = False, rotating_parts=("disc",), stress_stiffening: bool = False,
-                        u_static: PETSc.Vec | None = None, options: dict | None = None,
-                        terms: OperatingTerms | None = None) -> tuple[PETSc.Mat, PETSc.Mat | None, dict]:
-    """K and C of the CEA at speed Ω with the disc's rotation and the stress stiffening
-    (:class:`OperatingTerms`; ``terms`` given: those, else :func:`operating_terms` of the flags):
-
-        C = C₀ + Ω G,   K = K₀ + K_f + K_σ0 + Ω² (K_σc − S).
-
-    Both off: K_total() and C unchanged.  ``info``: norms of the added matrices, for the results."""
-    K, C, info = ops.K_total(), ops.C, {}
-    if terms is None and not (gyroscopic or stress_stiffening):
-        return K, C, info
-    own = terms is None
-    if own:
-        terms = operating_terms(ops, mesh_data, spec, gyroscopic=gyroscopic, rotating_parts=rotating_parts,
-                                stress_stiffening=stress_stiffening, u_static=u_static, options=options)
-    if K is ops.K:
-        K = K.copy()
-    Ks = None
-    if terms.Ks0 is not None or terms.Ksc is not None:
-        Ks = combination([(terms.Ks0, 1.0), (terms.Ksc, speed ** 2)])
-        if terms.Ksc is not None:
-            info["centrifugal_displacement_max"] = speed ** 2 * terms.uc_max
-    if terms.G is not None:
-        _add(K, terms.S, -speed ** 2)
-        info["convective_stiffness_norm"] = speed ** 2 * terms.S.norm(PETSc.NormType.FROBENIUS)
-        info["gyroscopic_norm"] = speed * terms.G.norm(PETSc.NormType.FROBENIUS)
-        if C is None:
-            C = terms.G.copy()
-            C.scale(speed)
-        else:
-            C = C.copy()
-            _add(C, terms.G, speed)
-    if Ks is not None:
-        info["geometric_stiffness_norm"] = Ks.norm(PETSc.NormType.FROBENIUS)
-        _add(K, Ks)
-        Ks.destroy()
-    if own:
-        terms.destroy()
-    return K, C, info
-
-
-def combination(terms) -> PETSc.Mat:
-    """Σ αⱼ Aⱼ over the (A, α) of ``terms`` with A not None, as a new matrix (the first's pattern
-    grown by the others')."""
-    terms = [(A, a) for A, a in terms if A is not None]
-    out = terms[0][0].copy()
-    out.scale(terms[0][1])
-    for A, a in terms[1:]:
-        _add(out, A, a)
-    return out

@@ -1,0 +1,117 @@
+"""Forms compiled by the JIT (real literals lifted into constants) and assembled into PETSc matrices with
+the Dirichlet rows and columns of the operators; the vector masses from one scalar mass."""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
+from petsc4py import PETSc
+from ufl.algorithms.map_integrands import map_integrand_dags
+from ufl.corealg.multifunction import MultiFunction
+
+from fem_squeal.fe import cell_assembly, hexahedra, kernels
+
+# The JIT's compiler driver logs INFO lines through the root logger: keep only warnings from it.
+logging.getLogger().addFilter(lambda rec: rec.name != "root" or rec.levelno >= logging.WARNING)
+
+
+JIT_PARAMS = {"cffi_extra_compile_args": ["-O2"]}
+
+
+class _LiftFloats(MultiFunction):
+    """Each real literal of a form (material values, k_n, μ, ... given as Python floats) becomes a
+    ``fem.Constant`` holding it: the form's signature, which keys FFCx's compiled-form cache
+    (``~/.cache/fenics``, or ``$XDG_CACHE_HOME/fenics``), then depends on the form's structure only, so
+    a scene run with another E or μ, in this process or another, reuses the compiled code."""
+
+    expr = MultiFunction.reuse_if_untouched
+
+    def __init__(self, domain):
+        super().__init__()
+        self.domain = domain
+
+    def float_value(self, o):
+        return fem.Constant(self.domain, PETSc.ScalarType(float(o)))
+
+
+def _compile(a, quadrature_degree):
+    """JIT-compile ``a``; ``quadrature_degree`` (``discretisation.quadrature_degree``) goes into each
+    integral's metadata: FFCx 0.5 ignores it as a form-compiler parameter (it was silently unused).
+    Real literals are lifted into constants (:class:`_LiftFloats`): compiled once per form structure.
+    Not set, on a hexahedral mesh: the 2 × 2 × 2 Gauss rule on the cell integrals
+    (:mod:`~fem_squeal.fe.hexahedra`)."""
+    if quadrature_degree is not None:
+        a = ufl.Form([itg.reconstruct(metadata={"quadrature_degree": quadrature_degree, **itg.metadata()})
+                      for itg in a.integrals()])
+    else:
+        a = hexahedra.with_cell_rule(a)
+    a = map_integrand_dags(_LiftFloats(a.ufl_domain()), a)
+    return fem.form(a, form_compiler_params={}, jit_params=JIT_PARAMS)
+
+
+def _assemble(form, pattern: fem.FormMetaClass, bcs, diagonal: float, bc_dofs: np.ndarray | None = None
+              ) -> PETSc.Mat:
+    """The matrix of ``form`` on the sparsity of ``pattern``, Dirichlet rows and columns of ``bcs``
+    zero with ``diagonal`` on them.  On one rank, a cell-integral form on its own pattern goes
+    through :mod:`fem_squeal.fe.cell_assembly` (the same matrix, bit for bit, without PETSc's
+    per-entry insertion); it needs the unrolled DOFs of ``bcs`` as ``bc_dofs``."""
+    if pattern is form and (not bcs or bc_dofs is not None):
+        A = cell_assembly.assemble_matrix(form, bc_dofs if bcs else np.zeros(0, dtype=np.int32), diagonal)
+        if A is not None:
+            kernels.note("assembly", "compiled")
+            return A
+    kernels.note("assembly", "dolfinx")
+    A = fem_petsc.create_matrix(pattern)
+    fem_petsc.assemble_matrix(A, form, bcs=bcs, diagonal=diagonal)
+    A.assemble()
+    return A
+
+
+def _owned_global_rows(A: PETSc.Mat, V, local_dofs: np.ndarray) -> np.ndarray:
+    bs = V.dofmap.index_map_bs
+    n_owned = V.dofmap.index_map.size_local * bs
+    lo = A.getOwnershipRange()[0]
+    local_dofs = np.asarray(local_dofs)
+    return (local_dofs[local_dofs < n_owned] + lo).astype(PETSc.IntType)
+
+
+def _add(A: PETSc.Mat, B: PETSc.Mat, alpha: float = 1.0) -> None:
+    A.axpy(alpha, B, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+
+
+def _block_masses(V, a_scalar, quadrature_degree, weights: list[np.ndarray], bc_dofs: np.ndarray,
+                  pattern: PETSc.Mat) -> list[PETSc.Mat] | None:
+    """The vector masses M_W = M_s ⊗ W (one per b×b weight W) from ONE assembly of the scalar mass
+    M_s = ∫ ρ φ_i φ_j dx (``a_scalar``, on the scalar space of V's element): ∫ ρ (W u)·v dx has
+    the block W M_s(i, j) between nodes i and j.  W = I gives M = ∫ ρ u·v dx, W = a aᵀ the axial
+    mass ∫ ρ (u·a)(v·a) dx.  Only W's non-zero entries are stored (M: b× fewer than on K's 3×3
+    blocks), and the rows and columns of ``bc_dofs`` are left out (as a Dirichlet assembly with
+    diagonal 0 leaves them zero).  Inserting the b²× smaller element matrices of the scalar form is
+    what saves the time: 255k DOFs, P2: 0.17 s for M_s against 1.0 s for each vector mass; the
+    expansion (:func:`fem_squeal.fe.cell_assembly.kronecker`) takes 0.05 s.
+
+    None on more than one rank (the vector forms are assembled instead: the expansion of ghost
+    rows and columns failed its 2-rank check and is not used), when the scalar space does not
+    number its nodes as V numbers its blocks, or where the compiled expansion cannot be had."""
+    if V.mesh.comm.size > 1:
+        return None
+    S = fem.FunctionSpace(V.mesh, V.ufl_element().sub_elements()[0])
+    bs = V.dofmap.index_map_bs
+    if not np.array_equal(S.dofmap.list.array, V.dofmap.list.array):
+        return None
+    u, v = ufl.TrialFunction(S), ufl.TestFunction(S)
+    f = _compile(a_scalar(u, v), quadrature_degree)
+    Ms = _assemble(f, f, [], 0.0)
+    flag = np.zeros(bs * Ms.getSize()[0], dtype=bool)   # the Dirichlet DOFs
+    flag[bc_dofs] = True
+    out = [cell_assembly.kronecker(Ms, W, flag, pattern) for W in weights]
+    Ms.destroy()
+    if any(M is None for M in out):
+        for M in out:
+            if M is not None:
+                M.destroy()
+        return None
+    return out

@@ -174,9 +174,8 @@ class AffineOperator:
             with np.errstate(all="ignore"):
                 c = t.coefficient(values)
             if not np.all(np.isfinite(c)):
-                at = ", ".join(f"{k} = {values[k]}" for k in sorted(t.parameters))
                 raise ModelError(f"{self.name}: the coefficient {t.text} of {t.matrix} is not a finite number at "
-                                 f"{at or 'every point'}")
+                                 f"{_first_bad_point(values, t.parameters, c) or 'every point'}")
             out.append(c)
         return out
 
@@ -195,7 +194,8 @@ class AffineOperator:
                 d = t.derivative(values, name)
             if not np.all(np.isfinite(d)):
                 raise ModelError(f"{self.name}: the derivative of the coefficient {t.text} of {t.matrix} with "
-                                 f"respect to {name} is not a finite number at {name} = {values[name]}")
+                                 f"respect to {name} is not a finite number at "
+                                 f"{_first_bad_point(values, t.parameters | {name}, d)}")
             out.append(d)
         return out
 
@@ -225,3 +225,16 @@ class AffineOperator:
             simple = t.text.isidentifier() or t.text.replace(".", "", 1).isdigit()
             return f"{t.text}*{t.matrix}" if simple else f"({t.text})*{t.matrix}"
         return " + ".join(factor(t) for t in self.terms)
+
+
+def _first_bad_point(values: Mapping[str, Any], names, c) -> str:
+    """``"W = 0.0"``: each of the parameters ``names`` at the first point where the (possibly vectorised)
+    value ``c`` is not finite, for a one-line error message."""
+    c = np.asarray(c)
+    i = int(np.flatnonzero(~np.isfinite(c))[0]) if c.ndim else 0
+    at = []
+    for k in sorted(names):
+        v = np.asarray(values[k], float)
+        x = v.ravel()[min(i, v.size - 1)] if v.shape != c.shape else v.ravel()[i]
+        at.append(f"{k} = {float(x)!r}")
+    return ", ".join(at)

@@ -99,6 +99,11 @@ BAD = [
      r"matrices.parameters.W: the value 5.0 is outside its range"),
     ("not finite", lambda r: r["matrices"]["parameters"].update(W=0.0), SceneError,
      r"matrices.C: the coefficient 1.0 / W - 1.0 of DR is not a finite number at W = 0.0"),
+    # a vectorised check over the sweep's values names the first bad one, on one line (hypothesis found the
+    # whole array printed over several lines)
+    ("sweep through a pole", lambda r: (r["matrices"]["parameters"].update(W=1.0),
+                                        r["analyses"]["sweep"].update(range=[0.0, 1.0])), SceneError,
+     r"^analyses.sweep.range: matrices.C: the coefficient 1.0 / W - 1.0 of DR is not a finite number at W = 0.0$"),
     ("geometry", lambda r: r.update(geometry={"builder": "annular_disc"}), SceneError,
      r"geometry: not used by a model given as matrices"),
     ("analysis", lambda r: r["analyses"].update(transient={}), SceneError,

@@ -622,7 +622,7 @@ def prepare(path: str | Path, *, parts: dict[str, list], faces: dict[str, list],
         info["hexahedra"] = {"path": route, "reason": reason}
         if route == "native":
             rule, why = integration_rule(types[0], raw.element_types)
-            info["hexahedra"].update(integration=rule, integration_reason=why)
+            info["hexahedra"].update(element=types[0], integration=rule, integration_reason=why)
     return mapped, info
 
 

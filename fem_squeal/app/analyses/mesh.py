@@ -48,7 +48,8 @@ def spec_for_hexahedra(spec, hexahedra: dict):
             and spec.degree == 1 and spec.quadrature_degree is None):
         return dataclasses.replace(spec, c3d8r=True)
     if (spec is None or hexahedra.get("path") != "native" or hexahedra.get("integration") != "full"
-            or spec.degree != 2 or spec.quadrature_degree is not None):
+            or hexahedra.get("element") != "hexahedron20" or spec.degree != 2
+            or spec.quadrature_degree is not None):
         return spec
     from fem_squeal.fe.hexahedra import GAUSS_3X3X3  # heavy: FE stack
 

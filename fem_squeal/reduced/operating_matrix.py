@@ -234,7 +234,7 @@ def condition_fixed_point(model: ReducedModel, point: Mapping[str, float], direc
                           loss: LossFactors, temperature: float) -> tuple[np.ndarray, FixedPointResult]:
     """One condition with frequency-dependent loss factors (the tables that do not vary with f: η_p(T),
     plain parameters): the start solve with every other table at its reference frequency (η_p(f_ref, T)),
-    then the fixed point in frequency of the modes in the band
+    then the fixed point in frequency of the modes in the band (rigid-body modes, f < 10⁻³ × its top, aside)
     (:func:`~fem_squeal.reduced.loss_fixed_point.fixed_point`).  Returns the m eigenvalues (those of the
     band at their fixed point, the others from the start solve) and the fixed point's result."""
     varying = loss.in_frequency()
@@ -250,7 +250,9 @@ def condition_fixed_point(model: ReducedModel, point: Mapping[str, float], direc
     lam, Y = quadratic_eigs(K[None], None if C is None else C[None], vectors=True)
     lam, Y = lam[0], Y[0]
     f = lam.imag / TWO_PI
-    modes = np.flatnonzero((f >= loss.band_hz[0]) & (f <= loss.band_hz[1]))
+    # rigid-body modes of free parts (λ ≈ 0, below 1e-3 of the band's top) keep the start value: a
+    # frequency of round-off has no loss factor to follow (the ring's three took 50 iterations each)
+    modes = np.flatnonzero((f >= max(loss.band_hz[0], 1e-3 * loss.band_hz[1])) & (f <= loss.band_hz[1]))
     res = fixed_point(matrices, laws, lam, Y, modes, tol=loss.tol, max_iterations=loss.max_iterations)
     out = lam.copy()
     out[modes] = res.eigenvalues

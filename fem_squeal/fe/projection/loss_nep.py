@@ -12,12 +12,15 @@ with the fixed shift σ = λ₀:
                                         frozen, solved by the fixed point in f of the scalar problem)
     x_{k+1} = x_k − T(σ)⁻¹ T(λ_{k+1}) x_k,  scaled to cᴴx_{k+1} = 1
 
-until |λ_{k+1} − λ_k| ≤ tol |λ_{k+1}|; T's dependence on |Im λ| is not holomorphic, but the iteration
-needs only T(λ) at the iterates and one factorisation at σ.  PETSc here has real scalars: T(σ) = A_r + iA_i
-is factorised as its real equivalent [[A_r, −A_i], [A_i, A_r]] of twice the size (as
-:meth:`ParametricOperators.real_equivalent`), whose transpose is the real equivalent of T(σ)ᴴ.
-The answer is certified by the backward error ‖T(λ)x‖ / ((|λ|²‖M‖ + |λ|‖C‖ + ‖K_r‖)‖x‖) (∞-norms of
-the matrices) with η at the answer's own frequency.
+until |λ_{k+1} − λ_k| ≤ tol |λ_{k+1}|.  Without a start vector (a check that takes only the reduced
+eigenvalue λ₀, not its lifted vector) x₀ = T(σ)⁻¹T(σ)⁻¹b, two inverse-iteration steps from a
+pseudo-random b of fixed seed: with σ within δ of an eigenvalue, the other eigenvectors' parts shrink
+by (δ/gap)², and the pair converged to does not depend on b beyond the tolerance.  T's dependence
+on |Im λ| is not holomorphic, but the iteration needs only T(λ) at the iterates and one factorisation at σ.
+PETSc here has real scalars: T(σ) = A_r + iA_i is factorised as its real equivalent [[A_r, −A_i], [A_i, A_r]] of
+twice the size (as :meth:`ParametricOperators.real_equivalent`), whose transpose is the real equivalent of
+T(σ)ᴴ. The answer is certified by the backward error ‖T(λ)x‖ / ((|λ|²‖M‖ + |λ|‖C‖ + ‖K_r‖)‖x‖) (∞-norms of the
+matrices) with η at the answer's own frequency.
 """
 from __future__ import annotations
 
@@ -66,19 +69,36 @@ def _scalar_root(a2: complex, a1: complex, a0: complex, ap: dict[str, complex],
     return lam
 
 
+def _start_vector(comm, n_local: int, seed: int = 39) -> np.ndarray:
+    """The rank-local rows of a pseudo-random complex vector of fixed seed (drawn over the global size)."""
+    first = comm.exscan(n_local) or 0
+    n = comm.allreduce(n_local, op=MPI.SUM)
+    rng = np.random.default_rng(seed)
+    b = rng.standard_normal(n) + 1j * rng.standard_normal(n)
+    return b[first:first + n_local]
+
+
 def full_loss_nep(par: ParametricOperators, point: Mapping[str, float],
-                  laws: Mapping[str, Callable[[float], float]], lam0: complex, x0: np.ndarray, *,
+                  laws: Mapping[str, Callable[[float], float]], lam0: complex, x0: np.ndarray | None = None, *,
                   tol: float = 1e-12, max_iterations: int = 60, options=None,
-                  prefix: str = "loss_nep_") -> NEPResult:
+                  prefix: str = "loss_nep_", reverse: bool = False) -> NEPResult:
     """The eigenpair of T(λ) (module docstring) near (``lam0``, ``x0``): ``point`` the parameters (its
-    ``eta.<p>`` of the table parts are ignored), ``laws`` part → η_p(f) (the tables at one temperature),
-    ``x0`` the start vector's rank-local rows (complex)."""
+    ``eta.<p>`` of the table parts are ignored: their loss is η_p(f) alone, not added to a nominal η),
+    ``laws`` part → η_p(f) (the tables at one temperature),
+    ``x0`` the start vector's rank-local rows (complex; None: inverse iteration at ``lam0`` from a fixed
+    vector).  ``reverse``: the disc turning the other way, C(−Ω) = C(|Ω|) − 2|Ω|G (the gyroscopic term
+    turned; the friction's direction is the sign of μ in ``point``)."""
     unknown = sorted(p for p in laws if p not in par.parts)
     if unknown:
         raise ModelError(f"loss-factor NEP: no stiffness of part(s) {unknown} (parts: {par.parts})")
-    point = {k: v for k, v in point.items() if not any(k == eta_param(p) for p in laws)}
+    # the table parts' loss enters through ``laws`` only: η = 0 in the fixed terms (not dropped from the
+    # point, where the part's nominal η, a scene material's, would be added a second time)
+    point = {**point, **{eta_param(p): 0.0 for p in laws}}
     comm = par.ops.K.getComm().tompi4py()
     Kt, Ct = par.terms(point)
+    G = par.operating.G if par.operating is not None else None
+    if reverse and G is not None:
+        Ct = [(A, -c if A is G else c) for A, c in Ct]
     Kr = combination(Kt)
     C = combination(Ct) if Ct else None
     M = par.ops.M
@@ -120,13 +140,17 @@ def full_loss_nep(par: ParametricOperators, point: Mapping[str, float],
     A2 = _block_matrix([[(Ar, 1.0), (Ai, -1.0)], [(Ai, 1.0), (Ar, 1.0)]], Kr)
     ksp = factor_solver(A2, LU, prefix, options)
     b, z = A2.createVecs()
-    n = x0.shape[0]
+    n = M.getLocalSize()[0]
 
     def solve(r: np.ndarray, transpose: bool = False) -> np.ndarray:
         b.array[:n], b.array[n:] = r.real, r.imag
         (ksp.solveTranspose if transpose else ksp.solve)(b, z)
         return z.array_r[:n] + 1j * z.array_r[n:]
 
+    if x0 is None:
+        x0 = solve(_start_vector(comm, n))
+        x0 = solve(x0 / np.sqrt(dot(x0, x0).real))
+        x0 = x0 / np.sqrt(dot(x0, x0).real)
     c = np.asarray(x0, complex)
     x = c / dot(c, c)
     w = solve(c, transpose=True)

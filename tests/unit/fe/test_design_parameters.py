@@ -220,7 +220,8 @@ def test_full_order_sensitivities_match_finite_differences_of_full_ceas():
 def test_full_nonlinear_eigenproblem_of_a_loss_factor_table_from_the_reduced_fixed_point():
     """η(f) on 'lower' (issue 39, shims): the full NEP T(λ) = λ²M + λC + K + iη(|Im λ|/2π)K_lower by residual
     inverse iteration on the real form of twice the size, started from the lifted reduced fixed point,
-    converges to a backward error at round-off; with a constant law it is the linear QEP, whose eigenvalue
+    converges to a backward error at round-off (from the reduced eigenvalue alone too, to the same pair);
+    with a constant law it is the linear QEP, whose eigenvalue
     SLEPc's real-equivalent CEA (full_modes) gives too; the reduced fixed point lies within this 1500 Hz
     basis' tolerance (1e-6 with a richer basis: benchmarks/loss_factor_nep.py)."""
     from fem_squeal.fe.dense import matmul_f
@@ -248,6 +249,18 @@ def test_full_nonlinear_eigenproblem_of_a_loss_factor_table_from_the_reduced_fix
     assert nep.converged and nep.backward_error < 1e-14
     assert abs(nep.eigenvalue - lr) <= 1e-3 * abs(lr)
     assert abs(nep.eigenvalue.imag / (2 * np.pi) - lr.imag / (2 * np.pi)) < 1.0
+    # from the reduced eigenvalue alone (inverse iteration at it: the operating matrix's corner checks)
+    alone = full_loss_nep(par, {}, {"lower": law}, lr)
+    assert alone.converged and alone.backward_error < 1e-14
+    assert abs(alone.eigenvalue - nep.eigenvalue) <= 1e-11 * abs(nep.eigenvalue)
+    # a part whose material also has a nominal η (a scene's eta_table material): the table alone damps it
+    # (the nominal η was once added on top, and the NEP converged to a point of neither problem)
+    par.eta0["lower"] = 0.03
+    try:
+        nominal = full_loss_nep(par, {}, {"lower": law}, lr)
+    finally:
+        par.eta0["lower"] = 0.0
+    assert abs(nominal.eigenvalue - nep.eigenvalue) <= 1e-11 * abs(nep.eigenvalue)
     const = full_loss_nep(par, {}, {"lower": lambda f: 0.05}, lr, x0)
     ref = full_modes(par, {"eta.lower": 0.05}, 4, lr.imag / (2 * np.pi), band_hz=band)
     assert const.converged and np.min(np.abs(ref - const.eigenvalue)) <= 1e-9 * abs(const.eigenvalue)

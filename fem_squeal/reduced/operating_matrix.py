@@ -42,6 +42,7 @@ from fem_squeal.reduced.eigensolve import TWO_PI, quadratic_eigs, unstable
 from fem_squeal.reduced.laws.friction import operating_mu
 from fem_squeal.reduced.laws.loss_factor import LossTable
 from fem_squeal.reduced.loss_fixed_point import FixedPointResult, fixed_point
+from fem_squeal.reduced.mode_coupling import basis_modes, coupling_of
 from fem_squeal.reduced.model import ReducedModel
 from fem_squeal.reduced.squeal_index import third_octave_bands
 from fem_squeal.util.errors import ModelError
@@ -313,6 +314,41 @@ def unstable_modes(res: MatrixResult, band_hz: tuple[float, float], growth_tol: 
             out.append({"condition": k, "frequency_hz": float(f[j]), "growth_rate": float(lam[j].real),
                         "damping_ratio": float(-lam[j].real / abs(lam[j]))})
     return out
+
+
+def mode_couplings(model: ReducedModel, res: MatrixResult, points: Mapping[str, np.ndarray], modes: list[dict],
+                   loss: LossFactors | None = None, comm=None) -> None:
+    """Adds to each unstable mode of :func:`unstable_modes` its ``coupling``: the participation of the
+    basis's real modes (the nominal frictionless modes, as the μ sweep's, :func:`fem_squeal.reduced.
+    mode_coupling.basis_modes`) in its eigenvector at its condition (η at its own frequency where a table
+    varies with f), by inverse iteration at its eigenvalue (:func:`~fem_squeal.reduced.mode_coupling.
+    coupling_of`: one m × m LU a mode; the modes dealt round-robin over the ranks of ``comm``, each computed
+    alone, so the same bits on any number).  Nothing where the model carries no real modes (info['modes'])."""
+    n_modes = int(model.info.get("modes", 0))
+    if not n_modes or not modes:
+        return
+    real = basis_modes(model.K0, n_modes)
+    cond = res.conditions
+    varying = loss.in_frequency() if loss is not None else {}
+    if loss is not None:
+        points = {**points, **loss.constant_in_frequency(cond.temperature)}
+    cache: dict[tuple, tuple[np.ndarray, np.ndarray | None]] = {}
+    size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
+    mine = {}
+    for i in range(rank, len(modes), size):
+        row = modes[i]
+        k = row["condition"]
+        eta = {eta_param(p): float(t.value(row["frequency_hz"], cond.temperature[k])) for p, t in varying.items()}
+        key = (k, *eta.values())
+        if key not in cache:      # the matrices once a condition (and η)
+            point = {n: float(np.asarray(v).reshape(-1)[k]) for n, v in points.items()}
+            cache = {key: matrices_at(model, {**point, **eta}, cond.direction[k])}
+        K, C = cache[key]
+        mine[i] = coupling_of(K, C, complex(row["growth_rate"], TWO_PI * row["frequency_hz"]), real)
+    if size > 1:
+        mine = {i: c for part in comm.allgather(mine) for i, c in part.items()}
+    for i, c in mine.items():
+        modes[i]["coupling"] = c
 
 
 def noise_matrix(res: MatrixResult, band_hz: tuple[float, float], growth_tol: float) -> dict:

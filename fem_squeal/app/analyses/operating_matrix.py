@@ -14,8 +14,9 @@ otherwise).  Parts with a loss-factor table ``materials.<part>.eta_table`` η(f,
 temperature, per band mode at its own frequency (fixed point; ``loss_factor_fixed_point`` in results.json:
 iterations, modes not converged).  ``verify``: full CEAs at the corner conditions, compared as
 analyses.reduced compares its check points.
-Files: operating_matrix_conditions.csv, operating_matrix_modes.csv, operating_matrix_bands.csv,
-operating_matrix.png (+ its .csv)."""
+Every unstable mode carries its coupling (the participation of the basis's real modes, as the μ sweep's).
+Files: operating_matrix_conditions.csv, operating_matrix_modes.csv (with the coupling pair),
+operating_matrix_bands.csv, operating_matrix.png (+ its .csv)."""
 from __future__ import annotations
 
 import time
@@ -53,6 +54,7 @@ from fem_squeal.reduced.operating_matrix import (
     evaluate,
     factorial,
     from_table,
+    mode_couplings,
     noise_matrix,
     parameter_points,
 )
@@ -378,9 +380,10 @@ def _write_tables(work: Path, res, mus: dict, noise: dict) -> None:
     write_csv_atomic(work / "operating_matrix_conditions.csv", head, cols)
     m = noise["modes"]
     write_csv_atomic(work / "operating_matrix_modes.csv",
-                     ["condition", "frequency_hz", "growth_rate", "damping_ratio"],
-                     [np.array([r[k] for r in m], float) for k in ("condition", "frequency_hz", "growth_rate",
-                                                                    "damping_ratio")])
+                     ["condition", "frequency_hz", "growth_rate", "damping_ratio", "coupling"],
+                     [*(np.array([r[k] for r in m], float) for k in ("condition", "frequency_hz", "growth_rate",
+                                                                      "damping_ratio")),
+                      np.array([r["coupling"]["label"] if "coupling" in r else "" for r in m], dtype=object)])
     b = noise["third_octave"]
     write_csv_atomic(work / "operating_matrix_bands.csv",
                      ["band_hz", "lower_hz", "upper_hz", "conditions", "occurrence", "in_model_band"],
@@ -414,6 +417,9 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     res = evaluate(model, cond, points, ctx.comm, loss=loss)
     timings[NAME] = res.seconds
     noise = noise_matrix(res, band, gt)
+    t = time.perf_counter()
+    mode_couplings(model, res, points, noise["modes"], loss, ctx.comm)
+    timings[f"{NAME}_coupling"] = time.perf_counter() - t
     out: dict[str, Any] = {"conditions": [cond.row(k) for k in range(cond.size)], "band_hz": list(band),
                            "seconds": res.seconds, "seconds_per_condition": res.seconds * res.ranks / cond.size,
                            "mu": {n: v.tolist() for n, v in mus.items()}, **noise,
@@ -476,10 +482,12 @@ def report(res: dict) -> str:
     for k, c in enumerate(r["conditions"]):
         ms = modes.get(k, [])
         crow.append([k, c["pressure"], c["temperature"], c["speed"], c["direction"], len(ms),
-                     ", ".join(f"{m['frequency_hz']:.0f} Hz ({m['growth_rate']:.3g}/s)" for m in ms) or "—"])
+                     ", ".join(f"{m['frequency_hz']:.0f} Hz ({m['growth_rate']:.3g}/s"
+                               + (f"; {m['coupling']['label']}" if "coupling" in m else "") + ")"
+                               for m in ms) or "—"])
     txt += "<h3>Unstable modes per condition</h3>" + _table(
         ["condition", "p [× loads.pressure]", "T [°C]", "|Ω| [rad/s]", "direction", "unstable",
-         "f (growth rate Re λ)"], crow)
+         "f (growth rate Re λ; the real modes of the basis that couple)"], crow)
     if r.get("pressure"):
         txt += ("<h3>Pressures</h3><p>" + _e(r["pressure"]["model"]) + ".</p>" + _table(
             ["p [× loads.pressure]", "Newton iterations", "factorisations", "seconds", "closed points",

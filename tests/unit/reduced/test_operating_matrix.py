@@ -152,6 +152,64 @@ def test_noise_matrix_counts_by_band_and_variable():
     assert m["frequency_hz"] == pytest.approx(np.sqrt(lam2).imag / (2 * np.pi), rel=1e-9)
 
 
+def test_unstable_modes_carry_their_coupling_pair():
+    """Above flutter, (λ² + W1²)y₁ + μa y₂ = 0 with |λ² + W1²| = μ(W2² − W1²) = μa: |y₁| = |y₂|, the two real
+    modes at 50 % each, for every μ; nothing outside (the two modes span the model).  The inverse-iteration
+    vector gives the participations of the full eigenvector matrix to 1e-10."""
+    import dataclasses
+
+    from fem_squeal.reduced.mode_coupling import basis_modes, modal_part, participation
+    from fem_squeal.reduced.operating_matrix import mode_couplings
+
+    model = dataclasses.replace(flutter_model(), info={"modes": 2})
+    law = InterfaceLaw(TableFriction([0.0, 300.0], [0.0], [[0.9], [0.3]]))
+    cond = factorial([1.0], [0.0, 100.0, 150.0], [0.0], ["forward", "reverse"])     # μ 0.9, 0.7, 0.6
+    pts = parameter_points(model, cond, {}, law)
+    res = evaluate(model, cond, pts)
+    noise = noise_matrix(res, (0.0, 10000.0), 1e-6)
+    mode_couplings(model, res, pts, noise["modes"])
+    assert len(noise["modes"]) == 6
+    freqs, V = basis_modes(model.K0, 2)
+    for m in noise["modes"]:
+        c = m["coupling"]
+        assert sorted(c["real_modes"]) == [0, 1] and c["percent"] == pytest.approx([50.0, 50.0], abs=1e-8)
+        assert abs(c["outside"]) < 1e-12 and c["label"] == "real modes 0 (50 %) and 1 (50 %)"
+        K, C = matrices_at(model, {n: v[m["condition"]] for n, v in pts.items()}, res.conditions.direction[
+            m["condition"]])
+        lam, Y = quadratic_eigs(K[None], None, vectors=True)
+        j = np.argmin(np.abs(lam[0] - complex(m["growth_rate"], 2 * np.pi * m["frequency_hz"])))
+        p, _ = participation(V.T @ modal_part(Y[0][:, [j]], 2)[0], np.ones(1))
+        assert np.sort(p[:, 0]) == pytest.approx(np.sort(c["percent"]), abs=1e-10)
+
+
+def signature() -> dict:
+    """The couplings of the spinning model's unstable modes on the ranks of COMM_WORLD (an ``mpirun -n 2``
+    child of :func:`test_couplings_do_not_depend_on_the_rank_count`, or this process)."""
+    import dataclasses
+
+    from mpi4py import MPI
+
+    from fem_squeal.reduced.operating_matrix import mode_couplings
+
+    model = dataclasses.replace(spinning_model(), info={"modes": 4})
+    law = InterfaceLaw(TableFriction([0.0, 400.0], [0.0, 200.0], [[0.9, 0.7], [0.8, 0.6]]))
+    cond = factorial([1.0], [20.0, 380.0], [10.0, 150.0], ["forward", "reverse"])
+    pts = parameter_points(model, cond, {}, law)
+    res = evaluate(model, cond, pts, MPI.COMM_WORLD)
+    modes = noise_matrix(res, (0.0, 1e5), 1e-6)["modes"]
+    mode_couplings(model, res, pts, modes, comm=MPI.COMM_WORLD)
+    return {"percent": [m["coupling"]["percent"] for m in modes], "pairs": [m["coupling"]["pair"] for m in modes]}
+
+
+@pytest.mark.mpi
+def test_couplings_do_not_depend_on_the_rank_count(mpirun, tmp_path):
+    from support.ranks import two_rank_signature
+
+    one = signature()
+    assert len(one["pairs"]) >= 2
+    assert two_rank_signature(mpirun, "test_operating_matrix", tmp_path / "two.json") == one
+
+
 def test_a_condition_does_not_depend_on_the_others():
     """Each condition is solved alone: any subset (a rank's share) gives the same bits."""
     model = spinning_model()

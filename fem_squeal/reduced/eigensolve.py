@@ -58,6 +58,17 @@ def quadratic_eigs(K: np.ndarray, C: np.ndarray | None = None, vectors: bool = F
     return lam, Y
 
 
+#: a band's elastic modes start at this share of its top: below it sit the rigid-body modes of free parts
+#: (λ ≈ 0, f of round-off), where a relative error or a growth rate Re λ > growth_tol|λ| means nothing
+RIGID_SHARE = 1e-3
+
+
+def in_band(lam: np.ndarray, band_hz) -> np.ndarray:
+    """The mask of eigenvalues with f = Im λ/2π in ``band_hz``, above :data:`RIGID_SHARE` of its top."""
+    f = np.asarray(lam).imag / TWO_PI
+    return (f >= max(band_hz[0], RIGID_SHARE * band_hz[1])) & (f <= band_hz[1])
+
+
 def unstable(lam: np.ndarray, growth_tol: float = 1e-6) -> np.ndarray:
     """Re λ > growth_tol·|λ| (i.e. damping ratio ζ < −growth_tol).
 

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fem_squeal.reduced.affine import MU, SPEED, eta_param
-from fem_squeal.reduced.eigensolve import TWO_PI, quadratic_eigs, unstable
+from fem_squeal.reduced.eigensolve import TWO_PI, in_band, quadratic_eigs, unstable
 from fem_squeal.reduced.laws.friction import operating_mu
 from fem_squeal.reduced.laws.loss_factor import LossTable
 from fem_squeal.reduced.loss_fixed_point import FixedPointResult, fixed_point
@@ -250,10 +250,9 @@ def condition_fixed_point(model: ReducedModel, point: Mapping[str, float], direc
     K, C = matrices(ref)
     lam, Y = quadratic_eigs(K[None], None if C is None else C[None], vectors=True)
     lam, Y = lam[0], Y[0]
-    f = lam.imag / TWO_PI
     # rigid-body modes of free parts (λ ≈ 0, below 1e-3 of the band's top) keep the start value: a
     # frequency of round-off has no loss factor to follow (the ring's three took 50 iterations each)
-    modes = np.flatnonzero((f >= max(loss.band_hz[0], 1e-3 * loss.band_hz[1])) & (f <= loss.band_hz[1]))
+    modes = np.flatnonzero(in_band(lam, loss.band_hz))
     res = fixed_point(matrices, laws, lam, Y, modes, tol=loss.tol, max_iterations=loss.max_iterations)
     out = lam.copy()
     out[modes] = res.eigenvalues
@@ -304,12 +303,13 @@ def _max_op():
 
 
 def unstable_modes(res: MatrixResult, band_hz: tuple[float, float], growth_tol: float) -> list[dict]:
-    """Every unstable mode (Re λ > growth_tol |λ|) in ``band_hz`` of every condition: condition index,
+    """Every unstable mode (Re λ > growth_tol |λ|) in ``band_hz`` (rigid-body modes aside,
+    :func:`~fem_squeal.reduced.eigensolve.in_band`) of every condition: condition index,
     frequency f = Im λ/2π [Hz], growth rate σ = Re λ [1/s] and damping ratio ζ = −Re λ/|λ|."""
     out = []
     for k, lam in enumerate(res.eigenvalues):
         f = lam.imag / TWO_PI
-        keep = unstable(lam, growth_tol) & (f >= band_hz[0]) & (f <= band_hz[1])
+        keep = unstable(lam, growth_tol) & in_band(lam, band_hz)
         for j in np.flatnonzero(keep)[np.argsort(f[keep])]:
             out.append({"condition": k, "frequency_hz": float(f[j]), "growth_rate": float(lam[j].real),
                         "damping_ratio": float(-lam[j].real / abs(lam[j]))})

@@ -41,7 +41,7 @@ from fem_squeal.app.html import escape as _e
 from fem_squeal.app.html import num as _num
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
-from fem_squeal.reduced.eigensolve import TWO_PI, unstable
+from fem_squeal.reduced.eigensolve import TWO_PI, in_band, unstable
 from fem_squeal.reduced.laws.friction import ConstantFriction, StribeckFriction, TableFriction
 from fem_squeal.reduced.laws.loss_factor import loss_table
 from fem_squeal.reduced.operating_matrix import (
@@ -302,13 +302,10 @@ def _nep_corner(par, point: dict, laws: dict, reverse: bool, lam_r: np.ndarray, 
     ``laws`` at each answer's own frequency) from each watched reduced eigenvalue alone (inverse iteration
     at it: no reduced vector enters the check): the unstable ones and the :data:`NEP_LEAST_STABLE` least
     stable (largest Re λ/|λ|), so that a mode the reduced model holds barely stable is solved too.
-    Rigid-body modes (f below 1e-3 of the highest) are left out.  Returns (the watched reduced
-    eigenvalues, the full ones, the worst backward error, seconds)."""
+    Returns (the watched reduced eigenvalues, the full ones, the worst backward error, seconds)."""
     from fem_squeal.fe.projection.loss_nep import full_loss_nep  # heavy: FE stack
 
     t = time.perf_counter()
-    # rigid-body modes of free parts (λ ≈ 0: f below 1e-3 of the band's top) are not checked
-    lam_r = lam_r[lam_r.imag >= 1e-3 * np.max(lam_r.imag, initial=0.0)]
     order = np.argsort(-(lam_r.real / np.abs(lam_r)))
     watched = sorted(set(np.flatnonzero(unstable(lam_r, gt)).tolist()) | set(order[:NEP_LEAST_STABLE].tolist()))
     full, worst = np.empty(len(watched), complex), 0.0
@@ -339,9 +336,12 @@ def verify_corners(ctx: Context, model, res, points: dict, band, gt: float, loss
     try:
         for k in cond.corners():
             point = {n: float(v[k]) for n, v in points.items()}
+            # the band's modes, the rigid-body modes of free parts (λ ≈ 0) aside on both sides (the full
+            # CEA still asks for as many modes as the band holds with them: n_ask, its reach to the edges)
             lam_r = res.eigenvalues[k]
             f = lam_r.imag / TWO_PI
-            lam_r = lam_r[(f >= band[0]) & (f <= band[1])]
+            n_ask = int(np.sum((f >= band[0]) & (f <= band[1]))) + 2
+            lam_r = lam_r[in_band(lam_r, band)]
             if varying:
                 laws = {p: t.at_temperature(float(cond.temperature[k])) for p, t in varying.items()}
                 red, full, backward, seconds = _nep_corner(par, point, laws, cond.direction[k] < 0, lam_r, gt,
@@ -357,13 +357,15 @@ def verify_corners(ctx: Context, model, res, points: dict, band, gt: float, loss
                         f"{rows[-1]['max_rel_error']:.1e} ({full.size} modes), unstable "
                         f"{rows[-1]['n_unstable_reduced']}/{rows[-1]['n_unstable_full']}")
                 continue
-            full, seconds = _full_cea(par, point, cond.direction[k] < 0, band, len(lam_r) + 2, options)
+            full, seconds = _full_cea(par, point, cond.direction[k] < 0, band, n_ask, options)
+            full = full[in_band(full, band)]
             bad = unstable(full, gt)
             watched = full[bad] if bad.any() else full
             rows.append({"condition": k, **cond.row(k), "point": point, "method": "full CEA",
                          "n_full": int(full.size), "n_unstable_full": int(bad.sum()),
                          "n_unstable_reduced": int(unstable(lam_r, gt).sum()),
-                         "max_rel_error": relative_change(watched, lam_r), "full_cea_s": seconds})
+                         "max_rel_error": relative_change(watched, lam_r), "full_cea_s": seconds,
+                         "unstable_full": [[float(x.real), float(x.imag)] for x in full[bad]]})
             ctx.say(f"[fem_squeal] operating matrix corner {k}: reduced vs full {rows[-1]['max_rel_error']:.1e}, "
                     f"unstable {rows[-1]['n_unstable_reduced']}/{rows[-1]['n_unstable_full']}")
     finally:

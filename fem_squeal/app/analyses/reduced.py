@@ -20,7 +20,7 @@ from fem_squeal.app.html import num as _num
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 from fem_squeal.fe.model import common_mu
-from fem_squeal.reduced.eigensolve import TWO_PI, unstable
+from fem_squeal.reduced.eigensolve import TWO_PI, in_band, unstable
 from fem_squeal.reduced.model import MU, SPEED, e_param, format_point
 from fem_squeal.reduced.operating_matrix import LossFactors, condition_fixed_point
 from fem_squeal.reduced.sweep import solve_points
@@ -175,8 +175,10 @@ def verify_point(par, model, point: dict, band, growth_tol: float, options) -> d
 
     lam_r = solve_points(model, {k: np.array([v]) for k, v in point.items()})[0]
     f = lam_r.imag / TWO_PI
-    lam_r = lam_r[(f >= band[0]) & (f <= band[1])]
-    full, seconds = full_cea(par, point, band, len(lam_r) + 2, options)
+    n_ask = int(np.sum((f >= band[0]) & (f <= band[1]))) + 2   # the full CEA's reach to the band's edges
+    lam_r = lam_r[in_band(lam_r, band)]          # rigid-body modes of free parts (λ ≈ 0) aside
+    full, seconds = full_cea(par, point, band, n_ask, options)
+    full = full[in_band(full, band)]
     bad = unstable(full, growth_tol)
     watched = full[bad] if bad.any() else full
     return {"point": point, "n_full": int(full.size), "n_unstable_full": int(bad.sum()),

@@ -16,6 +16,7 @@ from fem_squeal.fe.projection.basis import Basis
 from fem_squeal.fe.projection.parametric import ParametricOperators, lifted_residuals_at
 from fem_squeal.fe.projection.reductor import build_basis, reduce
 from fem_squeal.fe.projection.shifted import ShiftedSolver, modes_below
+from fem_squeal.reduced.eigensolve import in_band
 from fem_squeal.reduced.model import (
     ReducedModel,
 )
@@ -41,8 +42,7 @@ class ReductionReport:
 def _in_band(lam: np.ndarray, band_hz) -> np.ndarray:
     """Eigenvalues with frequency in the band, above 1e-3 of its top (rigid-body modes of free
     parts sit at λ ≈ 0, where a relative change means nothing)."""
-    f = lam.imag / TWO_PI
-    return lam[(f >= max(band_hz[0], 1e-3 * band_hz[1])) & (f <= band_hz[1])]
+    return lam[in_band(lam, band_hz)]
 
 
 def _watched(lam: np.ndarray, growth_tol: float) -> np.ndarray:

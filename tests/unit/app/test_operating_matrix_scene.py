@@ -98,7 +98,8 @@ def test_report_section_from_results():
                                            "verification": [{"condition": 0, **cond.row(0), "max_rel_error": 1e-5,
                                                              "n_unstable_full": 1, "n_unstable_reduced": 1}]}})
     assert "<h2>Operating matrix</h2>" in html and "2 (50 %) with an unstable mode" in html
-    assert "Reduced vs full model at the corners" in html and "<td>full CEA</td>" in html and html.count("<tr>") > 13 + 4 + 4
+    assert "Reduced vs full model at the corners" in html and "<td>full CEA</td>" in html
+    assert html.count("<tr>") > 13 + 4 + 4
     assert om.verification_failures({"verification": [{"condition": 3, **cond.row(3), "max_rel_error": 2e-3,
                                                        "n_unstable_full": 1, "n_unstable_reduced": 0}]}, 1e-3) == [
         "operating matrix: reduced vs full at condition 3 (300 °C, 0 rad/s, reverse): 2.0e-03 > tol 0.001",

@@ -210,6 +210,19 @@ def test_couplings_do_not_depend_on_the_rank_count(mpirun, tmp_path):
     assert two_rank_signature(mpirun, "test_operating_matrix", tmp_path / "two.json") == one
 
 
+def test_rigid_body_modes_are_not_counted_unstable():
+    """A free part's rigid-body mode (λ ≈ 0 with a round-off growth rate, as the ring's between its plates)
+    is no squeal: the noise matrix leaves out the band's modes below 1e-3 of its top (eigensolve.in_band)."""
+    from fem_squeal.reduced.eigensolve import in_band
+    from fem_squeal.reduced.operating_matrix import MatrixResult
+
+    lam = np.array([[0.007 + 0.002j, 1e-3 + 0.011j, 2.0 + 2 * np.pi * 9413.0j, -1.0 + 2 * np.pi * 500.0j]])
+    res = MatrixResult(factorial([1.0], [20.0], [0.0], ["forward"]), lam, 0.0, 1)
+    modes = noise_matrix(res, (0.0, 10000.0), 1e-6)["modes"]
+    assert [round(m["frequency_hz"]) for m in modes] == [9413]
+    assert in_band(lam[0], (0.0, 10000.0)).tolist() == [False, False, True, True]
+
+
 def test_a_condition_does_not_depend_on_the_others():
     """Each condition is solved alone: any subset (a rank's share) gives the same bits."""
     model = spinning_model()

@@ -58,6 +58,10 @@ class ParametricOperators:
         self.E0 = {p: spec.materials[p].E for p in self.parts}
         self.beta = {p: spec.materials[p].rayleigh_beta for p in self.parts}
         self.eta0 = {p: float(getattr(spec.materials[p], "eta", 0.0)) for p in self.parts}
+        # the parts with a structural loss factor (η or a table η(f, T)): their i η K_p is a term the modes
+        # do not span, whose static corrections join the basis (reductor.correction_operators)
+        self.loss_parts = [p for p in self.parts if self.eta0[p] != 0
+                           or getattr(spec.materials[p], "eta_table", None) is not None]
         self.contacts = {it.name: (it, op) for it, op in ops.contacts}
         self.active = {name: (None if preload is None else np.asarray(preload.active[name], bool))
                        for name in self.contacts}

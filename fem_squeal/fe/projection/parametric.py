@@ -1,4 +1,5 @@
-"""The full operators as affine functions of the parameters (μ, E of a part, speed, loss factors):
+"""The full operators as affine functions of the parameters (μ, E of a part, speed, loss factors, brake
+pressure):
 K(p), C(p) term by term, their derivatives, the residuals of reduced pairs lifted into the full
 model."""
 from __future__ import annotations
@@ -15,9 +16,18 @@ from fem_squeal.fe.assembly import OperatingTerms, Operators, _owned_global_rows
 from fem_squeal.fe.csr import sum_norms_inf
 from fem_squeal.fe.dense import apply, matmul_f
 from fem_squeal.fe.model import ModelSpec
+from fem_squeal.fe.pressure_stiffening import REFERENCE, PressureStiffening
 from fem_squeal.fe.projection.basis import project
 from fem_squeal.reduced import affine
-from fem_squeal.reduced.affine import MU, SPEED, e_param, eta_param, friction_damping_scale, split_param
+from fem_squeal.reduced.affine import (
+    MU,
+    PRESSURE,
+    SPEED,
+    e_param,
+    eta_param,
+    friction_damping_scale,
+    split_param,
+)
 from fem_squeal.reduced.model import PlateProjection
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
@@ -33,11 +43,20 @@ class ParametricOperators:
     one), as the reduced model's: the contact state of the preload is kept when k_n changes.
     A loss factor η makes K complex, which the real PETSc build cannot hold: :meth:`matrices`
     returns the real part and :meth:`loss_stiffness` the imaginary part Σ η_i θ_i K_i, from which
-    :meth:`real_equivalent` builds the real problem of twice the size."""
+    :meth:`real_equivalent` builds the real problem of twice the size.
+    With ``pressure`` (:class:`~fem_squeal.fe.pressure_stiffening.PressureStiffening`, owned from then on:
+    :meth:`destroy` destroys it) the brake pressure scale ``pressure`` is a parameter: at s ≠ 1 the
+    stress stiffening K_σ0 = K_σ(u(1)) of ``operating`` is replaced by K_σ(u(s)) assembled from the preload
+    state continued to s (not the reduced model's affine term K_σ0 + (s − 1) K_σ,s, which it checks)."""
 
     def __init__(self, ops: Operators, spec: ModelSpec, mu0: float, parts: list[str] | None = None,
-                 preload=None, operating: OperatingTerms | None = None, speed0: float = 0.0):
+                 preload=None, operating: OperatingTerms | None = None, speed0: float = 0.0,
+                 pressure: PressureStiffening | None = None):
         self.ops, self.mu0 = ops, mu0
+        if pressure is not None and (operating is None or operating.Ks0 is None):
+            raise ModelError("pressure: the pressure is a parameter of the stress stiffening K_σ(u(s)); these "
+                             "operators have none (preload.geometric_stiffness)")
+        self.pressure = pressure
         # the disc's rotation and stress stiffening (fe.assembly.OperatingTerms) at the scene's speed Ω₀;
         # friction damping ops.Cd (in ops.C) scales as (|μ|/|μ⁰|)(Ω₀/Ω): p |μ|/V with V = Ω r
         self.operating, self.speed0 = operating, float(speed0)
@@ -72,7 +91,8 @@ class ParametricOperators:
     def parameters(self) -> list[str]:
         """Every parameter name these operators accept (the reduced model's names)."""
         # μ = 0 is accepted by a frictionless model
-        return affine.parameter_names(self.parts, self.interfaces, speed=self.speed_varies)
+        return affine.parameter_names(self.parts, self.interfaces, speed=self.speed_varies,
+                                      pressure=self.pressure is not None)
 
     def interface_matrices(self, name: str) -> tuple[PETSc.Mat, PETSc.Mat | None, PETSc.Mat]:
         """(K_c at the nominal k_n, K_f for μ = 1 at the nominal k_n or None without sliding, K_t for
@@ -137,7 +157,7 @@ class ParametricOperators:
         mu = params.get(MU, self.mu0)
         if self.ops.Kf is not None and self.mu0 != 0:
             K.append((self.ops.Kf, mu / self.mu0))
-        self._operating(K, C, mu, params.get(SPEED, self.speed0))
+        self._operating(K, C, mu, params.get(SPEED, self.speed0), params.get(PRESSURE, REFERENCE))
         for p in self.parts:
             d = affine.modulus_coefficient(params.get(e_param(p), self.E0[p]), self.E0[p])
             if d != 0:
@@ -151,12 +171,14 @@ class ParametricOperators:
                 K += [(mats[j], c) for j, c in coefs if mats[j] is not None]
         return K, C
 
-    def _operating(self, K: list, C: list, mu: float, speed: float) -> None:
+    def _operating(self, K: list, C: list, mu: float, speed: float, pressure: float = REFERENCE) -> None:
         """The terms K_σ0 + Ω²(K_σc − S) of K and Ω G + ((|μ|/|μ⁰|)(Ω₀/Ω) − 1) C_d of C (which holds C_d
-        at the nominal point), appended to the term lists."""
+        at the nominal point), appended to the term lists; at a pressure scale s ≠ 1, K_σ(u(s)) of the
+        state at s in place of K_σ0."""
         op, Cd = self.operating, self.ops.Cd
         if op is not None and op.Ks0 is not None:
-            K.append((op.Ks0, 1.0))
+            at_s = self.pressure is not None and pressure != REFERENCE
+            K.append((self.pressure.at(pressure) if at_s else op.Ks0, 1.0))
         if op is not None and op.G is not None:
             K.append((self.K2, speed ** 2))
             C.append((op.G, speed))
@@ -191,6 +213,8 @@ class ParametricOperators:
             A.destroy()
         if self.K2 is not None:
             self.K2.destroy()
+        if self.pressure is not None:
+            self.pressure.destroy()
         for mats in self._interface.values():
             for A in mats:
                 if A is not None:
@@ -202,10 +226,12 @@ def parameter_derivative(par: ParametricOperators, name: str) -> tuple[PETSc.Mat
     factor·∂K/∂p (factor i for a loss factor η, whose term is iθK_i; 1 otherwise).  The same terms
     as :meth:`fem_squeal.reduced.model.ReducedModel.derivative`: ∂K/∂μ = K_f/μ⁰; ∂K/∂E_i = K_i/E_i⁰,
     ∂C/∂E_i = β_i K_i/E_i⁰; ∂K/∂η_i = iK_i; ∂K/∂μ_c = K_f,c¹; ∂K/∂k_n,c = (K_c,c + μ_c⁰K_f,c¹)/k_n,c⁰;
-    ∂K/∂k_t,c = K_t,c¹; with friction damping ∂C/∂μ = C_d/μ⁰; ∂K/∂Ω = 2Ω₀(K_σc − S), ∂C/∂Ω = G − C_d/Ω₀.
-    New matrices (the caller destroys them)."""
+    ∂K/∂k_t,c = K_t,c¹; with friction damping ∂C/∂μ = C_d/μ⁰; ∂K/∂Ω = 2Ω₀(K_σc − S), ∂C/∂Ω = G − C_d/Ω₀;
+    ∂K/∂s = K_σ,s (the pressure's slope).  New matrices (the caller destroys them)."""
     par._check({name: 1.0})
     prefix, target = split_param(name)
+    if name == PRESSURE:
+        return combination([(par.pressure.slope, 1.0)]), None, 1.0
     if name == MU:
         if par.ops.Kf is None or par.mu0 == 0:
             raise ModelError("mu: the model has no friction at the nominal point (no K_f to scale)")

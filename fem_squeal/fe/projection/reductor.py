@@ -104,8 +104,8 @@ def build_basis(ops: Operators, par: ParametricOperators | None, f_cut_hz: float
         n_sample, dropped = n_sample + added, dropped + d
     if par is None and samples:
         raise ModelError("samples: modes at other parameter values need the parametric operators (par)")
-    loads = _loads(correction_operators(ops, par.operating if par is not None else operating), blocks) \
-        if static else []
+    loads = _loads(correction_operators(ops, par.operating if par is not None else operating,
+                                        _pressure_slope(par)), blocks) if static else []
     if loads:
         sigma = (TWO_PI * (sigma_hz if sigma_hz is not None else 0.1 * f_cut_hz)) ** 2
         F = np.column_stack(loads)
@@ -128,19 +128,27 @@ def build_basis(ops: Operators, par: ParametricOperators | None, f_cut_hz: float
 def static_loads(ops: Operators, par: ParametricOperators, Phi: np.ndarray | list[tuple[np.ndarray, ...]]
                  ) -> list[np.ndarray]:
     """The loads A Φ whose static corrections (K + σM)⁻¹ A Φ join the basis: A = K_f (friction), C_d
-    (friction damping) and the gyroscopic G of a turning disc, the terms that the modes at rest do not
-    span.  The symmetric K_σ0, K_σc − S (prestress, spin softening: ~1e-4 of K) are left to the modes.
+    (friction damping), the gyroscopic G of a turning disc and, where the brake pressure is a parameter,
+    the slope K_σ,s of its stress stiffening (the term that changes with it: issue 39), the terms that the
+    modes at rest do not span.  The symmetric K_σ0, K_σc − S (prestress, spin softening: ~1e-4 of K) are
+    left to the modes.
     Measured on the coarse brake (50k DOFs, corners μ = ±0.6 × Ω = 2, 100 rad/s, worst relative error
     of the unstable eigenvalues): K_f, C_d: 239 vectors, 2.6e-4; + G: 324, 7.3e-5; + G, K_σc − S, K_σ0:
     496, 1.7e-4; + their sum at Ω₀: 325, 1.0e-4."""
-    return _loads(correction_operators(ops, par.operating), Phi)
+    return _loads(correction_operators(ops, par.operating, _pressure_slope(par)), Phi)
 
 
-def correction_operators(ops: Operators, operating: OperatingTerms | None = None) -> list[PETSc.Mat]:
-    """The operators A of :func:`static_loads` (K_f, C_d, the gyroscopic G of ``operating``) that
-    the model has."""
-    mats = [ops.Kf, getattr(ops, "Cd", None), operating.G if operating is not None else None]
+def correction_operators(ops: Operators, operating: OperatingTerms | None = None,
+                         pressure_slope: PETSc.Mat | None = None) -> list[PETSc.Mat]:
+    """The operators A of :func:`static_loads` (K_f, C_d, the gyroscopic G of ``operating``, the
+    stress stiffening's pressure slope K_σ,s) that the model has."""
+    mats = [ops.Kf, getattr(ops, "Cd", None), operating.G if operating is not None else None, pressure_slope]
     return [A for A in mats if A is not None]
+
+
+def _pressure_slope(par: ParametricOperators | None) -> PETSc.Mat | None:
+    """K_σ,s of ``par`` where the pressure is its parameter (else None)."""
+    return par.pressure.slope if par is not None and par.pressure is not None else None
 
 
 def _loads(mats: list[PETSc.Mat], Phi: np.ndarray | list[tuple[np.ndarray, ...]]) -> list[np.ndarray]:
@@ -216,4 +224,6 @@ def reduce(ops: Operators, par: ParametricOperators, basis: Basis, preload=None)
     return ReducedModel(K0=K0, Kf1=Kf1, C0=C0, K_parts={p: project(A, Phi) for p, A in par.K_parts.items()},
                         E0=dict(par.E0), beta=dict(par.beta), mu0=par.mu0,
                         contacts=restrict_contacts(ops, Phi, preload), info=dict(basis.counts), f=f, q_static=q_s,
-                        eta0=dict(par.eta0), plates=project_plates(par, Phi), **speed)
+                        eta0=dict(par.eta0), plates=project_plates(par, Phi), **speed,
+                        # the brake pressure s: K_σ(u(s)) = K_σ0 + (s − 1) K_σ,s
+                        Ksp=project(par.pressure.slope, Phi) if par.pressure is not None else None)

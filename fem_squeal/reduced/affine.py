@@ -3,7 +3,7 @@
 K(p) = K₀ + μ K_f¹ + Σᵢ (θᵢ − 1) Kᵢ + i Σᵢ ηᵢ θᵢ Kᵢ                 θᵢ = Eᵢ/Eᵢ⁰, ηᵢ part i's loss factor
        + Σ_c [(s_c − 1) K_c,c + (μ_c s_c − μ_c^μ) K_f,c¹ + (k_t,c − k_t,c⁰) K_t,c¹]     s_c = k_n,c/k_n,c⁰
        + Ω² K₂ + (s − 1) K_σ,s                                                s = ``pressure``
-C(p) = C₀ + Σᵢ βᵢ (θᵢ − 1) Kᵢ + Ω G₁ + (|μ|/|μ⁰|)(Ω₀/Ω) C_d
+C(p) = C₀ + Σᵢ βᵢ (θᵢ − 1) Kᵢ + Ω G₁ + (|μ|/|μ⁰|)(Ω₀/Ω) (C_d + (s − 1) C_d,s)
 
 μ_c^μ = μ·μ_c⁰/μ⁰ is what ``mu`` gives interface c, μ_c = ``mu.<c>`` where given (else μ_c^μ): the
 interface terms vanish at the nominal point and where an interface's parameters are not given.  The
@@ -12,7 +12,8 @@ ranges and the coefficient of every term as a function of the parameter values (
 points).  The reduced model (:class:`fem_squeal.reduced.model.ReducedModel`) applies them to its
 projected matrices, :class:`fem_squeal.fe.projection.ParametricOperators` to the full ones, term by
 term (there K_f = μ⁰K_f¹ and C₀ holds C_d: coefficients μ/μ⁰ and the damping scale − 1; and the
-stress stiffening at a pressure s is assembled from the preload state at s, not from the affine term).
+stress stiffening and the friction damping at a pressure s are assembled from the preload state at s, not
+from the affine terms).
 
 An operator given as an expression of named matrices (a ``[matrices]`` scene,
 :mod:`fem_squeal.reduced.expressions`) has the same form with its own terms: A(p) = Σ_k c_k(p) A_k,
@@ -34,7 +35,8 @@ MU = "mu"
 #: the disc speed Ω [rad/s] (issue 20 item 6): G ∝ Ω, K_σc − S ∝ Ω², friction damping ∝ |μ|/Ω
 SPEED = "speed"
 #: the brake pressure as a scale s of the scene's ``loads.pressure`` (issue 39): with the contact set of the
-#: scene and the linear penalty the preload u(s) is affine in s, so its stress stiffening K_σ(u(s)) is too
+#: scene and the linear penalty the preload u(s) is affine in s, so its stress stiffening K_σ(u(s)) and the
+#: friction damping C_d(p(s)) (∝ the contact pressure) are too
 PRESSURE = "pressure"
 #: prefixes of the per-part and per-interface parameters: ``<prefix>.<part or interface>``
 PART_PREFIXES = ("E", "eta")
@@ -108,8 +110,8 @@ def friction_damping_scale(mu, mu0: float, speed, speed0: float):
 
 
 def pressure_coefficient(scale):
-    """s − 1: the coefficient of the stress stiffening per unit pressure scale K_σ,s = K_σ(du/ds) (the
-    preload's K_σ(u(1)) is in K₀)."""
+    """s − 1: the coefficient of the stress stiffening and the friction damping per unit pressure scale,
+    K_σ,s = K_σ(du/ds) and C_d,s = C_d(dp/ds) (those of the scene's preload, s = 1, are in K₀ and C_d)."""
     return scale - 1.0
 
 

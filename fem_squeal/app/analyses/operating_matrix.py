@@ -9,10 +9,11 @@ terms where Ω is a parameter), the direction turns the friction and gyroscopic 
 the scale of ``loads.pressure``: the preload stage continues the scene's preload to the other pressures
 (:mod:`fem_squeal.app.analyses.pressure_continuation`); they are evaluated on the one reduced model when
 the contact set at each is the scene's (checked after the preloads, a named error otherwise) and its
-operators either do not depend on the pressure or only through the stress stiffening, which is then the
-model's parameter ``pressure`` (K_σ(u(s)) = K_σ(u(1)) + (s − 1) K_σ(du/ds), exact for the fixed contact set
-and the linear penalty: :mod:`fem_squeal.fe.pressure_stiffening`); the other pressure-dependent terms are
-refused before any computation (:func:`pressure_dependent_terms`).  Parts with a loss-factor table
+operators either do not depend on the pressure or only through the stress stiffening and the contacts'
+friction damping, which make it the model's parameter ``pressure`` (K_σ(u(s)) = K_σ(u(1)) + (s − 1)
+K_σ(du/ds), C_d(p(s)) = C_d(p(1)) + (s − 1) C_d(dp/ds), exact for the fixed contact set and the linear
+penalty: :mod:`fem_squeal.fe.pressure_terms`); the other pressure-dependent terms are refused before any
+computation (:func:`pressure_dependent_terms`).  Parts with a loss-factor table
 ``materials.<part>.eta_table`` η(f, T): at each condition's temperature, per band mode at its own frequency
 (fixed point; ``loss_factor_fixed_point`` in results.json: iterations, modes not converged).  ``verify``:
 full CEAs at the corner conditions, compared as analyses.reduced compares its check points.
@@ -67,8 +68,8 @@ _KEY = f"analyses.{NAME}"
 SECTION = {
     "pressure": Field((list, dict), [1.0], None, "scales of loads.pressure (" + VALUES + "); other than 1 "
                       "(the scene's): the preload is continued to them and each must keep the scene's contact "
-                      "set; they act through the friction laws μ(p, T, Ω) and the stress stiffening "
-                      "(preload.geometric_stiffness)"),
+                      "set; they act through the friction laws μ(p, T, Ω), the stress stiffening "
+                      "(preload.geometric_stiffness) and the contacts' friction damping"),
     "temperature": Field((list, dict), [20.0], None, f"disc temperatures [°C] ({VALUES}); they act through "
                          "the friction laws"),
     "speed": Field((list, dict), [], None, f"disc speeds |Ω| [rad/s] ({VALUES}); [] = operating.speed"),
@@ -238,15 +239,17 @@ def pressure_dependent_terms(scene) -> str:
     """Why the linearised operators of the scene depend on the brake pressure in a way the reduced model
     cannot follow ('' if they do not).  With the linear penalty and a fixed contact set the stiffness
     (elastic, contact k_n, friction μ k_n), mass, damping and gyroscopic operators are those of the scene's
-    pressure: only μ(p, T, Ω) and the stress stiffening K_σ(u(p)) change, the latter affine in p (the
-    model's ``pressure`` parameter).  The friction damping (∝ the contact pressure) grows with p too; the
-    reduced model holds it at the scene's pressure only."""
+    pressure: only μ(p, T, Ω), the stress stiffening K_σ(u(p)) and a contact's friction damping C_d(p(p))
+    change, the latter two affine in p (the model's ``pressure`` parameter).  A rigid plate's friction
+    damping (its pressure k_n max(u·n, 0) from the displacement) is held at the scene's pressure only."""
     if scene.preload["mode"] != "nonlinear":
         return "preload.mode is 'all_closed' (the contact state at each pressure needs the nonlinear preload)"
-    damped = sorted(n for n, t in scene.interfaces.items() if t.get("friction_damping"))
+    damped = sorted(n for n, t in scene.interfaces.items()
+                    if t.get("friction_damping") and t.get("type") != "contact")
     if damped:
-        return (f"interfaces.{damped[0]}.friction_damping = true (the friction damping grows with the contact "
-                f"pressure)")
+        return (f"interfaces.{damped[0]}.friction_damping = true on a {scene.interfaces[damped[0]]['type']} (its "
+                f"friction damping grows with the pressure k_n max(u·n, 0), which the reduced model does not "
+                f"follow; a contact interface's it does)")
     return ""
 
 
@@ -340,17 +343,23 @@ _PRESSURE_MODEL = ("the contact set at every pressure is the scene's (checked by
                    "the penalty is linear, so the linearised operators are the scene's: the pressure acts "
                    "through μ(p, T, Ω) only; the preload state scales with p, but no operator of this scene "
                    "depends on it (no stress stiffening, no friction damping)")
-_PRESSURE_MODEL_STIFFENING = (
+_PRESSURE_TERMS = (
     "the contact set at every pressure is the scene's (checked by the preload continuation) and the penalty is "
-    "linear, so the preload u(p) is affine in p and so is its stress stiffening: K_σ(u(p)) = K_σ(u(1)) + "
-    "(p − 1) K_σ(du/ds), the reduced model's parameter 'pressure' (du/ds from the continued state farthest from "
-    "p = 1); the pressure acts through it and μ(p, T, Ω), the other operators are the scene's; the corner "
-    "checks assemble K_σ from each pressure's own continued state")
+    "linear, so the preload u(p) and the contact pressures are affine in p and so are {terms}, the reduced "
+    "model's parameter 'pressure' (the slopes from the continued state farthest from p = 1); the pressure acts "
+    "through {them} and μ(p, T, Ω), the other operators are the scene's; the corner checks assemble {them} "
+    "from each pressure's own continued state")
 
 
 def pressure_model(model) -> str:
     """How the reduced model follows the brake pressure (results.json ``pressure.model``)."""
-    return _PRESSURE_MODEL_STIFFENING if PRESSURE in model.parameters else _PRESSURE_MODEL
+    if PRESSURE not in model.parameters:
+        return _PRESSURE_MODEL
+    terms = [t for t, on in (("the stress stiffening K_σ(u(p)) = K_σ(u(1)) + (p − 1) K_σ(du/ds)",
+                              model.Ksp is not None),
+                             ("the friction damping C_d(p) = C_d(1) + (p − 1) C_d(dp/ds)", model.Cdp is not None))
+             if on]
+    return _PRESSURE_TERMS.format(terms=" and ".join(terms), them="it" if len(terms) == 1 else "them")
 
 
 def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:

@@ -9,9 +9,10 @@ forces, the closed points and whether the contact set is the scene's (``same_con
 the state is from the scene's scaled, ‖u(s) − s u(1)‖/‖s u(1)‖ (``nonlinearity``).
 
 The states themselves stay in memory for the run (``pressure_states``): with the stress stiffening
-(preload.geometric_stiffness) the pressure is a parameter of the reduced model, K_σ(u(s)) = K_σ(u(1)) +
-(s − 1) K_σ(du/ds) (:func:`stiffening`, :mod:`fem_squeal.fe.pressure_stiffening`), and the operating
-matrix's corner checks assemble each pressure's K_σ from its own state."""
+(preload.geometric_stiffness) or the friction damping of a contact the pressure is a parameter of the
+reduced model, K_σ(u(s)) = K_σ(u(1)) + (s − 1) K_σ(du/ds) and C_d(p(s)) = C_d(p(1)) + (s − 1) C_d(dp/ds)
+(:func:`pressure_terms`, :mod:`fem_squeal.fe.pressure_terms`), and the operating matrix's corner checks
+assemble each pressure's operators from its own state."""
 from __future__ import annotations
 
 import json
@@ -43,12 +44,19 @@ def scales(scene) -> list[float]:
     return sorted(set(ps) - {SCENE_PRESSURE})
 
 
-def stress_stiffening(scene) -> bool:
-    """The brake pressure is a parameter of the reduced model: the scene has the stress stiffening
-    (preload.geometric_stiffness, which grows with the pressure), a nonlinear preload (the contact state
-    at each pressure) and other pressure scales than 1."""
+def friction_damped_contacts(scene) -> list[str]:
+    """The contact interfaces with friction damping (∝ the contact pressure), sorted."""
+    return sorted(n for n, t in scene.interfaces.items()
+                  if t.get("type") == "contact" and t.get("friction_damping"))
+
+
+def pressure_parameter(scene) -> bool:
+    """The brake pressure is a parameter of the reduced model: the scene has a term that grows with it (the
+    stress stiffening, preload.geometric_stiffness; the friction damping of a contact), a nonlinear preload
+    (the contact state at each pressure) and other pressure scales than 1."""
     pl = scene.preload
-    return bool(pl["geometric_stiffness"]) and pl["mode"] == "nonlinear" and bool(scales(scene))
+    terms = bool(pl["geometric_stiffness"]) or bool(friction_damped_contacts(scene))
+    return terms and pl["mode"] == "nonlinear" and bool(scales(scene))
 
 
 def key_inputs(scene) -> Any:
@@ -60,8 +68,8 @@ def key_inputs(scene) -> Any:
 
 def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
     """Continue the converged preload ``pre`` (scale 1, solved with ``factor``) to the other scales; the
-    summary (also written to ``work``/FILE for the operating matrix); the states' vectors are kept in
-    ``ctx.products["pressure_states"]`` by scale (:func:`stiffening`)."""
+    summary (also written to ``work``/FILE for the operating matrix); the states are kept in
+    ``ctx.products["pressure_states"]`` by scale (:func:`pressure_terms`)."""
     from fem_squeal.fe.preload_continuation import StateCache, continue_preload  # heavy: FE stack
 
     comm = ctx.comm
@@ -86,7 +94,7 @@ def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
                      "changed_points": changed, "same_contact_set": changed == 0,
                      "nonlinearity": d.norm() / ref if ref > 0 else 0.0})
         d.destroy()
-        kept[float(st.scale)] = r.u
+        kept[float(st.scale)] = r
     ctx.products["pressure_states"] = kept
     out = {"scales": [r["scale"] for r in rows], "seconds": time.perf_counter() - t, "pressures": rows}
     if comm.rank == 0:
@@ -109,20 +117,25 @@ def check_contact_sets(summ: dict, key: str = "analyses.operating_matrix") -> No
                              f"coordinates are not implemented; keep pressures where the contact set holds")
 
 
-def stiffening(ctx):
-    """The stress stiffening across the pressures of this run (:class:`fem_squeal.fe.pressure_stiffening.
-    PressureStiffening`, a new one: its owner destroys it) from the scene's preload and the continued
-    states, or None when the pressure is not a parameter (:func:`stress_stiffening`).  A SceneError names
-    a pressure whose contact set is not the scene's (there u(s) is not affine in s)."""
-    if not stress_stiffening(ctx.scene):
+def pressure_terms(ctx):
+    """The operators across the pressures of this run (:class:`fem_squeal.fe.pressure_terms.PressureTerms`,
+    a new one: its owner destroys it) from the scene's preload and the continued states: the stress stiffening
+    (preload.geometric_stiffness) and the contacts' friction damping, or None when the pressure is not a
+    parameter (:func:`pressure_parameter`).  A SceneError names a pressure whose contact set is not the
+    scene's (there the state is not affine in s)."""
+    if not pressure_parameter(ctx.scene):
         return None
     check_contact_sets(summary(ctx))
     from fem_squeal.fe.assembly import geometric_stiffness  # heavy: FE stack
-    from fem_squeal.fe.pressure_stiffening import REFERENCE, PressureStiffening  # heavy: FE stack
+    from fem_squeal.fe.preload import friction_damping  # heavy: FE stack
+    from fem_squeal.fe.pressure_terms import REFERENCE, PressureTerms  # heavy: FE stack
 
     ops, mesh, spec = ctx.products["linear"], ctx.products["mesh"], ctx.spec
-    states = {REFERENCE: ctx.products["preload"].u, **ctx.products["pressure_states"]}
-    return PressureStiffening(states, lambda u: geometric_stiffness(ops, mesh, spec, u))
+    states = {REFERENCE: ctx.products["preload"], **ctx.products["pressure_states"]}
+    stiff = (lambda u: geometric_stiffness(ops, mesh, spec, u)) if ctx.scene.preload["geometric_stiffness"] \
+        else None
+    damp = (lambda p: friction_damping(ops, mesh, spec, None, p)) if friction_damped_contacts(ctx.scene) else None
+    return PressureTerms(states, stiff, damp)
 
 
 def summary(ctx) -> dict[str, Any]:

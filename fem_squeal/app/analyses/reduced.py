@@ -106,7 +106,7 @@ def robustness_E_ranges(section: dict, prefixes: tuple[str, ...] = ("E",)) -> di
 def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict], list[str]]:
     """(check points, E samples for the basis, parts whose E varies) implied by sweep, map, the E, kn and
     kt distributions of robustness (their ranges: :func:`robustness_E_ranges`) and the operating matrix's
-    pressures where the pressure is a parameter (the stress stiffening: its extreme scales)."""
+    pressures where the pressure is a parameter (stress stiffening, friction damping: its extreme scales)."""
     ana = scene.analyses
     checks: list[dict] = [{MU: mu0}]
     samples: list[dict] = []
@@ -141,7 +141,7 @@ def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict]
             if name != SPEED:     # the modes do not depend on the speed: checks only
                 samples += [{name: lo}, {name: hi}]
             checks += [{MU: mu0, name: lo}, {MU: mu0, name: hi}]
-    if pressure_continuation.stress_stiffening(scene):    # K_σ(u(s)) at the extreme scales s
+    if pressure_continuation.pressure_parameter(scene):    # K_σ(u(s)), C_d(p(s)) at the extreme scales s
         ps = pressure_continuation.scales(scene) + [pressure_continuation.SCENE_PRESSURE]
         checks += [{MU: mu0, PRESSURE: min(ps)}, {MU: mu0, PRESSURE: max(ps)}]
     uniq = lambda pts: [dict(t) for t in dict.fromkeys(tuple(sorted(p.items())) for p in pts)]  # noqa: E731
@@ -234,13 +234,13 @@ def masa_vectors(ops, preload, attachments: list, band, options) -> np.ndarray:
 def parametric_operators(ctx: Context, mu0: float, parts: list[str]):
     """The full-order K(p), C(p) (:class:`fem_squeal.fe.projection.ParametricOperators`) of this scene
     about its preload, with the rotation, prestress and friction damping at operating.speed, and the
-    stress stiffening across the operating matrix's pressures where the pressure is a parameter
-    (:func:`~fem_squeal.app.analyses.pressure_continuation.stiffening`)."""
+    stress stiffening and friction damping across the operating matrix's pressures where the pressure is a
+    parameter (:func:`~fem_squeal.app.analyses.pressure_continuation.pressure_terms`)."""
     from fem_squeal.fe.projection import ParametricOperators  # heavy: FE stack
 
     return ParametricOperators(ctx.products["linear"], ctx.spec, mu0, parts, preload=ctx.products["preload"],
                                operating=operating(ctx), speed0=ctx.scene.operating.speed,
-                               pressure=pressure_continuation.stiffening(ctx))
+                               pressure=pressure_continuation.pressure_terms(ctx))
 
 
 def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:

@@ -105,7 +105,7 @@ def build_basis(ops: Operators, par: ParametricOperators | None, f_cut_hz: float
     if par is None and samples:
         raise ModelError("samples: modes at other parameter values need the parametric operators (par)")
     loads = _loads(correction_operators(ops, par.operating if par is not None else operating,
-                                        _pressure_slope(par)), blocks) if static else []
+                                        *_pressure_slopes(par)), blocks) if static else []
     if loads:
         sigma = (TWO_PI * (sigma_hz if sigma_hz is not None else 0.1 * f_cut_hz)) ** 2
         F = np.column_stack(loads)
@@ -129,26 +129,28 @@ def static_loads(ops: Operators, par: ParametricOperators, Phi: np.ndarray | lis
                  ) -> list[np.ndarray]:
     """The loads A Φ whose static corrections (K + σM)⁻¹ A Φ join the basis: A = K_f (friction), C_d
     (friction damping), the gyroscopic G of a turning disc and, where the brake pressure is a parameter,
-    the slope K_σ,s of its stress stiffening (the term that changes with it: issue 39), the terms that the
-    modes at rest do not span.  The symmetric K_σ0, K_σc − S (prestress, spin softening: ~1e-4 of K) are
-    left to the modes.
+    the slopes K_σ,s of its stress stiffening and C_d,s of its friction damping (the terms that change with
+    it: issue 39), the terms that the modes at rest do not span.  The symmetric K_σ0, K_σc − S (prestress,
+    spin softening: ~1e-4 of K) are left to the modes.
     Measured on the coarse brake (50k DOFs, corners μ = ±0.6 × Ω = 2, 100 rad/s, worst relative error
     of the unstable eigenvalues): K_f, C_d: 239 vectors, 2.6e-4; + G: 324, 7.3e-5; + G, K_σc − S, K_σ0:
     496, 1.7e-4; + their sum at Ω₀: 325, 1.0e-4."""
-    return _loads(correction_operators(ops, par.operating, _pressure_slope(par)), Phi)
+    return _loads(correction_operators(ops, par.operating, *_pressure_slopes(par)), Phi)
 
 
 def correction_operators(ops: Operators, operating: OperatingTerms | None = None,
-                         pressure_slope: PETSc.Mat | None = None) -> list[PETSc.Mat]:
+                         *pressure_slopes: PETSc.Mat | None) -> list[PETSc.Mat]:
     """The operators A of :func:`static_loads` (K_f, C_d, the gyroscopic G of ``operating``, the
-    stress stiffening's pressure slope K_σ,s) that the model has."""
-    mats = [ops.Kf, getattr(ops, "Cd", None), operating.G if operating is not None else None, pressure_slope]
+    pressure slopes K_σ,s and C_d,s) that the model has."""
+    mats = [ops.Kf, getattr(ops, "Cd", None), operating.G if operating is not None else None, *pressure_slopes]
     return [A for A in mats if A is not None]
 
 
-def _pressure_slope(par: ParametricOperators | None) -> PETSc.Mat | None:
-    """K_σ,s of ``par`` where the pressure is its parameter (else None)."""
-    return par.pressure.slope if par is not None and par.pressure is not None else None
+def _pressure_slopes(par: ParametricOperators | None) -> tuple[PETSc.Mat | None, PETSc.Mat | None]:
+    """(K_σ,s, C_d,s) of ``par`` where the pressure is its parameter (None where it has no such term)."""
+    if par is None or par.pressure is None:
+        return None, None
+    return par.pressure.stiffness_slope, par.pressure.damping_slope
 
 
 def _loads(mats: list[PETSc.Mat], Phi: np.ndarray | list[tuple[np.ndarray, ...]]) -> list[np.ndarray]:
@@ -225,5 +227,14 @@ def reduce(ops: Operators, par: ParametricOperators, basis: Basis, preload=None)
                         E0=dict(par.E0), beta=dict(par.beta), mu0=par.mu0,
                         contacts=restrict_contacts(ops, Phi, preload), info=dict(basis.counts), f=f, q_static=q_s,
                         eta0=dict(par.eta0), plates=project_plates(par, Phi), **speed,
-                        # the brake pressure s: K_σ(u(s)) = K_σ0 + (s − 1) K_σ,s
-                        Ksp=project(par.pressure.slope, Phi) if par.pressure is not None else None)
+                        **_project_pressure_slopes(par, Phi))
+
+
+def _project_pressure_slopes(par: ParametricOperators, Phi: np.ndarray) -> dict[str, np.ndarray]:
+    """The brake pressure s: K_σ(u(s)) = K_σ0 + (s − 1) K_σ,s, C_d(p(s)) = C_d + (s − 1) C_d,s projected
+    (``Ksp``, ``Cdp`` of the reduced model; none without the pressure parameter)."""
+    out = {}
+    for key, A in zip(("Ksp", "Cdp"), _pressure_slopes(par)):
+        if A is not None:
+            out[key] = project(A, Phi)
+    return out

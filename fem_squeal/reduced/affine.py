@@ -2,8 +2,8 @@
 
 K(p) = K₀ + μ K_f¹ + Σᵢ (θᵢ − 1) Kᵢ + i Σᵢ ηᵢ θᵢ Kᵢ                 θᵢ = Eᵢ/Eᵢ⁰, ηᵢ part i's loss factor
        + Σ_c [(s_c − 1) K_c,c + (μ_c s_c − μ_c^μ) K_f,c¹ + (k_t,c − k_t,c⁰) K_t,c¹]     s_c = k_n,c/k_n,c⁰
-       + Ω² K₂
-C(p) = C₀ + Σᵢ βᵢ (θᵢ − 1) Kᵢ + Ω G₁ + (|μ|/|μ⁰|)(Ω₀/Ω) C_d
+       + Ω² K₂ + (s − 1) K_σ,s                                                s = ``pressure``
+C(p) = C₀ + Σᵢ βᵢ (θᵢ − 1) Kᵢ + Ω G₁ + (|μ|/|μ⁰|)(Ω₀/Ω) (C_d + (s − 1) C_d,s)
 
 μ_c^μ = μ·μ_c⁰/μ⁰ is what ``mu`` gives interface c, μ_c = ``mu.<c>`` where given (else μ_c^μ): the
 interface terms vanish at the nominal point and where an interface's parameters are not given.  The
@@ -11,7 +11,9 @@ meaning of every matrix is in :mod:`fem_squeal.reduced.model`.  Here: the parame
 ranges and the coefficient of every term as a function of the parameter values (numbers, or arrays of
 points).  The reduced model (:class:`fem_squeal.reduced.model.ReducedModel`) applies them to its
 projected matrices, :class:`fem_squeal.fe.projection.ParametricOperators` to the full ones, term by
-term (there K_f = μ⁰K_f¹ and C₀ holds C_d: coefficients μ/μ⁰ and the damping scale − 1).
+term (there K_f = μ⁰K_f¹ and C₀ holds C_d: coefficients μ/μ⁰ and the damping scale − 1; and the
+stress stiffening and the friction damping at a pressure s are assembled from the preload state at s, not
+from the affine terms).
 
 An operator given as an expression of named matrices (a ``[matrices]`` scene,
 :mod:`fem_squeal.reduced.expressions`) has the same form with its own terms: A(p) = Σ_k c_k(p) A_k,
@@ -32,11 +34,15 @@ from fem_squeal.util.errors import ModelError, UnknownNameError
 MU = "mu"
 #: the disc speed Ω [rad/s] (issue 20 item 6): G ∝ Ω, K_σc − S ∝ Ω², friction damping ∝ |μ|/Ω
 SPEED = "speed"
+#: the brake pressure as a scale s of the scene's ``loads.pressure`` (issue 39): with the contact set of the
+#: scene and the linear penalty the preload u(s) is affine in s, so its stress stiffening K_σ(u(s)) and the
+#: friction damping C_d(p(s)) (∝ the contact pressure) are too
+PRESSURE = "pressure"
 #: prefixes of the per-part and per-interface parameters: ``<prefix>.<part or interface>``
 PART_PREFIXES = ("E", "eta")
 INTERFACE_PREFIXES = ("mu", "kn", "kt")
 #: parameters that must be > 0 (the others of a range: >= 0)
-_POSITIVE = ("E", "kn")
+_POSITIVE = ("E", "kn", PRESSURE)
 _NON_NEGATIVE = ("eta", "kt", SPEED)
 
 
@@ -58,15 +64,16 @@ def split_param(name: str) -> tuple[str, str | None]:
 
 def parameter_names(parts: Iterable[str], interfaces: Mapping[str, object], *, mu: bool = True,
                     eta_parts: Iterable[str] | None = None, kt_interfaces: Iterable[str] | None = None,
-                    speed: bool = False) -> list[str]:
+                    speed: bool = False, pressure: bool = False) -> list[str]:
     """``mu`` (with friction), ``E.<part>``, ``mu.<c>`` (the sliding interfaces), ``kn.<c>``, ``kt.<c>``
-    (``kt_interfaces``, default all), ``eta.<part>`` (``eta_parts``, default all), ``speed``."""
+    (``kt_interfaces``, default all), ``eta.<part>`` (``eta_parts``, default all), ``speed``, ``pressure``."""
     parts = list(parts)
     out = ([MU] if mu else []) + [e_param(p) for p in parts]
     out += [f"mu.{c}" for c, it in interfaces.items() if it.sliding != 0]
     out += [f"kn.{c}" for c in interfaces]
     out += [f"kt.{c}" for c in (interfaces if kt_interfaces is None else kt_interfaces)]
-    return out + [eta_param(p) for p in (parts if eta_parts is None else eta_parts)] + ([SPEED] if speed else [])
+    return out + [eta_param(p) for p in (parts if eta_parts is None else eta_parts)] + ([SPEED] if speed else []) \
+        + ([PRESSURE] if pressure else [])
 
 
 def check_names(names: Iterable[str], known: list[str], what: str = "") -> None:
@@ -77,7 +84,7 @@ def check_names(names: Iterable[str], known: list[str], what: str = "") -> None:
 
 
 def check_range(name: str, value) -> None:
-    """``E.<part>``, ``kn.<c>`` > 0; ``eta.<part>``, ``kt.<c>``, ``speed`` >= 0 (a number or an array
+    """``E.<part>``, ``kn.<c>``, ``pressure`` > 0; ``eta.<part>``, ``kt.<c>``, ``speed`` >= 0 (a number or an array
     of points; other parameters take any value)."""
     prefix = split_param(name)[0]
     v = np.asarray(value, float)
@@ -100,6 +107,12 @@ def friction_damping_scale(mu, mu0: float, speed, speed0: float):
     force towards −t₂ whichever way the counter-face slides.  Ω₀ = 0 (the nominal speed not known):
     |μ|/|μ⁰|, the damping of the nominal speed."""
     return (np.abs(mu) / abs(mu0)) * (speed0 / speed if speed0 else 1.0)
+
+
+def pressure_coefficient(scale):
+    """s − 1: the coefficient of the stress stiffening and the friction damping per unit pressure scale,
+    K_σ,s = K_σ(du/ds) and C_d,s = C_d(dp/ds) (those of the scene's preload, s = 1, are in K₀ and C_d)."""
+    return scale - 1.0
 
 
 def modulus_coefficient(E, E0: float):

@@ -4,8 +4,9 @@ K(p) = K₀ + Σᵢ (θᵢ − 1) Kᵢ + μ K_f¹          θᵢ = Eᵢ / Eᵢ�
        + i Σᵢ ηᵢ θᵢ Kᵢ                          ηᵢ part i's loss factor (structural damping Kᵢ(1 + iη))
        + Σ_c [(s_c − 1) K_c,c + (k_t,c − k_t,c⁰) K_t,c¹ + (μ_c s_c − μ_c^μ) K_f,c¹]
        + Ω² K₂                                   Ω the disc speed (``speed``), K₂ = K_σc − S
+       + (s − 1) K_σ,s                           s the brake pressure (``pressure``, × loads.pressure)
 C(p) = C₀ + Σᵢ βᵢ (θᵢ − 1) Kᵢ                 (stiffness-proportional damping follows E)
-       + Ω G₁ + (|μ|/|μ⁰|)(Ω₀/Ω) C_d           (gyroscopic; friction damping p |μ|/V, V = Ω r)
+       + Ω G₁ + (|μ|/|μ⁰|)(Ω₀/Ω) (C_d + (s − 1) C_d,s)   (gyroscopic; friction damping p |μ|/V, V = Ω r)
 M    = I                                       (the basis is M-orthonormal)
 
 K₀ is the frictionless stiffness at the nominal parameters (elasticity, springs, closed contact),
@@ -40,6 +41,15 @@ in the space-fixed frame adds Ω G₁ (G₁ skew) and −Ω² S (convective), th
 point (μ⁰, Ω₀) scales as (|μ|/|μ⁰|)(Ω₀/Ω) for a constant μ: ``speed`` is a parameter when the scene has
 one of these terms and no μ(V) law (whose μ, dμ/dV and preload change with V: not affine in Ω).
 
+**Pressure** (issue 39).  The brake pressure s (a scale of the scene's ``loads.pressure``) changes
+the preload u(s) and the contact pressures p(s), and with them the stress stiffening K_σ(u(s)) (K₀ holds
+K_σ(u(1))) and the friction damping C_d(p(s)) (C_d holds C_d(p(1))).  Both are linear in the state, and
+with the contact set of the scene and the linear penalty the state is affine in s, so
+K_σ(u(s)) = K_σ(u(1)) + (s − 1) K_σ(du/ds) and C_d(p(s)) = C_d(p(1)) + (s − 1) C_d(dp/ds) exactly:
+K_σ,s = Φᵀ K_σ(du/ds) Φ (``Ksp``), C_d,s = Φᵀ C_d(dp/ds) Φ (``Cdp``, at μ⁰, Ω₀ like C_d); the pressure is
+a parameter where the model has either.  The contact state itself is the scene's at every s (a pressure
+that opens or closes contact points is refused by the app).
+
 **Loss factor.**  η ≥ 0 makes K complex: the eigenvalues of λ²I + K(1 + iη) (one part, undamped)
 are λ = iω√(1 + iη) (Im λ > 0: Re λ = −ω Im√(1 + iη) < 0, the physical branch; the roots with
 Im λ < 0 belong to K(1 − iη), the other sign of the frequency, and are not kept by
@@ -57,6 +67,7 @@ from fem_squeal.reduced.affine import (
     INTERFACE_PREFIXES,  # noqa: F401  (re-exported: the old path)
     MU,
     PART_PREFIXES,
+    PRESSURE,
     SPEED,
     check_damping_speed,
     check_names,
@@ -69,6 +80,7 @@ from fem_squeal.reduced.affine import (
     modulus_coefficient,
     mu_share,
     parameter_names,
+    pressure_coefficient,
     split_param,
 )
 from fem_squeal.reduced.contact_rows import ContactRows, from_gap_rows
@@ -93,6 +105,8 @@ def format_point(point: Mapping[str, float]) -> str:
             out.append(f"η({name[4:]}) = {value:.4g}")
         elif name == SPEED:
             out.append(f"Ω = {value:.4g} rad/s")
+        elif name == PRESSURE:
+            out.append(f"p = {value:.4g} × loads.pressure")
         else:
             out.append(f"{name} = {value:.4g}")
     return ", ".join(out)
@@ -153,6 +167,9 @@ class ReducedModel:
     K2: np.ndarray | None = None                              # K_σc − S per unit Ω²
     Cd0: np.ndarray | None = None                             # friction damping at (μ⁰, Ω₀) (not in C0)
     speed_varies: bool = False                                # "speed" is a parameter (no μ(V) law)
+    # the brake pressure (issue 39): K += (s − 1) Ksp, s the scale of loads.pressure
+    Ksp: np.ndarray | None = None                             # K_σ(du/ds): stress stiffening per unit s
+    Cdp: np.ndarray | None = None                             # C_d(dp/ds) at (μ⁰, Ω₀): friction damping per unit s
 
     def __post_init__(self):
         m = self.K0.shape[0]
@@ -161,9 +178,12 @@ class ReducedModel:
         plate_mats = [(f"plates.{n}.{f}", getattr(pl, f)) for n, pl in self.plates.items()
                       for f in ("Kc", "Kt", "Kf")]
         for name, A in [("Kf1", self.Kf1), ("C0", self.C0), *self.K_parts.items(), *plate_mats,
-                        ("G1", self.G1), ("K2", self.K2), ("Cd0", self.Cd0)]:
+                        ("G1", self.G1), ("K2", self.K2), ("Cd0", self.Cd0), ("Ksp", self.Ksp),
+                        ("Cdp", self.Cdp)]:
             if A is not None and A.shape != (m, m):
                 raise ModelError(f"{name}: must be {m}×{m} like K0 (got {A.shape})")
+        if self.Cdp is not None and self.Cd0 is None:
+            raise ModelError("Cdp: the friction damping's pressure slope needs the friction damping Cd0")
         missing = sorted(set(self.K_parts) - set(self.E0))
         if missing:
             raise ModelError(f"E0: no nominal modulus for part(s) {missing}")
@@ -187,11 +207,12 @@ class ReducedModel:
     @property
     def parameters(self) -> list[str]:
         """Names of the parameters this model can vary (module docstring): ``mu``, ``E.<part>``,
-        ``mu.<c>`` (sliding contacts and named rigid plates c), ``kn.<c>``, ``kt.<c>``, ``eta.<part>``."""
+        ``mu.<c>`` (sliding contacts and named rigid plates c), ``kn.<c>``, ``kt.<c>``, ``eta.<part>``,
+        ``speed``, ``pressure``."""
         return parameter_names(self.K_parts, self.interfaces, mu=self.Kf1 is not None,
                                eta_parts=[p for p in self.K_parts if p in self.eta0],
                                kt_interfaces=[c for c, r in self.interfaces.items() if r.has_kt],
-                               speed=self.speed_varies)
+                               speed=self.speed_varies, pressure=self.pressure_varies)
 
     def nominal(self) -> dict[str, float]:
         """The value of every parameter at the nominal point."""
@@ -205,7 +226,21 @@ class ReducedModel:
                 vals[f"kt.{c}"] = float(r.kt)
         vals.update({eta_param(p): float(self.eta0[p]) for p in self.K_parts if p in self.eta0})
         vals[SPEED] = self.speed0
+        vals[PRESSURE] = 1.0
         return {k: vals[k] for k in self.parameters}
+
+    @property
+    def pressure_varies(self) -> bool:
+        """The brake pressure is a parameter (a stress stiffening or friction damping term per unit s)."""
+        return self.Ksp is not None or self.Cdp is not None
+
+    def _friction_damping(self, pressure) -> np.ndarray:
+        """C_d + (s − 1) C_d,s at the pressure scale(s) ``pressure`` (a number: (m, m); an array of n
+        points: (n, m, m)); C_d without the term."""
+        if self.Cdp is None:
+            return self.Cd0
+        s = np.asarray(pressure, float)
+        return self.Cd0 + pressure_coefficient(s)[..., None, None] * self.Cdp
 
     @property
     def complex_stiffness(self) -> bool:
@@ -286,22 +321,29 @@ class ReducedModel:
         ∂K/∂μ = K_f¹ (− μ_c⁰/μ⁰ K_f,c¹ for a contact whose ``mu.<c>`` is given, + μ_c⁰/μ⁰ (s_c − 1)
         K_f,c¹ for one whose k_n is changed); ∂K/∂E_i = (1 + iη_i) K_i/E_i⁰, ∂C/∂E_i = β_i K_i/E_i⁰;
         ∂K/∂η_i = i θ_i K_i; ∂K/∂μ_c = s_c K_f,c¹; ∂K/∂k_n,c = (K_c,c + μ_c K_f,c¹)/k_n,c⁰;
-        ∂K/∂k_t,c = K_t,c¹; ∂C/∂μ = sign(μ)(Ω₀/Ω) C_d/|μ⁰|; ∂K/∂Ω = 2Ω K₂, ∂C/∂Ω = G₁ − (|μ|/|μ⁰|)(Ω₀/Ω²) C_d."""
+        ∂K/∂k_t,c = K_t,c¹; ∂C/∂μ = sign(μ)(Ω₀/Ω) C_d/|μ⁰|; ∂K/∂Ω = 2Ω K₂, ∂C/∂Ω = G₁ − (|μ|/|μ⁰|)(Ω₀/Ω²) C_d;
+        ∂K/∂s = K_σ,s, ∂C/∂s = (|μ|/|μ⁰|)(Ω₀/Ω) C_d,s (the pressure; C_d above at s: C_d + (s − 1) C_d,s)."""
         point = dict(point or {})
         self._check([name, *point])
         val = {**self.nominal(), **{k: float(v) for k, v in point.items()}}
         prefix, target = split_param(name)
         w, mu = val.get(SPEED, self.speed0), val.get(MU, self.mu0)
+        Cd = self._friction_damping(val.get(PRESSURE, 1.0)) if self.Cd0 is not None else None
+        if name == PRESSURE:
+            m = self.size
+            dK = self.Ksp.copy() if self.Ksp is not None else np.zeros((m, m))
+            dC = friction_damping_scale(mu, self.mu0, w, self.speed0) * self.Cdp if self.Cdp is not None else None
+            return dK, dC
         if name == SPEED:
             m = self.size
             dK = 2.0 * w * self.K2 if self.K2 is not None else np.zeros((m, m))
             dC = self.G1.copy() if self.G1 is not None else np.zeros((m, m))
-            if self.Cd0 is not None:
-                dC = dC - friction_damping_scale(mu, self.mu0, w, self.speed0) / w * self.Cd0
+            if Cd is not None:
+                dC = dC - friction_damping_scale(mu, self.mu0, w, self.speed0) / w * Cd
             return dK, dC
         if name == MU:
-            dC = np.sign(mu) * friction_damping_scale(1.0, self.mu0, w, self.speed0) * self.Cd0 \
-                if self.Cd0 is not None else None
+            dC = np.sign(mu) * friction_damping_scale(1.0, self.mu0, w, self.speed0) * Cd \
+                if Cd is not None else None
             dK = self.Kf1.copy()
             for cname, c in self.interfaces.items():
                 share = self._mu_share(c)
@@ -351,6 +393,9 @@ class ReducedModel:
         speed = self._speed(points, n)
         if self.K2 is not None:
             K = K + (speed ** 2)[:, None, None] * self.K2
+        if self.Ksp is not None and PRESSURE in points:
+            s = np.broadcast_to(np.asarray(points[PRESSURE], float), (n,))
+            K = K + pressure_coefficient(s)[:, None, None] * self.Ksp
         if not self.damped:
             return K, None
         C = np.broadcast_to(self.C0 if self.C0 is not None else np.zeros((self.size,) * 2),
@@ -361,7 +406,9 @@ class ReducedModel:
             C += speed[:, None, None] * self.G1
         if self.Cd0 is not None:
             mu = np.broadcast_to(np.asarray(points.get(MU, self.mu0), float), (n,))
-            C += friction_damping_scale(mu, self.mu0, speed, self.speed0)[:, None, None] * self.Cd0
+            Cd = self.Cd0 if self.Cdp is None or PRESSURE not in points else \
+                self._friction_damping(np.broadcast_to(np.asarray(points[PRESSURE], float), (n,)))
+            C += friction_damping_scale(mu, self.mu0, speed, self.speed0)[:, None, None] * Cd
         return K, C
 
     def _speed(self, points: Mapping[str, np.ndarray], n: int) -> np.ndarray:
@@ -402,7 +449,7 @@ class ReducedModel:
                     arrays[f"contact/{name}/{f}"] = getattr(c, f)
             for f in ("kn", "mu", "sliding", "kt"):
                 arrays[f"contact/{name}/{f}"] = np.array(getattr(c, f))
-        for name in ("G1", "K2", "Cd0"):
+        for name in ("G1", "K2", "Cd0", "Ksp", "Cdp"):
             if getattr(self, name) is not None:
                 arrays[name] = getattr(self, name)
         if self.speed0 or self.speed_varies:
@@ -439,4 +486,5 @@ class ReducedModel:
                    f=d.get("f"), q_static=d.get("q_static"),
                    eta0={p: float(d[f"eta0/{p}"]) for p in parts if f"eta0/{p}" in d}, plates=plates,
                    speed0=float(d.get("speed0", 0.0)), G1=d.get("G1"), K2=d.get("K2"), Cd0=d.get("Cd0"),
-                   speed_varies=bool(d.get("speed_varies", False)))
+                   speed_varies=bool(d.get("speed_varies", False)), Ksp=d.get("Ksp"),
+                   Cdp=d.get("Cdp"))

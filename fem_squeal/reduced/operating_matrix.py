@@ -8,16 +8,19 @@ A condition c = (p, T, Ω, d) sets the reduced model's parameters (:mod:`fem_squ
     mu.<i>  = d·μ_i(p, T, Ω)     interface i with its own law
                                  (:func:`~fem_squeal.reduced.laws.friction.operating_mu`)
     speed   = |Ω|                where Ω is a parameter of the model (gyroscopic, friction damping)
+    pressure = p                 where p is a parameter of the model (the stress stiffening K_σ(u(p)))
 
 and the reverse direction (d = −1) turns the disc the other way: the friction stiffness changes sign
 (signed μ, as sign(v)μ in seed 001 Fig. 8) and so does the gyroscopic term, C(−Ω) = C(|Ω|) − 2|Ω| G₁;
 the Ω² terms (centrifugal stiffening, convective) and the friction damping (|μ|/|V|) do not.  Kept from
 the nominal point: the contact state and the preload's stress stiffening (with a frictional static
 step its friction traction is that of the scene's direction).  The pressure p is the scale of the
-scene's ``loads.pressure``; it enters here through the friction laws μ(p, T, Ω) only: the reduced model
-is built about one preload, so another pressure is evaluated on it only where its linearised operators
-are the scene's (the same contact set, a linear penalty, no stress stiffening or friction damping: the
-app checks this with the preload continuation, :mod:`fem_squeal.app.analyses.pressure_continuation`).
+scene's ``loads.pressure``; it enters here through the friction laws μ(p, T, Ω) and, where the model
+has the parameter ``pressure``, through the stress stiffening K_σ(u(p)) = K_σ(u(1)) + (p − 1) K_σ,s
+(affine in p: :mod:`fem_squeal.reduced.model`): the reduced model is built about one contact state, so
+another pressure is evaluated on it only where the contact set and a linear penalty keep its other
+linearised operators the scene's (no friction damping: the app checks this with the preload continuation,
+:mod:`fem_squeal.app.analyses.pressure_continuation`).
 
 A part's loss factor η(f, T) (a shim's table, :class:`LossFactors`) enters at the condition's temperature:
 as the parameter ``eta.<part>`` where the table does not vary with f (then exactly the constant-η model),
@@ -37,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fem_squeal.reduced.affine import MU, SPEED, eta_param
+from fem_squeal.reduced.affine import MU, PRESSURE, SPEED, eta_param
 from fem_squeal.reduced.eigensolve import TWO_PI, in_band, quadratic_eigs, unstable
 from fem_squeal.reduced.laws.friction import operating_mu
 from fem_squeal.reduced.laws.loss_factor import LossTable
@@ -153,7 +156,8 @@ class InterfaceLaw:
 def parameter_points(model: ReducedModel, cond: Conditions, laws: Mapping[str, InterfaceLaw],
                      default: InterfaceLaw | None = None) -> dict[str, np.ndarray]:
     """The reduced model's parameters at every condition (module docstring): ``mu`` from ``default``
-    (None: the model's μ⁰, constant), ``mu.<i>`` from ``laws``, ``speed`` where Ω is a parameter.
+    (None: the model's μ⁰, constant), ``mu.<i>`` from ``laws``, ``speed`` where Ω is a parameter,
+    ``pressure`` where the pressure is.
     Raises a ModelError when a law names an interface without a friction parameter, or when the speed
     changes terms the model cannot follow (Ω not a parameter but present in it)."""
     d = cond.direction
@@ -166,6 +170,8 @@ def parameter_points(model: ReducedModel, cond: Conditions, laws: Mapping[str, I
             raise ModelError(f"friction.{name}: not a sliding interface with its own μ in this reduced model; "
                              f"its friction parameters: {[p for p in model.parameters if p.startswith('mu')]}")
         pts[key] = d * law.mu(cond.temperature, cond.speed, cond.pressure)
+    if PRESSURE in model.parameters:
+        pts[PRESSURE] = cond.pressure.copy()
     if SPEED in model.parameters:
         pts[SPEED] = cond.speed.copy()
     elif np.any(cond.speed != model.speed0) and any(

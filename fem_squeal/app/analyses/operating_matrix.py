@@ -8,12 +8,17 @@ through the friction laws (and the speed through the model's gyroscopic, centrif
 terms where Ω is a parameter), the direction turns the friction and gyroscopic terms.  The pressure is
 the scale of ``loads.pressure``: the preload stage continues the scene's preload to the other pressures
 (:mod:`fem_squeal.app.analyses.pressure_continuation`); they are evaluated on the one reduced model when
-its operators do not depend on the pressure (:func:`pressure_dependent_terms`, checked before any
-computation) and the contact set at each is the scene's (checked after the preloads, a named error
-otherwise).  Parts with a loss-factor table ``materials.<part>.eta_table`` η(f, T): at each condition's
-temperature, per band mode at its own frequency (fixed point; ``loss_factor_fixed_point`` in results.json:
-iterations, modes not converged).  ``verify``: full CEAs at the corner conditions, compared as
-analyses.reduced compares its check points.
+the contact set at each is the scene's (checked after the preloads, a named error otherwise) and its
+operators either do not depend on the pressure or only through the stress stiffening and the contacts'
+friction damping, which make it the model's parameter ``pressure`` (K_σ(u(s)) = K_σ(u(1)) + (s − 1)
+K_σ(du/ds), C_d(p(s)) = C_d(p(1)) + (s − 1) C_d(dp/ds), exact for the fixed contact set and the linear
+penalty: :mod:`fem_squeal.fe.pressure_terms`); the other pressure-dependent terms are refused before any
+computation (:func:`pressure_dependent_terms`).  Parts with a loss-factor table
+``materials.<part>.eta_table`` η(f, T): at each condition's temperature, per band mode at its own frequency
+(fixed point; ``loss_factor_fixed_point`` in results.json: iterations, modes not converged).  ``verify``:
+full CEAs at the corner conditions, compared as analyses.reduced compares its check points; with a table
+in f, the full nonlinear eigenproblem T(λ) with η at each answer's own frequency, from the unstable and
+least stable reduced eigenvalues.
 Every unstable mode carries its coupling (the participation of the basis's real modes, as the μ sweep's).
 Files: operating_matrix_conditions.csv, operating_matrix_modes.csv (with the coupling pair),
 operating_matrix_bands.csv, operating_matrix.png (+ its .csv)."""
@@ -41,6 +46,7 @@ from fem_squeal.app.html import escape as _e
 from fem_squeal.app.html import num as _num
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
+from fem_squeal.reduced.affine import PRESSURE
 from fem_squeal.reduced.eigensolve import TWO_PI, in_band, unstable
 from fem_squeal.reduced.laws.friction import ConstantFriction, StribeckFriction, TableFriction
 from fem_squeal.reduced.laws.loss_factor import loss_table
@@ -72,7 +78,8 @@ NEP_TOL = 1e-10
 SECTION = {
     "pressure": Field((list, dict), [1.0], None, "scales of loads.pressure (" + VALUES + "); other than 1 "
                       "(the scene's): the preload is continued to them and each must keep the scene's contact "
-                      "set; they act through the friction laws μ(p, T, Ω)"),
+                      "set; they act through the friction laws μ(p, T, Ω), the stress stiffening "
+                      "(preload.geometric_stiffness) and the contacts' friction damping"),
     "temperature": Field((list, dict), [20.0], None, f"disc temperatures [°C] ({VALUES}); they act through "
                          "the friction laws"),
     "speed": Field((list, dict), [], None, f"disc speeds |Ω| [rad/s] ({VALUES}); [] = operating.speed"),
@@ -236,19 +243,20 @@ def check(scene, volumes) -> None:
 
 
 def pressure_dependent_terms(scene) -> str:
-    """Why the linearised operators of the scene depend on the brake pressure beyond its contact set ('' if
-    they do not).  With the linear penalty, a fixed contact set and none of these terms, the stiffness
+    """Why the linearised operators of the scene depend on the brake pressure in a way the reduced model
+    cannot follow ('' if they do not).  With the linear penalty and a fixed contact set the stiffness
     (elastic, contact k_n, friction μ k_n), mass, damping and gyroscopic operators are those of the scene's
-    pressure: only μ(p, T, Ω) changes.  The stress stiffening K_σ(u(p)) and the friction damping (∝ the
-    contact pressure) grow with p; the reduced model holds them at the scene's pressure only."""
+    pressure: only μ(p, T, Ω), the stress stiffening K_σ(u(p)) and a contact's friction damping C_d(p(p))
+    change, the latter two affine in p (the model's ``pressure`` parameter).  A rigid plate's friction
+    damping (its pressure k_n max(u·n, 0) from the displacement) is held at the scene's pressure only."""
     if scene.preload["mode"] != "nonlinear":
         return "preload.mode is 'all_closed' (the contact state at each pressure needs the nonlinear preload)"
-    if scene.preload["geometric_stiffness"]:
-        return "preload.geometric_stiffness = true (the stress stiffening K_σ grows with the pressure)"
-    damped = sorted(n for n, t in scene.interfaces.items() if t.get("friction_damping"))
+    damped = sorted(n for n, t in scene.interfaces.items()
+                    if t.get("friction_damping") and t.get("type") != "contact")
     if damped:
-        return (f"interfaces.{damped[0]}.friction_damping = true (the friction damping grows with the contact "
-                f"pressure)")
+        return (f"interfaces.{damped[0]}.friction_damping = true on a {scene.interfaces[damped[0]]['type']} (its "
+                f"friction damping grows with the pressure k_n max(u·n, 0), which the reduced model does not "
+                f"follow; a contact interface's it does)")
     return ""
 
 
@@ -256,16 +264,11 @@ def pressure_states(ctx, cond: Conditions) -> dict | None:
     """The preload's continuation to the conditions' other pressures (None: only the scene's pressure);
     a SceneError naming the pressure where the contact set is not the scene's (the reduced model holds the
     scene's contact state: a pressure that opens or closes contact points needs per-pressure contact
-    operators, not implemented)."""
+    operators, not implemented: :func:`~fem_squeal.app.analyses.pressure_continuation.check_contact_sets`)."""
     if not set(cond.pressure.tolist()) - {1.0}:
         return None
     summ = pressure_continuation.summary(ctx)
-    for r in summ["pressures"]:
-        if not r["same_contact_set"]:
-            raise SceneError(f"{_KEY}.pressure: at {r['scale']:g} × loads.pressure the contact set is not the "
-                             f"scene's ({r['changed_points']} contact points opened or closed): the reduced "
-                             f"model holds one contact state, and per-pressure contact operators in reduced "
-                             f"coordinates are not implemented; keep pressures where the contact set holds")
+    pressure_continuation.check_contact_sets(summ, _KEY)
     return summ
 
 
@@ -397,6 +400,23 @@ _PRESSURE_MODEL = ("the contact set at every pressure is the scene's (checked by
                    "the penalty is linear, so the linearised operators are the scene's: the pressure acts "
                    "through μ(p, T, Ω) only; the preload state scales with p, but no operator of this scene "
                    "depends on it (no stress stiffening, no friction damping)")
+_PRESSURE_TERMS = (
+    "the contact set at every pressure is the scene's (checked by the preload continuation) and the penalty is "
+    "linear, so the preload u(p) and the contact pressures are affine in p and so are {terms}, the reduced "
+    "model's parameter 'pressure' (the slopes from the continued state farthest from p = 1); the pressure acts "
+    "through {them} and μ(p, T, Ω), the other operators are the scene's; the corner checks assemble {them} "
+    "from each pressure's own continued state")
+
+
+def pressure_model(model) -> str:
+    """How the reduced model follows the brake pressure (results.json ``pressure.model``)."""
+    if PRESSURE not in model.parameters:
+        return _PRESSURE_MODEL
+    terms = [t for t, on in (("the stress stiffening K_σ(u(p)) = K_σ(u(1)) + (p − 1) K_σ(du/ds)",
+                              model.Ksp is not None),
+                             ("the friction damping C_d(p) = C_d(1) + (p − 1) C_d(dp/ds)", model.Cdp is not None))
+             if on]
+    return _PRESSURE_TERMS.format(terms=" and ".join(terms), them="it" if len(terms) == 1 else "them")
 
 
 def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
@@ -428,7 +448,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
                            "squeal_index": "not available: the reduced model carries no radiation (ERP); "
                                            "the CEA's nvh section ranks the nominal point's modes"}
     if states is not None:
-        out["pressure"] = {"continuation": states, "model": _PRESSURE_MODEL}
+        out["pressure"] = {"continuation": states, "model": pressure_model(model)}
     ctx.say(f"[fem_squeal] operating matrix: {cond.size} conditions in {res.seconds:.2f} s, "
             f"{noise['unstable_conditions']} with instability")
     if res.fixed_point is not None:
@@ -454,8 +474,14 @@ def verification_failures(res: dict, tol: float) -> list[str]:
     """Corner conditions where the reduced model misses the full CEA (relative error above ``tol`` or a
     different number of unstable modes)."""
     return mismatches(res.get("verification", []), tol, "operating matrix: ",
-                      where=lambda r: f"condition {r['condition']} ({r['temperature']:g} °C, "
-                                      f"{r['speed']:g} rad/s, {r['direction']})")
+                      where=lambda r: f"condition {r['condition']} (" + _at_pressure(r)
+                                      + f"{r['temperature']:g} °C, {r['speed']:g} rad/s, {r['direction']})")
+
+
+def _at_pressure(row: dict) -> str:
+    """'2 × loads.pressure, ' for a condition at another pressure than the scene's ('' at the scene's)."""
+    p = row.get("pressure", pressure_continuation.SCENE_PRESSURE)
+    return "" if p == pressure_continuation.SCENE_PRESSURE else f"{p:g} × loads.pressure, "
 
 
 def report(res: dict) -> str:
@@ -498,10 +524,11 @@ def report(res: dict) -> str:
               x["nonlinearity"]] for x in r["pressure"]["continuation"]["pressures"]]))
     if r.get("verification"):
         txt += "<h3>Reduced vs full model at the corners</h3>" + _table(
-            ["condition", "T [°C]", "|Ω| [rad/s]", "direction", "full model", "max rel. error", "unstable full",
-             "unstable reduced"],
-            [[v["condition"], v["temperature"], v["speed"], v["direction"], v.get("method", "full CEA"),
-              v["max_rel_error"], v["n_unstable_full"], v["n_unstable_reduced"]] for v in r["verification"]])
+            ["condition", "p [× loads.pressure]", "T [°C]", "|Ω| [rad/s]", "direction", "full model",
+             "max rel. error", "unstable full", "unstable reduced"],
+            [[v["condition"], v["pressure"], v["temperature"], v["speed"], v["direction"],
+              v.get("method", "full CEA"), v["max_rel_error"], v["n_unstable_full"], v["n_unstable_reduced"]]
+             for v in r["verification"]])
     return txt
 
 

@@ -6,7 +6,13 @@ The scene's preload is solved first (keeping its factorisation), then each other
 the nearest solved one (:mod:`fem_squeal.fe.preload_continuation`), the states cached by content under
 the run's cache (``<cache>/preload_states``).  Per scale the summary gives the Newton work, the normal
 forces, the closed points and whether the contact set is the scene's (``same_contact_set``), and how far
-the state is from the scene's scaled, ‖u(s) − s u(1)‖/‖s u(1)‖ (``nonlinearity``)."""
+the state is from the scene's scaled, ‖u(s) − s u(1)‖/‖s u(1)‖ (``nonlinearity``).
+
+The states themselves stay in memory for the run (``pressure_states``): with the stress stiffening
+(preload.geometric_stiffness) or the friction damping of a contact the pressure is a parameter of the
+reduced model, K_σ(u(s)) = K_σ(u(1)) + (s − 1) K_σ(du/ds) and C_d(p(s)) = C_d(p(1)) + (s − 1) C_d(dp/ds)
+(:func:`pressure_terms`, :mod:`fem_squeal.fe.pressure_terms`), and the operating matrix's corner checks
+assemble each pressure's operators from its own state."""
 from __future__ import annotations
 
 import json
@@ -19,6 +25,7 @@ from mpi4py import MPI
 
 from fem_squeal.app.analyses.condition_values import values
 from fem_squeal.util.atomic import write_json_atomic
+from fem_squeal.util.errors import SceneError
 
 FILE = "pressure_continuation.json"
 #: the scene's own pressure as a scale of loads.pressure (a table row without a pressure)
@@ -37,6 +44,21 @@ def scales(scene) -> list[float]:
     return sorted(set(ps) - {SCENE_PRESSURE})
 
 
+def friction_damped_contacts(scene) -> list[str]:
+    """The contact interfaces with friction damping (∝ the contact pressure), sorted."""
+    return sorted(n for n, t in scene.interfaces.items()
+                  if t.get("type") == "contact" and t.get("friction_damping"))
+
+
+def pressure_parameter(scene) -> bool:
+    """The brake pressure is a parameter of the reduced model: the scene has a term that grows with it (the
+    stress stiffening, preload.geometric_stiffness; the friction damping of a contact), a nonlinear preload
+    (the contact state at each pressure) and other pressure scales than 1."""
+    pl = scene.preload
+    terms = bool(pl["geometric_stiffness"]) or bool(friction_damped_contacts(scene))
+    return terms and pl["mode"] == "nonlinear" and bool(scales(scene))
+
+
 def key_inputs(scene) -> Any:
     """The preload stage's cache-key inputs: ``scene.preload``, with the continuation's scales when there
     are any (so that a scene without them keeps its key)."""
@@ -46,7 +68,8 @@ def key_inputs(scene) -> Any:
 
 def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
     """Continue the converged preload ``pre`` (scale 1, solved with ``factor``) to the other scales; the
-    summary (also written to ``work``/FILE for the operating matrix); the states' vectors are freed."""
+    summary (also written to ``work``/FILE for the operating matrix); the states are kept in
+    ``ctx.products["pressure_states"]`` by scale (:func:`pressure_terms`)."""
     from fem_squeal.fe.preload_continuation import StateCache, continue_preload  # heavy: FE stack
 
     comm = ctx.comm
@@ -55,7 +78,7 @@ def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
                        {k: settings[k] for k in ("friction", "tol")}, comm)
     states = continue_preload(ops, scales(ctx.scene), start=(1.0, pre.u), factor=factor, cache=cache,
                               progress=lambda line: ctx.say(f"[fem_squeal] {line}"), **settings)
-    rows = []
+    rows, kept = [], {}
     for st in states:
         r = st.result
         changed = comm.allreduce(int(sum(int(np.sum(r.active[n] != pre.active[n])) for n in pre.active)),
@@ -71,7 +94,8 @@ def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
                      "changed_points": changed, "same_contact_set": changed == 0,
                      "nonlinearity": d.norm() / ref if ref > 0 else 0.0})
         d.destroy()
-        r.u.destroy()
+        kept[float(st.scale)] = r
+    ctx.products["pressure_states"] = kept
     out = {"scales": [r["scale"] for r in rows], "seconds": time.perf_counter() - t, "pressures": rows}
     if comm.rank == 0:
         write_json_atomic(work / FILE, out)
@@ -79,6 +103,39 @@ def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
     ctx.say(f"[fem_squeal] preload at {len(rows)} other pressures by continuation in {out['seconds']:.2f} s; "
             f"contact set as the scene's at {sum(r['same_contact_set'] for r in rows)} of them")
     return out
+
+
+def check_contact_sets(summ: dict, key: str = "analyses.operating_matrix") -> None:
+    """A SceneError naming the first pressure of the continuation's summary ``summ`` where the contact set
+    is not the scene's (the reduced model holds one contact state: a pressure that opens or closes contact
+    points needs per-pressure contact operators, not implemented)."""
+    for r in summ["pressures"]:
+        if not r["same_contact_set"]:
+            raise SceneError(f"{key}.pressure: at {r['scale']:g} × loads.pressure the contact set is not the "
+                             f"scene's ({r['changed_points']} contact points opened or closed): the reduced "
+                             f"model holds one contact state, and per-pressure contact operators in reduced "
+                             f"coordinates are not implemented; keep pressures where the contact set holds")
+
+
+def pressure_terms(ctx):
+    """The operators across the pressures of this run (:class:`fem_squeal.fe.pressure_terms.PressureTerms`,
+    a new one: its owner destroys it) from the scene's preload and the continued states: the stress stiffening
+    (preload.geometric_stiffness) and the contacts' friction damping, or None when the pressure is not a
+    parameter (:func:`pressure_parameter`).  A SceneError names a pressure whose contact set is not the
+    scene's (there the state is not affine in s)."""
+    if not pressure_parameter(ctx.scene):
+        return None
+    check_contact_sets(summary(ctx))
+    from fem_squeal.fe.assembly import geometric_stiffness  # heavy: FE stack
+    from fem_squeal.fe.preload import friction_damping  # heavy: FE stack
+    from fem_squeal.fe.pressure_terms import REFERENCE, PressureTerms  # heavy: FE stack
+
+    ops, mesh, spec = ctx.products["linear"], ctx.products["mesh"], ctx.spec
+    states = {REFERENCE: ctx.products["preload"], **ctx.products["pressure_states"]}
+    stiff = (lambda u: geometric_stiffness(ops, mesh, spec, u)) if ctx.scene.preload["geometric_stiffness"] \
+        else None
+    damp = (lambda p: friction_damping(ops, mesh, spec, None, p)) if friction_damped_contacts(ctx.scene) else None
+    return PressureTerms(states, stiff, damp)
 
 
 def summary(ctx) -> dict[str, Any]:

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from fem_squeal.app.analyses import pressure_continuation
 from fem_squeal.app.analyses.preload import operating
 from fem_squeal.app.fields import REAL, Field, band, increasing, positive
 from fem_squeal.app.html import escape as _e
@@ -21,7 +22,7 @@ from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 from fem_squeal.fe.model import common_mu
 from fem_squeal.reduced.eigensolve import TWO_PI, in_band, unstable
-from fem_squeal.reduced.model import MU, SPEED, e_param, format_point
+from fem_squeal.reduced.model import MU, PRESSURE, SPEED, e_param, format_point
 from fem_squeal.reduced.operating_matrix import LossFactors, condition_fixed_point
 from fem_squeal.reduced.sweep import solve_points
 from fem_squeal.util.errors import ModelError, SceneError
@@ -103,8 +104,9 @@ def robustness_E_ranges(section: dict, prefixes: tuple[str, ...] = ("E",)) -> di
 
 
 def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict], list[str]]:
-    """(check points, E samples for the basis, parts whose E varies) implied by sweep, map and the
-    E, kn and kt distributions of robustness (their ranges: :func:`robustness_E_ranges`)."""
+    """(check points, E samples for the basis, parts whose E varies) implied by sweep, map, the E, kn and
+    kt distributions of robustness (their ranges: :func:`robustness_E_ranges`) and the operating matrix's
+    pressures where the pressure is a parameter (stress stiffening, friction damping: its extreme scales)."""
     ana = scene.analyses
     checks: list[dict] = [{MU: mu0}]
     samples: list[dict] = []
@@ -139,6 +141,9 @@ def design_points(scene: dict, spec, mu0: float) -> tuple[list[dict], list[dict]
             if name != SPEED:     # the modes do not depend on the speed: checks only
                 samples += [{name: lo}, {name: hi}]
             checks += [{MU: mu0, name: lo}, {MU: mu0, name: hi}]
+    if pressure_continuation.pressure_parameter(scene):    # K_σ(u(s)), C_d(p(s)) at the extreme scales s
+        ps = pressure_continuation.scales(scene) + [pressure_continuation.SCENE_PRESSURE]
+        checks += [{MU: mu0, PRESSURE: min(ps)}, {MU: mu0, PRESSURE: max(ps)}]
     uniq = lambda pts: [dict(t) for t in dict.fromkeys(tuple(sorted(p.items())) for p in pts)]  # noqa: E731
     return uniq(checks), uniq(samples), sorted(set(parts))
 
@@ -230,11 +235,14 @@ def masa_vectors(ops, preload, attachments: list, band, options) -> np.ndarray:
 
 def parametric_operators(ctx: Context, mu0: float, parts: list[str]):
     """The full-order K(p), C(p) (:class:`fem_squeal.fe.projection.ParametricOperators`) of this scene
-    about its preload, with the rotation, prestress and friction damping at operating.speed."""
+    about its preload, with the rotation, prestress and friction damping at operating.speed, and the
+    stress stiffening and friction damping across the operating matrix's pressures where the pressure is a
+    parameter (:func:`~fem_squeal.app.analyses.pressure_continuation.pressure_terms`)."""
     from fem_squeal.fe.projection import ParametricOperators  # heavy: FE stack
 
     return ParametricOperators(ctx.products["linear"], ctx.spec, mu0, parts, preload=ctx.products["preload"],
-                               operating=operating(ctx), speed0=ctx.scene.operating.speed)
+                               operating=operating(ctx), speed0=ctx.scene.operating.speed,
+                               pressure=pressure_continuation.pressure_terms(ctx))
 
 
 def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:

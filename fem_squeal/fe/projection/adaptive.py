@@ -124,7 +124,7 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
     # default: the band centre, K − ω_c²M (above)
     sigma_hz = sigma_hz if sigma_hz is not None else -0.5 * (band_hz[0] + band_hz[1])
     gyroscopic = par.operating is not None and par.operating.G is not None
-    need_solver = (static and (ops.Kf is not None or gyroscopic)) or e_parts
+    need_solver = (static and (ops.Kf is not None or gyroscopic or par.pressure is not None)) or e_parts
     wall = lambda t0: comm.allreduce(MPI.Wtime() - t0, op=MPI.MAX)  # noqa: E731
     t = MPI.Wtime()
     solver = ShiftedSolver(ops.K, ops.M, np.sign(sigma_hz) * (TWO_PI * sigma_hz) ** 2, options, "basis_static_") \

@@ -1,4 +1,5 @@
-"""The full operators as affine functions of the parameters (μ, E of a part, speed, loss factors):
+"""The full operators as affine functions of the parameters (μ, E of a part, speed, loss factors, brake
+pressure):
 K(p), C(p) term by term, their derivatives, the residuals of reduced pairs lifted into the full
 model."""
 from __future__ import annotations
@@ -15,9 +16,18 @@ from fem_squeal.fe.assembly import OperatingTerms, Operators, _owned_global_rows
 from fem_squeal.fe.csr import sum_norms_inf
 from fem_squeal.fe.dense import apply, matmul_f
 from fem_squeal.fe.model import ModelSpec
+from fem_squeal.fe.pressure_terms import REFERENCE, PressureTerms
 from fem_squeal.fe.projection.basis import project
 from fem_squeal.reduced import affine
-from fem_squeal.reduced.affine import MU, SPEED, e_param, eta_param, friction_damping_scale, split_param
+from fem_squeal.reduced.affine import (
+    MU,
+    PRESSURE,
+    SPEED,
+    e_param,
+    eta_param,
+    friction_damping_scale,
+    split_param,
+)
 from fem_squeal.reduced.model import PlateProjection
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
@@ -33,11 +43,20 @@ class ParametricOperators:
     one), as the reduced model's: the contact state of the preload is kept when k_n changes.
     A loss factor η makes K complex, which the real PETSc build cannot hold: :meth:`matrices`
     returns the real part and :meth:`loss_stiffness` the imaginary part Σ η_i θ_i K_i, from which
-    :meth:`real_equivalent` builds the real problem of twice the size."""
+    :meth:`real_equivalent` builds the real problem of twice the size.
+    With ``pressure`` (:class:`~fem_squeal.fe.pressure_terms.PressureTerms`, owned from then on:
+    :meth:`destroy` destroys it) the brake pressure scale ``pressure`` is a parameter: at s ≠ 1 the
+    stress stiffening K_σ0 = K_σ(u(1)) of ``operating`` is replaced by K_σ(u(s)) and the friction damping
+    C_d by C_d(p(s)), both assembled from the preload state continued to s (not the reduced model's affine
+    terms K_σ0 + (s − 1) K_σ,s, C_d + (s − 1) C_d,s, which this checks)."""
 
     def __init__(self, ops: Operators, spec: ModelSpec, mu0: float, parts: list[str] | None = None,
-                 preload=None, operating: OperatingTerms | None = None, speed0: float = 0.0):
+                 preload=None, operating: OperatingTerms | None = None, speed0: float = 0.0,
+                 pressure: PressureTerms | None = None):
         self.ops, self.mu0 = ops, mu0
+        if pressure is not None:
+            _check_pressure_terms(pressure, operating, ops.Cd)
+        self.pressure = pressure
         # the disc's rotation and stress stiffening (fe.assembly.OperatingTerms) at the scene's speed Ω₀;
         # friction damping ops.Cd (in ops.C) scales as (|μ|/|μ⁰|)(Ω₀/Ω): p |μ|/V with V = Ω r
         self.operating, self.speed0 = operating, float(speed0)
@@ -76,7 +95,8 @@ class ParametricOperators:
     def parameters(self) -> list[str]:
         """Every parameter name these operators accept (the reduced model's names)."""
         # μ = 0 is accepted by a frictionless model
-        return affine.parameter_names(self.parts, self.interfaces, speed=self.speed_varies)
+        return affine.parameter_names(self.parts, self.interfaces, speed=self.speed_varies,
+                                      pressure=self.pressure is not None)
 
     def interface_matrices(self, name: str) -> tuple[PETSc.Mat, PETSc.Mat | None, PETSc.Mat]:
         """(K_c at the nominal k_n, K_f for μ = 1 at the nominal k_n or None without sliding, K_t for
@@ -141,7 +161,7 @@ class ParametricOperators:
         mu = params.get(MU, self.mu0)
         if self.ops.Kf is not None and self.mu0 != 0:
             K.append((self.ops.Kf, mu / self.mu0))
-        self._operating(K, C, mu, params.get(SPEED, self.speed0))
+        self._operating(K, C, mu, params.get(SPEED, self.speed0), params.get(PRESSURE, REFERENCE))
         for p in self.parts:
             d = affine.modulus_coefficient(params.get(e_param(p), self.E0[p]), self.E0[p])
             if d != 0:
@@ -155,19 +175,25 @@ class ParametricOperators:
                 K += [(mats[j], c) for j, c in coefs if mats[j] is not None]
         return K, C
 
-    def _operating(self, K: list, C: list, mu: float, speed: float) -> None:
+    def _operating(self, K: list, C: list, mu: float, speed: float, pressure: float = REFERENCE) -> None:
         """The terms K_σ0 + Ω²(K_σc − S) of K and Ω G + ((|μ|/|μ⁰|)(Ω₀/Ω) − 1) C_d of C (which holds C_d
-        at the nominal point), appended to the term lists."""
+        at the nominal point), appended to the term lists; at a pressure scale s ≠ 1, K_σ(u(s)) and
+        C_d(p(s)) of the state at s in place of K_σ0 and C_d."""
         op, Cd = self.operating, self.ops.Cd
+        at_s = self.pressure is not None and pressure != REFERENCE
         if op is not None and op.Ks0 is not None:
-            K.append((op.Ks0, 1.0))
+            K.append((self.pressure.stiffness_at(pressure) if at_s else op.Ks0, 1.0))
         if op is not None and op.G is not None:
             K.append((self.K2, speed ** 2))
             C.append((op.G, speed))
         if Cd is not None and self.mu0 != 0:
             if self.speed0:
                 affine.check_damping_speed(speed)
-            C.append((Cd, friction_damping_scale(mu, self.mu0, speed, self.speed0) - 1.0))
+            scale = friction_damping_scale(mu, self.mu0, speed, self.speed0)
+            if at_s:    # C₀ holds C_d(p(1)): replaced by that of the state at s
+                C += [(Cd, -1.0), (self.pressure.damping_at(pressure), scale)]
+            else:
+                C.append((Cd, scale - 1.0))
 
     def real_equivalent(self, params: Mapping[str, float]
                         ) -> tuple[PETSc.Mat, PETSc.Mat | None, PETSc.Mat]:
@@ -195,6 +221,8 @@ class ParametricOperators:
             A.destroy()
         if self.K2 is not None:
             self.K2.destroy()
+        if self.pressure is not None:
+            self.pressure.destroy()
         for mats in self._interface.values():
             for A in mats:
                 if A is not None:
@@ -206,10 +234,17 @@ def parameter_derivative(par: ParametricOperators, name: str) -> tuple[PETSc.Mat
     factor·∂K/∂p (factor i for a loss factor η, whose term is iθK_i; 1 otherwise).  The same terms
     as :meth:`fem_squeal.reduced.model.ReducedModel.derivative`: ∂K/∂μ = K_f/μ⁰; ∂K/∂E_i = K_i/E_i⁰,
     ∂C/∂E_i = β_i K_i/E_i⁰; ∂K/∂η_i = iK_i; ∂K/∂μ_c = K_f,c¹; ∂K/∂k_n,c = (K_c,c + μ_c⁰K_f,c¹)/k_n,c⁰;
-    ∂K/∂k_t,c = K_t,c¹; with friction damping ∂C/∂μ = C_d/μ⁰; ∂K/∂Ω = 2Ω₀(K_σc − S), ∂C/∂Ω = G − C_d/Ω₀.
-    New matrices (the caller destroys them)."""
+    ∂K/∂k_t,c = K_t,c¹; with friction damping ∂C/∂μ = C_d/μ⁰; ∂K/∂Ω = 2Ω₀(K_σc − S), ∂C/∂Ω = G − C_d/Ω₀;
+    ∂K/∂s = K_σ,s, ∂C/∂s = C_d,s (the pressure's slopes).  New matrices (the caller destroys them)."""
     par._check({name: 1.0})
     prefix, target = split_param(name)
+    if name == PRESSURE:
+        pt = par.pressure
+        dK = combination([(pt.stiffness_slope, 1.0)]) if pt.stiffness_slope is not None else par.ops.K.duplicate()
+        if pt.stiffness_slope is None:
+            dK.zeroEntries()
+        dC = combination([(pt.damping_slope, 1.0)]) if pt.damping_slope is not None else None
+        return dK, dC, 1.0
     if name == MU:
         if par.ops.Kf is None or par.mu0 == 0:
             raise ModelError("mu: the model has no friction at the nominal point (no K_f to scale)")
@@ -237,6 +272,18 @@ def parameter_derivative(par: ParametricOperators, name: str) -> tuple[PETSc.Mat
         return combination([(Kf, 1.0)]), None, 1.0
     mu_c = par.mu0 * par._mu_share(it)
     return combination([(Kc, 1.0 / it.kn), (Kf, mu_c / it.kn)]), None, 1.0
+
+
+def _check_pressure_terms(pressure: PressureTerms, operating: OperatingTerms | None, Cd: PETSc.Mat | None) -> None:
+    """The pressure terms match the operators: a stress stiffening K_σ0 and a friction damping C_d of the
+    operators each need theirs across the pressures, and a term across the pressures needs its operator."""
+    Ks0 = operating.Ks0 if operating is not None else None
+    for what, nominal, across in (("the stress stiffening K_σ (preload.geometric_stiffness)", Ks0,
+                                   pressure.stiffness),
+                                  ("the friction damping C_d (friction_damping)", Cd, pressure.damping)):
+        if (nominal is None) != (across is None):
+            raise ModelError(f"pressure: {what} " + ("is not in these operators" if nominal is None else
+                                                     "grows with the pressure, but the pressure terms lack it"))
 
 
 def _block_matrix(blocks, like: PETSc.Mat) -> PETSc.Mat:

@@ -105,7 +105,7 @@ def build_basis(ops: Operators, par: ParametricOperators | None, f_cut_hz: float
     if par is None and samples:
         raise ModelError("samples: modes at other parameter values need the parametric operators (par)")
     loads = _loads(correction_operators(ops, par.operating if par is not None else operating,
-                                        loss_operators(par)), blocks) if static else []
+                                        loss_operators(par), _slope_corrections(par)), blocks) if static else []
     if loads:
         sigma = (TWO_PI * (sigma_hz if sigma_hz is not None else 0.1 * f_cut_hz)) ** 2
         F = np.column_stack(loads)
@@ -128,12 +128,15 @@ def build_basis(ops: Operators, par: ParametricOperators | None, f_cut_hz: float
 def static_loads(ops: Operators, par: ParametricOperators, Phi: np.ndarray | list[tuple[np.ndarray, ...]]
                  ) -> list[np.ndarray]:
     """The loads A Φ whose static corrections (K + σM)⁻¹ A Φ join the basis: A = K_f (friction), C_d (friction
-    damping), the gyroscopic G of a turning disc and the stiffness of the parts with a loss factor, the
-    terms that the modes at rest do not span. The symmetric K_σ0, K_σc − S (prestress, spin softening: ~1e-4
-    of K) are left to the modes. Measured on the coarse brake (50k DOFs, corners μ = ±0.6 × Ω = 2, 100
-    rad/s, worst relative error of the unstable eigenvalues): K_f, C_d: 239 vectors, 2.6e-4; + G: 324,
-    7.3e-5; + G, K_σc − S, K_σ0: 496, 1.7e-4; + their sum at Ω₀: 325, 1.0e-4."""
-    return _loads(correction_operators(ops, par.operating, loss_operators(par)), Phi)
+    damping), the gyroscopic G of a turning disc, the stiffness of the parts with a loss factor and, where the
+    brake pressure is a parameter, the slope C_d,s of the friction damping (issue 39): the terms that the
+    modes at rest do not span.  The symmetric K_σ0, K_σc − S (prestress, spin softening: ~1e-4 of K) and the
+    slope K_σ,s of the stress stiffening are left to the modes.  Measured on the coarse brake (50k DOFs,
+    corners μ = ±0.6 × Ω = 2, 100 rad/s, worst relative error of the unstable eigenvalues): K_f, C_d: 239
+    vectors, 2.6e-4; + G: 324, 7.3e-5; + G, K_σc − S, K_σ0: 496, 1.7e-4; + their sum at Ω₀: 325, 1.0e-4.
+    K_σ,s (pressures 0.5 and 2, two corners): without its corrections 251 vectors, 2.9e-5; with them 337,
+    3.6e-5."""
+    return _loads(correction_operators(ops, par.operating, loss_operators(par), _slope_corrections(par)), Phi)
 
 
 def loss_operators(par: ParametricOperators | None) -> list[PETSc.Mat]:
@@ -141,16 +144,29 @@ def loss_operators(par: ParametricOperators | None) -> list[PETSc.Mat]:
     i η K_p spans stiff directions (a contact's, a penalty's) that the modes do not.  Measured on the
     Ryzhik ring between its plates (η = 0.03 on the ring, modes ≤ 16 kHz): the unstable eigenvalues near
     9.5 kHz 1.2–2.3e-6 from the full model's without these corrections, whatever the cut (30 kHz: the
-    same), 1e-10 with them (the basis 129 → 255 vectors)."""
+    same), 3e-10 with them (the basis 129 → 192 vectors)."""
     return [par.K_parts[p] for p in getattr(par, "loss_parts", ())] if par is not None else []
 
 
 def correction_operators(ops: Operators, operating: OperatingTerms | None = None,
-                         loss: list[PETSc.Mat] = ()) -> list[PETSc.Mat]:
+                         loss: list[PETSc.Mat] = (), slopes: list[PETSc.Mat] = ()) -> list[PETSc.Mat]:
     """The operators A of :func:`static_loads` (K_f, C_d, the gyroscopic G of ``operating``, the parts'
-    stiffness of ``loss``: :func:`loss_operators`) that the model has."""
-    mats = [ops.Kf, getattr(ops, "Cd", None), operating.G if operating is not None else None, *loss]
+    stiffness of ``loss`` (:func:`loss_operators`), the pressure slopes of ``slopes``) that the model has."""
+    mats = [ops.Kf, getattr(ops, "Cd", None), operating.G if operating is not None else None, *loss, *slopes]
     return [A for A in mats if A is not None]
+
+
+def _pressure_slopes(par: ParametricOperators | None) -> tuple[PETSc.Mat | None, PETSc.Mat | None]:
+    """(K_σ,s, C_d,s) of ``par`` where the pressure is its parameter (None where it has no such term)."""
+    if par is None or par.pressure is None:
+        return None, None
+    return par.pressure.stiffness_slope, par.pressure.damping_slope
+
+
+def _slope_corrections(par: ParametricOperators | None) -> list[PETSc.Mat]:
+    """The pressure slopes whose static corrections join the basis: C_d,s only (the stress stiffening's
+    K_σ,s is left to the modes as K_σ0 is: :func:`static_loads`)."""
+    return [A for A in _pressure_slopes(par)[1:] if A is not None]
 
 
 def _loads(mats: list[PETSc.Mat], Phi: np.ndarray | list[tuple[np.ndarray, ...]]) -> list[np.ndarray]:
@@ -226,4 +242,15 @@ def reduce(ops: Operators, par: ParametricOperators, basis: Basis, preload=None)
     return ReducedModel(K0=K0, Kf1=Kf1, C0=C0, K_parts={p: project(A, Phi) for p, A in par.K_parts.items()},
                         E0=dict(par.E0), beta=dict(par.beta), mu0=par.mu0,
                         contacts=restrict_contacts(ops, Phi, preload), info=dict(basis.counts), f=f, q_static=q_s,
-                        eta0=dict(par.eta0), plates=project_plates(par, Phi), **speed)
+                        eta0=dict(par.eta0), plates=project_plates(par, Phi), **speed,
+                        **_project_pressure_slopes(par, Phi))
+
+
+def _project_pressure_slopes(par: ParametricOperators, Phi: np.ndarray) -> dict[str, np.ndarray]:
+    """The brake pressure s: K_σ(u(s)) = K_σ0 + (s − 1) K_σ,s, C_d(p(s)) = C_d + (s − 1) C_d,s projected
+    (``Ksp``, ``Cdp`` of the reduced model; none without the pressure parameter)."""
+    out = {}
+    for key, A in zip(("Ksp", "Cdp"), _pressure_slopes(par)):
+        if A is not None:
+            out[key] = project(A, Phi)
+    return out

@@ -1,6 +1,7 @@
 """The scene keys of analyses.operating_matrix: the conditions and friction laws it makes, bad values named
 by their key before any computation (a condition outside a friction table, a pressure other than the
-scene's where the operators depend on it), and its report section."""
+scene's where the operators depend on it beyond the stress stiffening), the pressure as a parameter of the
+reduced model with the stress stiffening, and its report section."""
 from __future__ import annotations
 
 import numpy as np
@@ -36,11 +37,10 @@ def test_bundled_scene_conditions_and_laws():
 
 
 @pytest.mark.parametrize("override, message", [
-    ("analyses.operating_matrix.pressure=[1.0, 2.0]\npreload.geometric_stiffness=true",
+    ("analyses.operating_matrix.pressure=[1.0, 2.0]\npreload.mode='all_closed'",
      r"^analyses\.operating_matrix\.pressure: other pressures than the scene's \(1\) need a reduced model whose "
-     r"operators do not depend on the pressure, but preload\.geometric_stiffness = true .*\(got \[2\.0\]\)"),
-    ("analyses.operating_matrix.pressure=[0.5, 1.0]\ninterfaces.pad_inner.friction_damping=true",
-     r"^analyses\.operating_matrix\.pressure: .* but interfaces\.pad_inner\.friction_damping = true"),
+     r"operators do not depend on the pressure, but preload\.mode is 'all_closed' .*\(got \[2\.0\]\)"),
+
     ("analyses.operating_matrix.pressure=[-1.0]",
      r"^analyses\.operating_matrix\.conditions\.pressure: must be > 0"),
     ("analyses.operating_matrix.temperature=[50.0, 450.0]",
@@ -82,6 +82,48 @@ def test_other_pressures_are_continued_by_the_preload():
     assert pressure_continuation.key_inputs(scene)["pressure_scales"] == [0.5, 2.0]
     plain = load_scene(SCENE)
     assert pressure_continuation.scales(plain) == [] and pressure_continuation.key_inputs(plain) is plain.preload
+
+
+def test_stress_stiffening_makes_the_pressure_a_parameter():
+    """With preload.geometric_stiffness (or a contact's friction damping) the other pressures are accepted:
+    the reduced stage checks its basis at the extreme pressures, the conditions give the model's ``pressure``
+    parameter, the results say how; a rigid plate's friction damping is still refused by name."""
+    from types import SimpleNamespace
+
+    from fem_squeal.app.analyses import pressure_continuation
+    from fem_squeal.app.analyses.reduced import basis_design
+
+    scene = load_scene(SCENE, ["analyses.operating_matrix.pressure=[0.5, 1.0, 2.0]",
+                               "preload.geometric_stiffness=true"])
+    assert pressure_continuation.pressure_parameter(scene)
+    assert not pressure_continuation.pressure_parameter(load_scene(SCENE, ["preload.geometric_stiffness=true"]))
+    damped = load_scene(SCENE, ["analyses.operating_matrix.pressure=[0.5, 1.0]",
+                                "interfaces.pad_inner.friction_damping=true"])
+    assert pressure_continuation.pressure_parameter(damped)
+    assert pressure_continuation.friction_damped_contacts(damped) == ["pad_inner"]
+    plate = SimpleNamespace(preload={"mode": "nonlinear"},
+                            interfaces={"pad": {"type": "contact", "friction_damping": True},
+                                        "floor": {"type": "rigid_plate", "friction_damping": True}})
+    why = om.pressure_dependent_terms(plate)
+    assert why.startswith("interfaces.floor.friction_damping = true on a rigid_plate")
+    mu0, checks, _, _ = basis_design(scene, scene.spec)
+    assert {"mu": mu0, "pressure": 0.5} in checks and {"mu": mu0, "pressure": 2.0} in checks
+    plain = load_scene(SCENE)
+    assert not any("pressure" in c for c in basis_design(plain, plain.spec)[1])
+    cond = om.conditions(scene)
+    K0 = np.diag([(2 * np.pi * 1000.0) ** 2, (2 * np.pi * 1100.0) ** 2])
+    model = ReducedModel(K0=K0, Kf1=np.array([[0.0, 1e6], [-1e6, 0.0]]), mu0=0.3, Ksp=1e-2 * K0)
+    pts = parameter_points(model, cond, {}, InterfaceLaw(TableFriction([0.0, 400.0], [0.0, 150.0],
+                                                                       [[0.4, 0.4], [0.4, 0.4]])))
+    assert np.array_equal(pts["pressure"], cond.pressure) and set(cond.pressure.tolist()) == {0.5, 1.0, 2.0}
+    assert "K_σ(u(1)) + (p − 1) K_σ(du/ds)" in om.pressure_model(model) and "C_d" not in om.pressure_model(model)
+    both = ReducedModel(K0=K0, Kf1=model.Kf1, mu0=0.3, Ksp=model.Ksp, Cd0=np.eye(2), Cdp=np.eye(2))
+    assert "C_d(1) + (p − 1) C_d(dp/ds)" in om.pressure_model(both) and "and them" not in om.pressure_model(both)
+    assert "no stress stiffening" in om.pressure_model(ReducedModel(K0=K0))
+    row = {"condition": 1, **cond.row(0), "max_rel_error": 2e-3, "n_unstable_full": 1, "n_unstable_reduced": 1}
+    assert om.verification_failures({"verification": [row]}, 1e-3) == [
+        "operating matrix: reduced vs full at condition 1 (0.5 × loads.pressure, 50 °C, 10 rad/s, forward): "
+        "2.0e-03 > tol 0.001"]
 
 
 def test_report_section_from_results():

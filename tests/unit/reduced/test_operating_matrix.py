@@ -261,3 +261,23 @@ def test_table_over_pressure_is_trilinear_and_a_constant_layer_reproduces_mu():
     cond = factorial([0.5, 1.5], [30.0], [10.0], ["forward", "reverse"])
     pts = parameter_points(flutter_model(), cond, {}, InterfaceLaw(law))
     np.testing.assert_allclose(pts["mu"], [1, -1, 1, -1] * law.coefficient(30.0, 10.0, cond.pressure))
+
+
+def test_pressure_acts_through_the_stress_stiffening_term():
+    """A model with the pressure parameter (K_σ,s): a condition at pressure p solves K(μ, Ω) + (p − 1) K_σ,s;
+    at p = 1 exactly the model without it; a model without it does not see the pressure (μ(p) aside)."""
+    base, model = spinning_model(), spinning_model()
+    S = np.random.default_rng(3).normal(size=(base.size, base.size))
+    model.Ksp = 1e5 * (S + S.T)
+    assert "pressure" in model.parameters and "pressure" not in base.parameters
+    cond = factorial([0.5, 1.0, 2.0], [20.0], [60.0, 90.0], ["forward", "reverse"])
+    pts, pts0 = parameter_points(model, cond, {}), parameter_points(base, cond, {})
+    assert np.array_equal(pts["pressure"], cond.pressure) and "pressure" not in pts0
+    res, same = evaluate(model, cond, pts), evaluate(base, cond, pts0)
+    for k in range(cond.size):
+        K, C = matrices_at(base, {n: v[k] for n, v in pts0.items()}, cond.direction[k])
+        K = K + (cond.pressure[k] - 1.0) * model.Ksp
+        np.testing.assert_allclose(res.eigenvalues[k], quadratic_eigs(K[None], C[None])[0], rtol=1e-12)
+    assert np.array_equal(res.eigenvalues[4:8], same.eigenvalues[4:8])          # p = 1
+    assert np.array_equal(same.eigenvalues[0:4], same.eigenvalues[4:8])         # base: p not seen
+    assert not np.allclose(res.eigenvalues[0:4], same.eigenvalues[0:4], rtol=1e-6)

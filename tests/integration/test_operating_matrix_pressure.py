@@ -1,0 +1,41 @@
+"""The operating matrix across brake pressures with the stress stiffening (issue 39) on the coarse brake corner,
+as a user runs it: the preload continued to 0.5 and 2 × loads.pressure, the pressure a parameter of the one
+reduced model (K_σ(u(p)) = K_σ(u(1)) + (p − 1) K_σ(du/ds)), and the reduced eigenvalues at the extreme
+pressures against full CEAs with each pressure's own K_σ (assembled from its continued state).
+
+Slow (the brake's preload, CEA, basis and two full CEAs: minutes); the identities behind it are checked on
+the two blocks in tests/unit/fe/test_pressure_terms.py."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+from support.paths import ROOT
+from support.processes import clean_env
+
+SCENE = ROOT / "scenes" / "brake_operating_matrix.toml"
+SETS = ["preload.geometric_stiffness=true", "analyses.operating_matrix.pressure=[0.5, 1.0, 2.0]",
+        "analyses.operating_matrix.temperature=[150.0]", "analyses.operating_matrix.speed=[60.0]",
+        "analyses.operating_matrix.direction=['forward']"]
+
+
+@pytest.mark.slow
+def test_reduced_model_follows_the_stress_stiffening_across_pressures(tmp_path):
+    cmd = [sys.executable, "-m", "fem_squeal.cli", "run", str(SCENE),
+           "-o", str(tmp_path / "out"), "--no-fields", "--no-report", *[a for s in SETS for a in ("--set", s)]]
+    subprocess.run(cmd, check=True, env=clean_env(), cwd=ROOT, timeout=1800, capture_output=True)
+    res = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert "pressure" in res["reduced"]["parameters"]
+    assert {tuple(sorted(p.items())) for p in (r["point"] for r in res["reduced"]["lifted_residuals"])} >= {
+        (("mu", 0.4), ("pressure", 0.5)), (("mu", 0.4), ("pressure", 2.0))}
+    om = res["operating_matrix"]
+    assert all(r["same_contact_set"] for r in om["pressure"]["continuation"]["pressures"])
+    assert "K_σ(du/ds)" in om["pressure"]["model"]
+    ver = om["verification"]
+    assert sorted(v["pressure"] for v in ver) == [0.5, 2.0]
+    for v in ver:
+        assert v["point"]["pressure"] == v["pressure"]
+        assert v["max_rel_error"] <= 1e-3
+        assert v["n_unstable_full"] == v["n_unstable_reduced"]

@@ -259,7 +259,8 @@ def condition_fixed_point(model: ReducedModel, point: Mapping[str, float], direc
     # rigid-body modes of free parts (λ ≈ 0, below 1e-3 of the band's top) keep the start value: a
     # frequency of round-off has no loss factor to follow (the ring's three took 50 iterations each)
     modes = np.flatnonzero(in_band(lam, loss.band_hz))
-    res = fixed_point(matrices, laws, lam, Y, modes, tol=loss.tol, max_iterations=loss.max_iterations)
+    res = fixed_point(matrices, laws, lam, Y, modes, tol=loss.tol, max_iterations=loss.max_iterations,
+                      start_eta=ref)
     out = lam.copy()
     out[modes] = res.eigenvalues
     order = np.lexsort((out.real, np.round(out.imag, 9)))

@@ -4,9 +4,10 @@ reduced mode (the unstable ones and the three least stable) solved in the full n
 T(λ) = λ²M + λC + K + iη(|Im λ|/2π)K_disc from the reduced eigenvalue alone (fem_squeal.fe.projection.loss_nep).
 
 Tolerances: the full answers are eigenpairs of T to a backward error of round-off (≤ 1e-14, measured 1.6e-17);
-the reduced fixed point is within the reduced basis's error of them: the basis is grown until the unstable
-eigenvalues change by less than 4.2e-6 between rounds, and the full NEP sits 8.1e-6 (0 °C) and 4.6e-6 (50 °C)
-from it; 1e-4 leaves a margin of 12 for the other mesh of a second machine's BLAS."""
+the reduced fixed point is within the reduced basis's error of them: with the loss-factor static corrections
+in the basis the full NEP sits 9.1e-7 (0 °C) and 7.6e-7 (50 °C) from it (8.1e-6 and 4.6e-6 without them,
+whatever the cut); 2e-6 is the issue's 1e-6 target with a margin of 2 for a second machine's round-off in
+the basis (its eigenvalues' changes between rounds are 2.2e-6)."""
 from __future__ import annotations
 
 import json
@@ -36,9 +37,10 @@ def test_corner_checks_solve_the_full_nonlinear_eigenproblem(tmp_path):
     for r in rows:
         assert r["n_full"] >= 4 and r["n_unstable_full"] == r["n_unstable_reduced"] >= 1
         assert r["backward_error"] <= 1e-14
-        assert r["max_rel_error"] <= 1e-4
-    assert not verification_failures(om, 1e-4)
-    # the rigid-body modes (f ≈ 0) are not followed by the fixed point: every band mode converges or is
-    # reported at a frequency of its own
+        assert r["max_rel_error"] <= 2e-6
+    assert not verification_failures(om, 2e-6)
+    # every band mode converges (rigid-body modes, f ≈ 0, are not followed) but one at 50 °C that starts
+    # at 9999.99 Hz and steps over the table's 10 kHz end (reported as left_table, not hidden)
     for fp in om["loss_factor_fixed_point"]:
-        assert all(m["frequency_hz"] > 10.0 for m in fp["not_converged"])
+        assert all(m["left_table"] and m["frequency_hz"] > 9990.0 for m in fp["not_converged"])
+        assert fp["converged"] >= fp["modes"] - 1

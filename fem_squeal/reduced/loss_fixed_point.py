@@ -69,12 +69,14 @@ def _affine_in_eta(matrices: Matrices, parts: list[str]) -> tuple[np.ndarray, np
     return np.asarray(K0, complex), C, D
 
 
-def _scalar_root(a2: complex, a1: complex, a0: complex, ap: list[complex], laws: list[Callable[[float], float]],
-                 lam: complex, tol: float = 1e-15, max_iterations: int = 100) -> complex:
-    """The root near ``lam`` of a2λ² + a1λ + a0 + Σ_p η_p(|Im λ|/2π) ap_p = 0 (fixed point in f)."""
+def scalar_root(a2: complex, a1: complex, a0: complex, terms: Sequence[tuple[Callable[[float], float], complex]],
+                lam: complex, tol: float = 1e-15, max_iterations: int = 200) -> complex:
+    """The root near ``lam`` of a2λ² + a1λ + a0 + Σ_p η_p(|Im λ|/2π) a_p = 0, ``terms`` the pairs (η_p, a_p):
+    the scalar equation of residual inverse iteration on T(λ), solved by the fixed point in f (here, on
+    the reduced model, and in :mod:`fem_squeal.fe.projection.loss_nep`, on the full one)."""
     for _ in range(max_iterations):
         f = abs(lam.imag) / TWO_PI
-        roots = np.roots([a2, a1, a0 + sum(float(law(f)) * a for law, a in zip(laws, ap))])
+        roots = np.roots([a2, a1, a0 + sum(float(law(f)) * a for law, a in terms)])
         new = complex(roots[np.argmin(np.abs(roots - lam))])
         if abs(new - lam) <= tol * abs(new):
             return new
@@ -106,8 +108,8 @@ def _mode(K0: np.ndarray, C: np.ndarray | None, D: list[np.ndarray], laws: list[
             w = scipy.linalg.lu_solve(lu, c, trans=2, check_finite=False)
             n_lu += 1
         Cx = C @ x if C is not None else np.zeros(m)
-        new = _scalar_root(np.vdot(w, x), np.vdot(w, Cx), np.vdot(w, K0 @ x), [np.vdot(w, Dp @ x) for Dp in D],
-                           laws, lam)
+        new = scalar_root(np.vdot(w, x), np.vdot(w, Cx), np.vdot(w, K0 @ x),
+                          [(law, np.vdot(w, Dp @ x)) for law, Dp in zip(laws, D)], lam, max_iterations=100)
         x = x - scipy.linalg.lu_solve(lu, T(new) @ x, check_finite=False)
         x = x / np.vdot(c, x)
         step = abs(new - lam)

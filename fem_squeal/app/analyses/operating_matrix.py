@@ -36,6 +36,7 @@ from fem_squeal.app.analyses import pressure_continuation
 from fem_squeal.app.analyses.condition_values import VALUES, values
 from fem_squeal.app.analyses.reduced import (
     band_and_growth_tol,
+    band_eigenvalues,
     full_cea,
     mismatches,
     parametric_operators,
@@ -47,7 +48,7 @@ from fem_squeal.app.html import num as _num
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 from fem_squeal.reduced.affine import PRESSURE
-from fem_squeal.reduced.eigensolve import TWO_PI, in_band, unstable
+from fem_squeal.reduced.eigensolve import in_band, unstable
 from fem_squeal.reduced.laws.friction import ConstantFriction, StribeckFriction, TableFriction
 from fem_squeal.reduced.laws.loss_factor import loss_table
 from fem_squeal.reduced.operating_matrix import (
@@ -339,12 +340,7 @@ def verify_corners(ctx: Context, model, res, points: dict, band, gt: float, loss
     try:
         for k in cond.corners():
             point = {n: float(v[k]) for n, v in points.items()}
-            # the band's modes, the rigid-body modes of free parts (λ ≈ 0) aside on both sides (the full
-            # CEA still asks for as many modes as the band holds with them: n_ask, its reach to the edges)
-            lam_r = res.eigenvalues[k]
-            f = lam_r.imag / TWO_PI
-            n_ask = int(np.sum((f >= band[0]) & (f <= band[1]))) + 2
-            lam_r = lam_r[in_band(lam_r, band)]
+            lam_r, n_ask = band_eigenvalues(res.eigenvalues[k], band)
             if varying:
                 laws = {p: t.at_temperature(float(cond.temperature[k])) for p, t in varying.items()}
                 red, full, backward, seconds = _nep_corner(par, point, laws, cond.direction[k] < 0, lam_r, gt,

@@ -173,15 +173,20 @@ def full_cea(par, point: dict, band, nev: int, options) -> tuple[np.ndarray, flo
     return lam, time.perf_counter() - t
 
 
+def band_eigenvalues(lam: np.ndarray, band) -> tuple[np.ndarray, int]:
+    """The reduced eigenvalues a full CEA is compared with: those in ``band``, the rigid-body modes of free
+    parts (λ ≈ 0) aside (:func:`~fem_squeal.reduced.eigensolve.in_band`); and how many modes the full CEA
+    asks for, as many as the band holds with them, + 2 (its reach to the band's edges)."""
+    f = lam.imag / TWO_PI
+    return lam[in_band(lam, band)], int(np.sum((f >= band[0]) & (f <= band[1]))) + 2
+
+
 def verify_point(par, model, point: dict, band, growth_tol: float, options) -> dict:
     """Full CEA at ``point`` against the reduced eigenvalues: worst relative error of the unstable
     full eigenvalues (of all in the band when none is unstable)."""
     from fem_squeal.fe.projection import relative_change  # heavy: FE stack
 
-    lam_r = solve_points(model, {k: np.array([v]) for k, v in point.items()})[0]
-    f = lam_r.imag / TWO_PI
-    n_ask = int(np.sum((f >= band[0]) & (f <= band[1]))) + 2   # the full CEA's reach to the band's edges
-    lam_r = lam_r[in_band(lam_r, band)]          # rigid-body modes of free parts (λ ≈ 0) aside
+    lam_r, n_ask = band_eigenvalues(solve_points(model, {k: np.array([v]) for k, v in point.items()})[0], band)
     full, seconds = full_cea(par, point, band, n_ask, options)
     full = full[in_band(full, band)]
     bad = unstable(full, growth_tol)

@@ -37,9 +37,9 @@ from fem_squeal.fe.factorisation import LU, factor_solver
 from fem_squeal.fe.projection.parametric import ParametricOperators, _block_matrix
 from fem_squeal.reduced import affine
 from fem_squeal.reduced.affine import e_param, eta_param
+from fem_squeal.reduced.eigensolve import TWO_PI
+from fem_squeal.reduced.loss_fixed_point import scalar_root
 from fem_squeal.util.errors import ModelError
-
-TWO_PI = 2.0 * np.pi
 
 
 @dataclass
@@ -53,20 +53,6 @@ class NEPResult:
     converged: bool
     history: list[float]
     backward_error: float
-
-
-def _scalar_root(a2: complex, a1: complex, a0: complex, ap: dict[str, complex],
-                 laws: Mapping[str, Callable[[float], float]], lam: complex, tol: float = 1e-15,
-                 max_iterations: int = 200) -> complex:
-    """The root near ``lam`` of a2λ² + a1λ + a0 + Σ_p η_p(|Im λ|/2π) ap_p = 0 (fixed point in f)."""
-    for _ in range(max_iterations):
-        c = a0 + sum(float(laws[p](abs(lam.imag) / TWO_PI)) * v for p, v in ap.items())
-        roots = np.roots([a2, a1, c])
-        new = complex(roots[np.argmin(np.abs(roots - lam))])
-        if abs(new - lam) <= tol * abs(new):
-            return new
-        lam = new
-    return lam
 
 
 def _start_vector(comm, n_local: int, seed: int = 39) -> np.ndarray:
@@ -159,7 +145,8 @@ def full_loss_nep(par: ParametricOperators, point: Mapping[str, float],
         P = products(x)
         ap = {p: 1j * theta[p] * dot(w, P[f"p:{p}"]) for p in laws}
         a0 = dot(w, P["K"]) + (1j * dot(w, P["Ki"]) if "Ki" in P else 0.0)
-        new = _scalar_root(dot(w, P["M"]), dot(w, P["C"]) if "C" in P else 0.0, a0, ap, laws, lam)
+        new = scalar_root(dot(w, P["M"]), dot(w, P["C"]) if "C" in P else 0.0, a0,
+                          [(laws[p], v) for p, v in ap.items()], lam)
         x = x - solve(residual(new, P))
         x = x / dot(c, x)
         history.append(abs(new - lam) / abs(new))

@@ -339,18 +339,16 @@ def mode_couplings(model: ReducedModel, res: MatrixResult, points: Mapping[str, 
     varying = loss.in_frequency() if loss is not None else {}
     if loss is not None:
         points = {**points, **loss.constant_in_frequency(cond.temperature)}
-    cache: dict[tuple, tuple[np.ndarray, np.ndarray | None]] = {}
+    key, K, C = None, None, None          # the matrices of the last (condition, η): the rows come by condition
     size, rank = (1, 0) if comm is None else (comm.size, comm.rank)
     mine = {}
     for i in range(rank, len(modes), size):
         row = modes[i]
         k = row["condition"]
         eta = {eta_param(p): float(t.value(row["frequency_hz"], cond.temperature[k])) for p, t in varying.items()}
-        key = (k, *eta.values())
-        if key not in cache:      # the matrices once a condition (and η)
-            point = {n: float(np.asarray(v).reshape(-1)[k]) for n, v in points.items()}
-            cache = {key: matrices_at(model, {**point, **eta}, cond.direction[k])}
-        K, C = cache[key]
+        if (k, *eta.values()) != key:
+            key = (k, *eta.values())
+            K, C = matrices_at(model, {**{n: float(v[k]) for n, v in points.items()}, **eta}, cond.direction[k])
         mine[i] = coupling_of(K, C, complex(row["growth_rate"], TWO_PI * row["frequency_hz"]), real)
     if size > 1:
         mine = {i: c for part in comm.allgather(mine) for i, c in part.items()}

@@ -160,7 +160,7 @@ def _law(spec, key: str) -> InterfaceLaw:
     kind = spec.get("law", "table")
     allowed = {"constant": {"law", "mu"}, "stribeck": {"law", "mu_s", "mu_d", "v_s", "v_d", "radius"},
                "table": {"law", "temperature", "speed", "mu", "pressure"}}
-    if kind not in allowed:
+    if not isinstance(kind, str) or kind not in allowed:     # a list or a table is no law's name
         raise SceneError(f"{key}.law: must be one of {list(allowed)} (got {kind!r})")
     unknown = sorted(set(spec) - allowed[kind])
     if unknown:

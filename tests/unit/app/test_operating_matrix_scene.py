@@ -60,6 +60,9 @@ def test_bundled_scene_conditions_and_laws():
      r"^analyses\.operating_matrix\.temperature: a range is \{start, stop, n\}"),
     ("analyses.operating_matrix.friction.default.law='polynomial'",
      r"^analyses\.operating_matrix\.friction\.default\.law: must be one of \['constant', 'stribeck', 'table'\]"),
+    ("analyses.operating_matrix.friction.default.law=[]",      # found by the fuzzed scenes: a TypeError
+     r"^analyses\.operating_matrix\.friction\.default\.law: must be one of \['constant', 'stribeck', 'table'\] "
+     r"\(got \[\]\)"),
     ("analyses.operating_matrix.friction.default.mu=[[0.4, 0.4]]",
      r"^analyses\.operating_matrix\.friction\.default\.mu: must have one row per temperature"),
     ("analyses.operating_matrix.friction.piston_seal={law = 'constant', mu = 0.3}",

@@ -78,6 +78,8 @@ def _solve_lib() -> tuple[ctypes.CDLL, int] | None:
     i32, i64, p = ctypes.c_int32, ctypes.c_int64, ctypes.c_void_p
     lib.sn_solve.argtypes = [i32, i32, i32, p, p, p, p, p, p, i32, p, i64, p, i64, p, p]
     lib.sn_solve.restype = None
+    lib.sn_partial.argtypes = [i32, i32, i32, i32, p, p, p, p, p, p, p, i32]
+    lib.sn_partial.restype = None
     return lib, level
 
 
@@ -86,6 +88,11 @@ def _aligned(n: int) -> np.ndarray:
     raw = np.empty(n + 8)
     off = (-raw.ctypes.data % 64) // 8
     return raw[off:off + n]
+
+
+def aligned_rows(n: int, w: int) -> np.ndarray:
+    """An n × w row-major array of doubles starting on a 64-byte boundary (for :meth:`Cholesky.sweep`)."""
+    return _aligned(n * w).reshape(n, w)
 
 
 class NotPositiveDefinite(ArithmeticError):
@@ -103,7 +110,8 @@ def _lib() -> ctypes.CDLL | None:
                             ("fsc_analyze", [p, i32, p, p, p, p], ctypes.c_int),
                             ("fsc_factorize", [p, i32, p, p, p], ctypes.c_int), ("fsc_stats", [p, dp, dp], None),
                             ("fsc_supernodes", [p, p, p], ctypes.c_int),
-                            ("fsc_solve", [p, i32, i32, p, i64, p, i64], ctypes.c_int), ("fsc_free", [p], None)):
+                            ("fsc_solve", [p, i32, i32, p, i64, p, i64], ctypes.c_int), ("fsc_free", [p], None),
+                            ("fsc_set_postorder", [p, ctypes.c_int], None)):
         f = getattr(lib, name)
         f.argtypes, f.restype = args, res
     return lib
@@ -128,12 +136,14 @@ class Cholesky:
     its CSR arrays (both triangles or the upper one: entries below the diagonal are not read).
 
     ``perm``: the fill-reducing order (new row i = old row perm[i]), used as given; None lets
-    CHOLMOD choose (its default: AMD, then METIS where AMD's fill is poor).  Raises
-    :class:`NotPositiveDefinite` if a pivot is not positive, ``MemoryError`` if CHOLMOD runs out.
-    :meth:`solve` returns A⁻¹B for column-major blocks B; :meth:`close` frees the factor."""
+    CHOLMOD choose (its default: AMD, then METIS where AMD's fill is poor).  ``keep_order``: the
+    factor's order is ``perm`` exactly (CHOLMOD does not postorder its elimination tree after it), so
+    that rows ordered last stay last (:meth:`sweep`).  Raises :class:`NotPositiveDefinite` if a pivot
+    is not positive, ``MemoryError`` if CHOLMOD runs out.  :meth:`solve` returns A⁻¹B for
+    column-major blocks B; :meth:`close` frees the factor."""
 
     def __init__(self, indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
-                 perm: np.ndarray | None = None) -> None:
+                 perm: np.ndarray | None = None, keep_order: bool = False) -> None:
         lib = _lib()
         if lib is None:
             raise RuntimeError("CHOLMOD is not available (the package's cholmod_shim kernel was not built)")
@@ -151,6 +161,8 @@ class Cholesky:
         if perm is not None:
             perm = np.ascontiguousarray(perm, np.int32)
             user = address(perm)
+        if keep_order:
+            lib.fsc_set_postorder(self._h, 0)
         try:
             with serial_openmp():         # CHOLMOD's 4 OpenMP threads cost more than they save
                 t0 = time.perf_counter()
@@ -172,8 +184,19 @@ class Cholesky:
         against what is known: a supernodal LLᵀ of this size whose last pointers close the arrays
         and whose permutation is one."""
         got = _solve_lib()
-        if got is None:
+        panels = self.supernodes()
+        if got is None or panels is None:
             return None
+        sup, pi, px, s, x, perm = panels
+        return (*got, len(sup) - 1, sup, pi, px, s, ctypes.c_void_p(x.ctypes.data), perm,
+                _aligned(WMAX * self.n), _aligned(WMAX * int(np.max(np.diff(pi)))))
+
+    def supernodes(self) -> tuple[np.ndarray, ...] | None:
+        """The supernodal factor as views of CHOLMOD's arrays (valid while it lives): super, pi, px, s
+        (int32), x (the values), Perm (the factor's order); None where it is not a supernodal LLᵀ.
+        Panel k holds columns super[k] … super[k+1] − 1, column major with rows s[pi[k] …] from
+        x[px[k]].  The arrays are checked against what is known: this size, last pointers that close
+        the arrays, a permutation."""
         sizes = np.zeros(4, np.int64)
         ptrs = (ctypes.c_void_p * 6)()
         if not self._lib.fsc_supernodes(self._h, address(sizes), ptrs):
@@ -190,18 +213,42 @@ class Cholesky:
                 and px[-1] == xsize and np.all(np.diff(sup) > 0) and np.all(np.diff(pi) >= np.diff(sup))
                 and is_permutation(perm)):
             return None
-        s = ints(ptrs[3], ssize)
-        return (*got, ns, sup, pi, px, s, ctypes.c_void_p(ptrs[4]), perm, _aligned(WMAX * n),
-                _aligned(WMAX * int(np.max(np.diff(pi)))))
+        x = np.ctypeslib.as_array(ctypes.cast(ptrs[4], ctypes.POINTER(ctypes.c_double)), shape=(xsize,))
+        return sup, pi, px, ints(ptrs[3], ssize), x, perm
 
     def factor_values(self) -> np.ndarray | None:
         """A copy of the supernodal factor's values (L->x, xsize doubles); None where it is not one."""
-        sizes = np.zeros(4, np.int64)
-        ptrs = (ctypes.c_void_p * 6)()
-        if not self._lib.fsc_supernodes(self._h, address(sizes), ptrs):
-            return None
-        return np.ctypeslib.as_array(ctypes.cast(ptrs[4], ctypes.POINTER(ctypes.c_double)),
-                                     shape=(int(sizes[3]),)).copy()
+        panels = self.supernodes()
+        return None if panels is None else panels[4].copy()
+
+    def trailing_block(self, start: int) -> np.ndarray:
+        """L₂₂: rows and columns ``start`` … n − 1 of the factor L (in its order), dense lower triangular."""
+        sup, pi, px, s, x, _ = self.supernodes()
+        m = self.n - start
+        out = np.zeros((m, m))
+        for k in range(int(np.searchsorted(sup, start, side="right")) - 1, len(sup) - 1):
+            ncol, nrow = sup[k + 1] - sup[k], pi[k + 1] - pi[k]
+            panel = x[px[k]:px[k] + ncol * nrow].reshape(ncol, nrow)        # row c: column sup[k] + c
+            rows = s[pi[k]:pi[k + 1]] - start
+            for c in range(max(0, start - sup[k]), ncol):
+                out[rows[c:], sup[k] + c - start] = panel[c, c:]
+        return out
+
+    def can_sweep(self) -> bool:
+        """:meth:`sweep` is available (the compiled block solve applies to this factor)."""
+        return self._panels is not None
+
+    def sweep(self, Y: np.ndarray, ncols: int, back: bool) -> None:
+        """In place on Y (rows in the factor's order, row major, a multiple of 8 columns, 64-byte
+        aligned: :func:`aligned_rows`): with L = [L₁₁ 0; L₂₁ L₂₂] split after ``ncols`` columns,
+        forward Y₁ ← L₁₁⁻¹Y₁, Y₂ ← Y₂ − L₂₁Y₁; backward (``back``) Y₁ ← L₁₁⁻ᵀ(Y₁ − L₂₁ᵀY₂)."""
+        lib, level, ns, sup, pi, px, s, Lx, _, _, buf = self._panels
+        w = Y.shape[1]
+        if not (Y.flags.c_contiguous and Y.shape[0] == self.n and w % 8 == 0 and w <= WMAX
+                and Y.ctypes.data % 64 == 0):
+            raise ValueError("sweep: Y must be C-contiguous n × (8 or 16), 64-byte aligned")
+        lib.sn_partial(level, int(back), ncols, ns, address(sup), address(pi), address(px), address(s), Lx,
+                       address(Y), address(buf), w)
 
     @staticmethod
     def _raise(what: str, status: int) -> None:

@@ -138,7 +138,11 @@ def fill_reducing_order(A: PETSc.Mat, pattern: tuple[np.ndarray, np.ndarray] | N
         return None
     n = A.getSize()[0]
     bs = A.getBlockSize() if A.getBlockSize() > 0 and n % A.getBlockSize() == 0 else 1
-    graph = node_graph(A, bs, pattern)
+    return node_order(node_graph(A, bs, pattern), bs, how)
+
+
+def node_order(graph: tuple[np.ndarray, np.ndarray], bs: int, how: str = "auto") -> np.ndarray | None:
+    """:func:`fill_reducing_order` from a node graph (:func:`node_graph`'s CSR) of nodes of ``bs`` rows."""
     perm = None
     if how != "metis":
         amd = _amd(*graph)

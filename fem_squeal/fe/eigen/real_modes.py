@@ -29,6 +29,7 @@ from fem_squeal.fe.eigen.options import (
 from fem_squeal.fe.eigen.results import TWO_PI, RealModes, _check, _norm_inf
 from fem_squeal.fe.factorisation import scoped_options, user_option
 from fem_squeal.fe.ordering import ORDERINGS, fill_reducing_order, permuted
+from fem_squeal.fe.substructured import SubstructuredCholesky, Unavailable
 from fem_squeal.util.blas import serial_openmp
 from fem_squeal.util.errors import ModelError
 
@@ -72,14 +73,15 @@ def _solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: f
     LLᵀ may be tried (K − σM not known to be indefinite)."""
     Ms = drop_zeros(M)
     b = _block_columns(nev, prefix)
+    lanczos = _cholmod_block_lanczos if K.getComm().getSize() == 1 else _substructured_block_lanczos
     try:
-        direct = _cholmod_block_lanczos(K, Ms, nev, sigma, tol, b, prefix, definite, lam_max) if b > 0 else None
+        direct = lanczos(K, Ms, nev, sigma, tol, b, prefix, definite, lam_max) if b > 0 else None
     except cholmod.NotPositiveDefinite:
         # σ above the lowest mode, or a free body: neither is K − σ'M definite for σ' ≥ σ: MUMPS below
         direct, definite = None, False
     if direct is not None:
-        rm = _checked_modes(K, Ms, *direct[:2], max_residual, "cholmod", direct[2]["factor"], time.perf_counter(),
-                            direct[2]["solve"], b) if direct[0] is not None else None
+        rm = _checked_modes(K, Ms, *direct[:2], max_residual, direct[2].pop("solver"), direct[2]["factor"],
+                            time.perf_counter(), direct[2]["solve"], b) if direct[0] is not None else None
         if rm is not None:
             if Ms is not M:
                 Ms.destroy()
@@ -206,8 +208,49 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
                                  lam_max)
         finally:
             factor.close()
-    seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1}
+    seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1, "solver": "cholmod"}
     return (None, None, seconds) if got is None else (*got, seconds)
+
+
+def _substructured_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, tol: float, b: int,
+                                 prefix: str, definite: bool, lam_max: float | None = None
+                                 ) -> tuple[np.ndarray | None, np.ndarray | None, dict] | None:
+    """:func:`_cholmod_block_lanczos` on N ranks: block Lanczos on the substructured CHOLMOD
+    factorisation of K − σM (:class:`fem_squeal.fe.substructured.SubstructuredCholesky`: every rank's
+    interior at once, the interface by its dense Schur complement), on each rank's own rows.  None
+    where it does not apply (as there; also ``<prefix>substructure 0``, or the path declines:
+    :class:`fem_squeal.fe.substructured.Unavailable`), and MUMPS runs.  Collective."""
+    if (not definite or "aij" not in K.getType() or "aij" not in Ms.getType() or not cholmod.available()
+            or user_option(f"{prefix}st_pc_factor_mat_solver_type") is not None
+            or user_option(f"{prefix}substructure") in ("0", "false", "no")):
+        return None
+    comm = K.getComm().tompi4py()
+    t0 = time.perf_counter()
+    n, (r0, r1) = K.getSize()[0], K.getOwnershipRange()
+    A = _rows(K)
+    if sigma != 0.0:
+        A = (A - sigma * _rows(Ms)).tocsr()
+    bs = K.getBlockSize() if K.getBlockSize() > 0 and n % K.getBlockSize() == 0 else 1
+    try:
+        factor = SubstructuredCholesky(A, K.getOwnershipRanges(), bs, comm)     # NotPositiveDefinite: up
+    except Unavailable:
+        return None
+    kernels.note("factorisation", "cholmod-substructured")
+    del A
+    t1 = time.perf_counter()
+    try:
+        got = _block_lanczos(factor.solve, product_of(Ms), comm, (r0, r1), n, nev, sigma, tol, b, lam_max)
+    finally:
+        factor.close()
+    seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1,
+               "solver": "cholmod-substructured"}
+    return (None, None, seconds) if got is None else (*got, seconds)
+
+
+def _rows(A: PETSc.Mat) -> sp.csr_matrix:
+    """This rank's rows of the parallel AIJ matrix A with global column numbers (a copy)."""
+    ip, ind, val = A.getValuesCSR()
+    return sp.csr_matrix((val, ind, ip), shape=(len(ip) - 1, A.getSize()[1]))
 
 
 def _fill_reducing_order(K: PETSc.Mat, prefix: str, definite: bool,

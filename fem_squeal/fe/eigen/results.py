@@ -21,7 +21,7 @@ class RealModes:
     omega2: np.ndarray            # ω² [rad²/s²], ascending
     vectors: list[PETSc.Vec]
     residuals: np.ndarray         # ‖Kφ − ω²Mφ‖ / (‖K‖ ‖φ‖)
-    solver: str = ""              # the factorisation used: "cholmod" or "mumps"
+    solver: str = ""              # the factorisation used: "cholmod", "cholmod-substructured" or "mumps"
     seconds: dict[str, float] = field(default_factory=dict)   # "factor", "solve" (wall, rank 0)
     method: str = ""              # "block Lanczos, <b> columns" or "Krylov-Schur"
 

@@ -42,6 +42,13 @@ fsc_handle *fsc_new(const int64_t *nrelax, const double *zrelax)
     return h;
 }
 
+/* Keep a given order as it is (on = 0: no postorder of the elimination tree after it), so that a
+   block of rows ordered last stays last (fem_squeal/fe/substructured.py); on = 1: CHOLMOD's default. */
+void fsc_set_postorder(fsc_handle *h, int on)
+{
+    h->c.postorder = on;
+}
+
 /* The symmetric matrix given by CSR arrays (n rows, both triangles or the upper one: CSR of a
    symmetric matrix is CSC of the same, so its "lower" triangle in CHOLMOD's view is read). */
 static cholmod_sparse view(int32_t n, const int32_t *p, const int32_t *i, const double *x)

@@ -74,12 +74,13 @@ INLINE void V(backward)(int32_t nscol, int32_t nsrow, const double *L, double *b
     }
 }
 
-/* One panel of a sweep: its rows of Y into buf, the panel's solve, back into Y (forward: all its
-   rows changed; backward: its own columns only). */
-INLINE void V(sweep)(int32_t sn, int back, const int32_t *super, const int32_t *pi, const int32_t *px,
+/* One panel of a sweep over its first nscol columns: its rows of Y into buf, the panel's solve,
+   back into Y (forward: all its rows changed; backward: those nscol only).  nscol is the panel's
+   width, or fewer where a partial sweep stops inside it (its further columns then act as rows). */
+INLINE void V(sweep)(int32_t sn, int32_t nscol, int back, const int32_t *pi, const int32_t *px,
                     const int32_t *s, const double *Lx, double *Y, double *buf, int32_t w)
 {
-    const int32_t nscol = super[sn + 1] - super[sn], nsrow = pi[sn + 1] - pi[sn];
+    const int32_t nsrow = pi[sn + 1] - pi[sn];
     const int32_t *rows = s + pi[sn];
     for (int32_t r = 0; r < nsrow; ++r)
         for (int32_t q = 0; q < w; q += 8)
@@ -103,11 +104,30 @@ static void V(solve)(int32_t n, int32_t nsuper, const int32_t *super, const int3
             for (int32_t j = 0; j < w; ++j)
                 Y[(int64_t)i * w + j] = j < m ? B[perm[i] + ldb * (j0 + j)] : 0.0;
         for (int32_t sn = 0; sn < nsuper; ++sn)               /* L y = b, panel by panel */
-            V(sweep)(sn, 0, super, pi, px, s, Lx, Y, buf, w);
+            V(sweep)(sn, super[sn + 1] - super[sn], 0, pi, px, s, Lx, Y, buf, w);
         for (int32_t sn = nsuper - 1; sn >= 0; --sn)          /* Lᵀ x = y, in reverse */
-            V(sweep)(sn, 1, super, pi, px, s, Lx, Y, buf, w);
+            V(sweep)(sn, super[sn + 1] - super[sn], 1, pi, px, s, Lx, Y, buf, w);
         for (int32_t i = 0; i < n; ++i)
             for (int32_t j = 0; j < m; ++j)
                 X[perm[i] + ldx * (j0 + j)] = Y[(int64_t)i * w + j];
     }
+}
+
+/* The sweeps of L's first ncols columns only, on Y as the caller holds it (row-major, w columns, a
+   multiple of 8; rows in the factor's order).  Forward (back = 0): y₁ = L₁₁⁻¹ b₁ in rows < ncols and
+   rows ≥ ncols become b₂ − L₂₁ y₁.  Backward: x₁ = L₁₁⁻ᵀ (y₁ − L₂₁ᵀ x₂) with x₂ given in rows ≥ ncols.
+   With L = [L₁₁ 0; L₂₁ L₂₂] of A = [A₁₁ A₁₂; A₂₁ A₂₂], these are the two halves of a solve with the
+   Schur complement of A₁₁ in between (fem_squeal/fe/substructured.py). */
+static void V(partial)(int back, int32_t ncols, int32_t nsuper, const int32_t *super, const int32_t *pi,
+                       const int32_t *px, const int32_t *s, const double *Lx, double *Y, double *buf, int32_t w)
+{
+    int32_t last = 0;                     /* the panels that hold columns < ncols: 0 … last − 1 */
+    while (last < nsuper && super[last] < ncols)
+        ++last;
+    if (!back)
+        for (int32_t sn = 0; sn < last; ++sn)
+            V(sweep)(sn, (super[sn + 1] < ncols ? super[sn + 1] : ncols) - super[sn], 0, pi, px, s, Lx, Y, buf, w);
+    else
+        for (int32_t sn = last - 1; sn >= 0; --sn)
+            V(sweep)(sn, (super[sn + 1] < ncols ? super[sn + 1] : ncols) - super[sn], 1, pi, px, s, Lx, Y, buf, w);
 }

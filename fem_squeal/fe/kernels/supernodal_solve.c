@@ -74,6 +74,18 @@ void sn_solve(int32_t level, int32_t n, int32_t nsuper, const int32_t *super, co
         solve_v3(n, nsuper, super, pi, px, s, Lx, perm, k, B, ldb, X, ldx, Y, buf);
 }
 
+/* The partial sweeps (V(partial) in supernodal_kernel.h) on Y, n × w row-major (w a multiple of 8,
+   64-byte aligned, as buf: maxrows × w) */
+void sn_partial(int32_t level, int32_t back, int32_t ncols, int32_t nsuper, const int32_t *super,
+                const int32_t *pi, const int32_t *px, const int32_t *s, const double *Lx, double *Y, double *buf,
+                int32_t w)
+{
+    if (level == 4)
+        partial_v4(back, ncols, nsuper, super, pi, px, s, Lx, Y, buf, w);
+    else
+        partial_v3(back, ncols, nsuper, super, pi, px, s, Lx, Y, buf, w);
+}
+
 #else   /* not GCC on x86-64: no build of the kernel; CHOLMOD's solve is used */
 
 int sn_level(void) { return 0; }
@@ -84,6 +96,14 @@ void sn_solve(int32_t level, int32_t n, int32_t nsuper, const int32_t *super, co
 {
     (void)level; (void)n; (void)nsuper; (void)super; (void)pi; (void)px; (void)s; (void)Lx; (void)perm;
     (void)k; (void)B; (void)ldb; (void)X; (void)ldx; (void)Y; (void)buf;
+}
+
+void sn_partial(int32_t level, int32_t back, int32_t ncols, int32_t nsuper, const int32_t *super,
+                const int32_t *pi, const int32_t *px, const int32_t *s, const double *Lx, double *Y, double *buf,
+                int32_t w)
+{
+    (void)level; (void)back; (void)ncols; (void)nsuper; (void)super; (void)pi; (void)px; (void)s; (void)Lx;
+    (void)Y; (void)buf; (void)w;
 }
 
 #endif

@@ -97,7 +97,7 @@ def modes_below(K: PETSc.Mat, M: PETSc.Mat, f_cut_hz: float, *, n_start: int = 2
     while True:
         rm = solve_real_modes(K, M, nev, target, options=options, prefix=prefix, progress=True, f_max_hz=f_cut_hz,
                               tol=BASIS_MODE_TOL, max_residual=BASIS_MODE_RESIDUAL, positive_definite=definite)
-        definite = None if rm.solver == "cholmod" else False
+        definite = None if rm.solver.startswith("cholmod") else False
         f = rm.freqs_hz
         if f[-1] > f_cut_hz or nev >= max_modes:
             return local(rm)

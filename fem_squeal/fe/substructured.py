@@ -75,8 +75,10 @@ def interface_nodes(A_rows: sp.csr_matrix, ranges: np.ndarray, bs: int, comm: MP
     rank of each pair and sent to the higher).  ``A_rows``: this rank's rows, global columns."""
     r = comm.rank
     first = ranges[r] // bs
-    rows = np.repeat(np.arange(A_rows.shape[0]) // bs, np.diff(A_rows.indptr))
     cols = A_rows.indices
+    cross = (cols < ranges[r]) | (cols >= ranges[r + 1])           # the entries coupling to other ranks
+    rows = np.repeat(np.arange(A_rows.shape[0]) // bs, np.diff(A_rows.indptr))[cross]
+    cols = cols[cross]
     owner = np.searchsorted(ranges, cols, side="right") - 1
     mine, send = [], [np.zeros(0, np.int64) for _ in range(comm.size)]
     for q in range(r + 1, comm.size):
@@ -94,6 +96,19 @@ def interface_nodes(A_rows: sp.csr_matrix, ranges: np.ndarray, bs: int, comm: MP
     return np.unique(np.concatenate([np.zeros(0, np.int64), *mine, *got])).astype(np.int64)
 
 
+def _lower_gram(L: np.ndarray) -> np.ndarray:
+    """L Lᵀ of a lower triangular L in s³/3 flops: with J the reversal, U = JLJ is upper triangular and
+    L Lᵀ = J (U Uᵀ) J, which LAPACK's dlauum forms (its upper triangle; mirrored here)."""
+    if L.size == 0:
+        return np.zeros_like(L)
+    G, info = sla.lapack.dlauum(np.asfortranarray(L[::-1, ::-1]), lower=0)
+    if info:
+        raise RuntimeError(f"dlauum failed (info {info})")
+    G = np.triu(G)
+    G = G + np.triu(G, 1).T
+    return np.ascontiguousarray(G[::-1, ::-1])
+
+
 class SubstructuredCholesky:
     """A = L Lᵀ of a symmetric positive definite matrix distributed over ``comm`` by rows
     (``A_rows``: this rank's rows ``ranges[rank]`` … with global column numbers, both triangles;
@@ -109,8 +124,10 @@ class SubstructuredCholesky:
         r, ranges = comm.rank, np.asarray(ranges, np.int64)
         n_own = int(ranges[r + 1] - ranges[r])
         A_rows = sp.csr_matrix(A_rows)
-        if A_rows.shape[0] != n_own or np.any(ranges % bs):
-            raise ValueError("substructured Cholesky: rows must be this rank's range, in whole nodes")
+        if A_rows.shape[0] != n_own:
+            raise ValueError(f"substructured Cholesky: {A_rows.shape[0]} rows given, the rank owns {n_own}")
+        if np.any(ranges % bs):
+            raise Unavailable(f"the ranks' row ranges are not whole nodes of {bs} rows")
         gnodes = interface_nodes(A_rows, ranges, bs, comm)
         own_gamma = ((gnodes[:, None] * bs + np.arange(bs)).ravel() - ranges[r]).astype(np.int64)
         counts = comm.allgather(len(own_gamma))
@@ -132,58 +149,70 @@ class SubstructuredCholesky:
         pos = np.minimum(np.searchsorted(gamma, cols[~owned]), max(s - 1, 0))
         hit = s > 0 and gamma[pos] == cols[~owned]
         where[~owned] = np.where(hit, n_i + pos, -1)
-        rows_of = np.repeat(np.arange(n_own), np.diff(A_rows.indptr))
-        is_int = np.isin(rows_of, interior)
-        if np.any(where[is_int] < 0):
+        counts_row = np.diff(A_rows.indptr)
+        in_row = np.zeros(n_own, np.int8)               # 1: interior row, 2: interface row
+        in_row[interior], in_row[own_gamma] = 1, 2
+        kind = np.repeat(in_row, counts_row)
+        m = kind == 1                                   # [A_II A_IΓ]: interior rows in order
+        top_idx, top_val = where[m], A_rows.data[m]
+        if comm.allreduce(bool(np.any(top_idx < 0)), op=MPI.LOR):      # not a separator: a defect here
             raise RuntimeError("substructured Cholesky: an interior row couples to another rank's interior")
-        Aloc = sp.csr_matrix((A_rows.data, where.clip(0), A_rows.indptr), shape=(n_own, n_i + s))
-        top = Aloc[interior]                                     # [A_II A_IΓ]
-        g_rows = Aloc[own_gamma].tocoo()
-        keep = g_rows.col >= n_i
-        trip = (self._gamma_pos[g_rows.row[keep]], g_rows.col[keep] - n_i, g_rows.data[keep])
+        top_ptr = np.zeros(n_i + 1, np.int64)
+        np.cumsum(counts_row[interior], out=top_ptr[1:])
+        g = (kind == 2) & (where >= n_i)                # A_ΓΓ entries of this rank's interface rows
+        g_row = np.repeat(local, counts_row)[g] - n_i
+        trip = (g_row, where[g] - n_i, A_rows.data[g])
         allr, allc, allv = (np.concatenate(x) for x in zip(*comm.allgather(trip)))
         upper = allc >= allr                                   # A_ΓΓ from its upper triangle, symmetric
-        A_gg = sp.coo_matrix((allv[upper], (allr[upper], allc[upper])), shape=(s, s)).toarray()
+        gg = sp.csr_matrix((allv[upper], (allr[upper], allc[upper])), shape=(s, s))
+        A_gg = gg.toarray()
         A_gg = A_gg + np.triu(A_gg, 1).T
-        gg = sp.triu(A_gg, format="csr")
-        A_r = sp.vstack([top, sp.hstack([sp.csr_matrix((s, n_i)), gg])], format="csr")
-        A_r.sort_indices()
+        # the local matrix [A_II A_IΓ; · A_ΓΓ] (CHOLMOD reads the upper triangle; rows need not be sorted)
+        indptr = np.concatenate([top_ptr, top_ptr[-1] + gg.indptr[1:]])
+        indices = np.concatenate([top_idx, n_i + gg.indices])
+        data = np.concatenate([top_val, gg.data])
+        inner = top_idx < n_i
+        inner_ptr = np.zeros(n_i + 1, np.int64)
+        np.cumsum(np.bincount(np.repeat(np.arange(n_i), counts_row[interior])[inner], minlength=n_i),
+                  out=inner_ptr[1:])
+        inner_idx = top_idx[inner]
         t1 = time.perf_counter()
-        inner = top[:, :n_i].tocsr()
-        perm_i = node_order(node_graph(None, bs, (inner.indptr, inner.indices)), bs) if n_i else None
+        perm_i = node_order(node_graph(None, bs, (inner_ptr, inner_idx)), bs) if n_i else None
         if perm_i is None:
             perm_i = np.arange(n_i)
         perm = np.concatenate([perm_i, n_i + np.arange(s)]).astype(np.int64)
         factor, code = None, 0
         try:
-            factor = Cholesky(A_r.indptr, A_r.indices, A_r.data, perm, keep_order=True)
+            factor = Cholesky(indptr, indices, data, perm, keep_order=True)
             if not (factor.can_sweep() and np.array_equal(factor.supernodes()[5], perm)):
                 code = 1
         except NotPositiveDefinite:
             code = 2
+        except MemoryError:
+            code = 3
         code = comm.allreduce(code, op=MPI.MAX)
         if code:
             if factor is not None:
                 factor.close()
+            if code == 3:
+                raise MemoryError("substructured CHOLMOD: out of memory on a rank")
             if code == 2:
                 raise NotPositiveDefinite("substructured CHOLMOD: the matrix is not positive definite")
             raise Unavailable("the compiled block solve does not apply to the local factor")
         t2 = time.perf_counter()
-        L22 = factor.trailing_block(n_i)
-        C = A_gg - L22 @ L22.T                        # L₂₁L₂₁ᵀ of this rank
-        total = np.zeros_like(C) if comm.rank == 0 else None
-        comm.Reduce(np.ascontiguousarray(C), total, op=MPI.SUM, root=0)
+        C = A_gg - _lower_gram(factor.trailing_block(n_i))        # L₂₁L₂₁ᵀ of this rank
+        comm.Allreduce(MPI.IN_PLACE, C, op=MPI.SUM)
         Ls, ok = None, True
-        if comm.rank == 0 and s:
+        if s:
             try:
-                Ls = sla.cholesky(A_gg - total, lower=True)
+                Ls = sla.cholesky(A_gg - C, lower=True, overwrite_a=True, check_finite=False)
             except np.linalg.LinAlgError:
                 ok = False
-        if not comm.bcast(ok, root=0):
+        if not comm.allreduce(ok, op=MPI.LAND):
             factor.close()
             raise NotPositiveDefinite("substructured CHOLMOD: the interface's Schur complement is not "
                                       "positive definite")
-        self._S = comm.bcast(Ls, root=0)
+        self._S = Ls
         self._factor, self._n_i, self._s = factor, n_i, s
         self._order = interior[perm_i]                 # factor row i < n_i is this rank's row _order[i]
         self._work: dict[int, np.ndarray] = {}

@@ -9,7 +9,8 @@ library                what it does                                             
 ``cell_assembly``      cell-integral matrices written row by row, M_s ⊗ W        dolfinx's assembly
                        (:mod:`fem_squeal.fe.cell_assembly`)
 ``supernodal_solve``   block solves on CHOLMOD's supernodal factor (AVX2 or      CHOLMOD's own solve
-                       AVX-512 builds, picked for the CPU)
+                       AVX-512 builds, picked for the CPU), and the sweeps       (MUMPS on N ranks)
+                       stopped at an interface (:mod:`fem_squeal.fe.substructured`)
 ``cholmod_shim``       CHOLMOD's factorisation and solve behind plain functions  PETSc's CHOLMOD or
                        (:mod:`fem_squeal.fe.cholmod`), compiled against the      MUMPS
                        cholmod.h of the CHOLMOD it links

@@ -203,3 +203,46 @@ def kronecker(A: PETSc.Mat, W: np.ndarray, drop: np.ndarray, like: PETSc.Mat) ->
     M.setLGMap(*like.getLGMap())
     M.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
     return M
+
+
+def kronecker_rows(A: PETSc.Mat, W: np.ndarray, drop: np.ndarray, like: PETSc.Mat) -> PETSc.Mat:
+    """:func:`kronecker` on any number of ranks, from each rank's own rows of the parallel scalar
+    matrix ``A`` (``MatGetRow``: global columns, sorted): row b·i + c of A ⊗ W holds W(c, d) A(i, j)
+    at column b·j + d, j in A's order, d inner, so every row comes out sorted and no rank needs
+    another's rows.  ``drop``: the global numbers of the DOFs (every rank's, sorted) whose rows and
+    columns are left out (an owned row couples to nodes of other ranks' cells, which this rank
+    does not hold).  One MatCreateMPIAIJWithArrays with ``like``'s sizes, block size and
+    local-to-global map."""
+    b = W.shape[0]
+    ip, ind, av = A.getValuesCSR()
+    n, start = len(ip) - 1, A.getOwnershipRange()[0]
+    ind = ind.astype(np.int64)
+
+    def dropped(dofs: np.ndarray) -> np.ndarray:
+        at = np.minimum(np.searchsorted(drop, dofs), max(len(drop) - 1, 0))
+        return drop[at] == dofs if len(drop) else np.zeros(dofs.shape, bool)
+    e_row = np.repeat(np.arange(n), np.diff(ip))
+    per_c, counts = [], np.zeros(b * n, np.int64)
+    for c in range(b):
+        ds = np.flatnonzero(W[c])
+        keep = ~dropped(b * ind[:, None] + ds)                                  # (nnz, nd)
+        keep &= ~dropped(b * (start + e_row) + c)[:, None]
+        rows = np.broadcast_to(e_row[:, None], keep.shape)[keep]
+        cols = (b * ind[:, None] + ds)[keep]
+        vals = (av[:, None] * W[c, ds])[keep]
+        counts[b * np.arange(n) + c] = np.bincount(rows, minlength=n)
+        per_c.append((rows, cols, vals))
+    indptr = np.zeros(b * n + 1, np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    indices, data = np.empty(indptr[-1], np.int64), np.empty(indptr[-1])
+    for c, (rows, cols, vals) in enumerate(per_c):
+        first = np.zeros(n + 1, np.int64)                                     # row i's first entry here
+        np.cumsum(counts[b * np.arange(n) + c], out=first[1:])
+        dest = indptr[b * rows + c] + np.arange(len(rows)) - first[rows]
+        indices[dest], data[dest] = cols, vals
+    M = PETSc.Mat().createAIJ(like.getSizes(), bsize=b, comm=like.getComm(),
+                              csr=(indptr.astype(PETSc.IntType), indices.astype(PETSc.IntType), data))
+    M.assemble()
+    M.setLGMap(*like.getLGMap())
+    M.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+    return M

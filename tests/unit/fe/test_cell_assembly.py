@@ -143,3 +143,22 @@ def test_kronecker_equals_scipy_kron_without_the_dropped_rows_and_columns():
         mi, mj, mv = M.getValuesCSR()
         assert np.array_equal(mi, ref.indptr) and np.array_equal(mj, ref.indices) and np.array_equal(mv, ref.data)
         assert M.getBlockSize() == 3 and M.getSizes() == like.getSizes()
+
+
+def test_kronecker_rows_equals_the_serial_expansion():
+    """The expansion from each rank's rows (:func:`cell_assembly.kronecker_rows`, the path of N
+    ranks) on one rank: the serial expansion's matrix entry for entry (the same single products in
+    the same row order), dropped DOFs given by their global numbers."""
+    md, V, dx, bcs, bc_dofs = ring_case()
+    S = fem.FunctionSpace(md.mesh, ("Lagrange", 2))
+    p, q = ufl.TrialFunction(S), ufl.TestFunction(S)
+    Ms = cell_assembly.assemble_matrix(_compile(forms.mass_form(p, q, 1400.0, dx(1)), None), np.zeros(0, np.int32),
+                                       0.0)
+    like = cell_assembly.assemble_matrix(_compile(stiffness(V, dx), None), bc_dofs, 1.0)
+    drop = np.random.default_rng(2).random(3 * Ms.getSize()[0]) < 0.05
+    for W in (np.arange(1.0, 10.0).reshape(3, 3), np.outer([0.0, 0.6, 0.8], [0.0, 0.6, 0.8])):
+        A = cell_assembly.kronecker(Ms, W, drop, like)
+        B = cell_assembly.kronecker_rows(Ms, W, np.flatnonzero(drop), like)
+        for a, b in zip(A.getValuesCSR(), B.getValuesCSR()):
+            assert np.array_equal(a, b)
+        assert B.getBlockSize() == 3 and B.getSizes() == like.getSizes()

@@ -32,6 +32,7 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
+from fem_squeal.fe import kernels
 from fem_squeal.fe.cholmod import WMAX, Cholesky, NotPositiveDefinite, aligned_rows
 from fem_squeal.fe.ordering import node_graph, node_order
 
@@ -229,6 +230,7 @@ class SubstructuredCholesky:
         k = B2.shape[1]
         X = np.empty((self.n, k), order="F")
         n_i, order, gp, og = self._n_i, self._order, self._gamma_pos, self._own_gamma
+        kernels.note("block_solve", "compiled sweeps, substructured")
         for j0 in range(0, k, WMAX):
             m = min(WMAX, k - j0)
             w = 8 if m <= 8 else WMAX

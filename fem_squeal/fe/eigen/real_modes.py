@@ -46,8 +46,10 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     (:func:`_cholmod_block_lanczos`) with the fill-reducing order of the node graph handed in
     (:mod:`fem_squeal.fe.ordering`; ``<prefix>ordering solver`` leaves the ordering to CHOLMOD);
     PETSc's CHOLMOD works on K and M permuted to that order; the vectors come back in the caller's
-    order.  ``progress``: draw converged/requested pairs on rank 0's stderr (Krylov–Schur
-    only).  ``f_max_hz``: every mode up to it and :data:`BEYOND` more instead of ``nev`` (then a
+    order.  On more than one rank the same block Lanczos runs on the substructured CHOLMOD
+    factorisation (:mod:`fem_squeal.fe.substructured`; ``<prefix>substructure 0``: MUMPS instead).
+    ``progress``: draw converged/requested pairs on rank 0's stderr (Krylov–Schur only).
+    ``f_max_hz``: every mode up to it and :data:`BEYOND` more instead of ``nev`` (then a
     guess: the block size follows it) where block Lanczos answers; Krylov–Schur, where it takes
     over, returns ``nev``.  ``positive_definite``: False where K − σM is known not to be (an earlier
     solve of these K, M at this or a lower σ came back from MUMPS: ``RealModes.solver``), so that

@@ -90,6 +90,12 @@ def _copies(A: PETSc.Mat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return A.getValuesCSR()
 
 
+def local_rows(A: PETSc.Mat) -> sp.csr_matrix:
+    """This rank's rows of the AIJ matrix ``A`` with global column numbers, as SciPy CSR (copies)."""
+    ai, aj, av = A.getValuesCSR()
+    return sp.csr_matrix((av, aj, ai), shape=(len(ai) - 1, A.getSize()[1]))
+
+
 @contextmanager
 def csr_values(A: PETSc.Mat) -> Iterator[np.ndarray]:
     """The value array of the serial AIJ matrix ``A`` (CSR order) as a writable view of PETSc's

@@ -13,6 +13,7 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fem_squeal.fe.csr import local_rows
 from fem_squeal.reduced.matrix_model import MatrixModel
 
 
@@ -63,10 +64,8 @@ def operators(model: MatrixModel, rows: Mapping[str, sp.csr_matrix], comm: MPI.C
 def gather_csr(A: PETSc.Mat) -> sp.csr_matrix | None:
     """The distributed AIJ matrix ``A`` as SciPy CSR on rank 0 (None on the other ranks)."""
     comm = A.getComm().tompi4py()
-    ai, aj, av = A.getValuesCSR()
     n_rows, n_cols = A.getSize()
-    local = sp.csr_matrix((av.copy(), aj.copy(), ai.copy()), shape=(len(ai) - 1, n_cols))
-    parts = comm.gather(local, root=0)
+    parts = comm.gather(local_rows(A), root=0)
     if comm.rank != 0:
         return None
     out = sp.vstack(parts, format="csr")

@@ -136,9 +136,14 @@ def fill_reducing_order(A: PETSc.Mat, pattern: tuple[np.ndarray, np.ndarray] | N
         raise ValueError(f"ordering: {how!r} is not one of {ORDERINGS}")
     if A.getComm().getSize() > 1:
         return None
-    n = A.getSize()[0]
-    bs = A.getBlockSize() if A.getBlockSize() > 0 and n % A.getBlockSize() == 0 else 1
+    bs = node_block_size(A)
     return node_order(node_graph(A, bs, pattern), bs, how)
+
+
+def node_block_size(A: PETSc.Mat) -> int:
+    """Rows per node of ``A``: its block size where that divides its rows, else 1."""
+    n, bs = A.getSize()[0], A.getBlockSize()
+    return bs if bs > 0 and n % bs == 0 else 1
 
 
 def node_order(graph: tuple[np.ndarray, np.ndarray], bs: int, how: str = "auto") -> np.ndarray | None:

@@ -219,7 +219,6 @@ class SubstructuredCholesky:
         self._work: dict[int, np.ndarray] = {}
         self.n = n_own
         self.interface_rows = s
-        self.flops = comm.allreduce(factor.flops, op=MPI.SUM) + s ** 3 / 3
         self.seconds = {"interface": t1 - t0, "factor": t2 - t1, "schur": time.perf_counter() - t2}
 
     def solve(self, B: np.ndarray) -> np.ndarray:
@@ -237,8 +236,9 @@ class SubstructuredCholesky:
             Y = self._work.get(w)
             if Y is None:
                 Y = self._work[w] = aligned_rows(n_i + self._s, w)
-            Y[:] = 0.0
             Y[:n_i, :m] = B2[order, j0:j0 + m]
+            Y[:n_i, m:] = 0.0                                 # padding columns (independent of the others)
+            Y[n_i:] = 0.0                                     # b_Γ enters after the forward sweep
             self._factor.sweep(Y, n_i, back=False)           # Y₂ = −L₂₁ L₁₁⁻¹ b_I
             g = np.ascontiguousarray(Y[n_i:, :m])
             g[gp] += B2[og, j0:j0 + m]

@@ -14,11 +14,11 @@ def signature() -> dict:
     """On the ring between plates: X = (K − σM)⁻¹B for a fixed B (9 columns: a padded pass of 16) and its
     backward error; the lowest 12 real modes by the
     default path and by a target above the lowest mode (indefinite); the solver of each."""
-    import scipy.sparse as sp
     from mpi4py import MPI
     from petsc4py import PETSc
     from support.ring import ring_operators
 
+    from fem_squeal.fe.csr import local_rows
     from fem_squeal.fe.eigen import solve_real_modes
     from fem_squeal.fe.substructured import SubstructuredCholesky
 
@@ -26,14 +26,10 @@ def signature() -> dict:
     ops = ring_operators(kn=1e10)
     out = {}
 
-    def rows(A):
-        ip, ind, val = A.getValuesCSR()
-        return sp.csr_matrix((val, ind, ip), shape=(len(ip) - 1, A.getSize()[1]))
-
     from fem_squeal.fe.dense import apply
 
     lo, hi = ops.K.getOwnershipRange()
-    A = (rows(ops.K) - SIGMA * rows(ops.M)).tocsr()
+    A = (local_rows(ops.K) - SIGMA * local_rows(ops.M)).tocsr()
     B = np.sin(np.outer(np.arange(ops.K.getSize()[0]) + 1.0, np.arange(1, 10)))[lo:hi]
     with SubstructuredCholesky(A, ops.K.getOwnershipRanges(), ops.K.getBlockSize(), comm) as f:
         X = f.solve(np.asfortranarray(B))

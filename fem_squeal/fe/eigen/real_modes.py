@@ -13,7 +13,7 @@ from petsc4py import PETSc
 from slepc4py import SLEPc
 
 from fem_squeal.fe import cholmod, kernels
-from fem_squeal.fe.csr import block_product, csr_view
+from fem_squeal.fe.csr import block_product, csr_view, local_rows
 from fem_squeal.fe.dense import apply, block_solve, product_of
 from fem_squeal.fe.eigen.block_krylov import _block_columns, _block_lanczos, block_size
 from fem_squeal.fe.eigen.options import (
@@ -28,7 +28,7 @@ from fem_squeal.fe.eigen.options import (
 )
 from fem_squeal.fe.eigen.results import TWO_PI, RealModes, _check, _norm_inf
 from fem_squeal.fe.factorisation import scoped_options, user_option
-from fem_squeal.fe.ordering import ORDERINGS, fill_reducing_order, permuted
+from fem_squeal.fe.ordering import ORDERINGS, fill_reducing_order, node_block_size, permuted
 from fem_squeal.fe.substructured import SubstructuredCholesky, Unavailable
 from fem_squeal.util.blas import serial_openmp
 from fem_squeal.util.errors import ModelError
@@ -189,8 +189,7 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
     known not to be positive definite); else (λ, rows of the vectors, seconds), λ and rows None where
     the Lanczos did not converge within its budget.  Raises :class:`fem_squeal.fe.cholmod.NotPositiveDefinite`
     where the factorisation finds K − σM not positive definite."""
-    if (not definite or K.getComm().getSize() > 1 or "aij" not in K.getType() or "aij" not in Ms.getType()
-            or not cholmod.available() or user_option(f"{prefix}st_pc_factor_mat_solver_type") is not None):
+    if K.getComm().getSize() > 1 or not _cholmod_applies(K, Ms, prefix, definite):
         return None
     t0 = time.perf_counter()
     n = K.getSize()[0]
@@ -222,19 +221,18 @@ def _substructured_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: f
     interior at once, the interface by its dense Schur complement), on each rank's own rows.  None
     where it does not apply (as there; also ``<prefix>substructure 0``, or the path declines:
     :class:`fem_squeal.fe.substructured.Unavailable`), and MUMPS runs.  Collective."""
-    if (not definite or "aij" not in K.getType() or "aij" not in Ms.getType() or not cholmod.available()
-            or user_option(f"{prefix}st_pc_factor_mat_solver_type") is not None
+    if (not _cholmod_applies(K, Ms, prefix, definite)
             or user_option(f"{prefix}substructure") in ("0", "false", "no")):
         return None
     comm = K.getComm().tompi4py()
     t0 = time.perf_counter()
     n, (r0, r1) = K.getSize()[0], K.getOwnershipRange()
-    A = _rows(K)
+    A = local_rows(K)
     if sigma != 0.0:
-        A = (A - sigma * _rows(Ms)).tocsr()
-    bs = K.getBlockSize() if K.getBlockSize() > 0 and n % K.getBlockSize() == 0 else 1
+        A = (A - sigma * local_rows(Ms)).tocsr()
     try:
-        factor = SubstructuredCholesky(A, K.getOwnershipRanges(), bs, comm)     # NotPositiveDefinite: up
+        # NotPositiveDefinite goes to the caller (MUMPS then)
+        factor = SubstructuredCholesky(A, K.getOwnershipRanges(), node_block_size(K), comm)
     except Unavailable:
         return None
     kernels.note("factorisation", "cholmod-substructured")
@@ -249,10 +247,12 @@ def _substructured_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: f
     return (None, None, seconds) if got is None else (*got, seconds)
 
 
-def _rows(A: PETSc.Mat) -> sp.csr_matrix:
-    """This rank's rows of the parallel AIJ matrix A with global column numbers (a copy)."""
-    ip, ind, val = A.getValuesCSR()
-    return sp.csr_matrix((val, ind, ip), shape=(len(ip) - 1, A.getSize()[1]))
+def _cholmod_applies(K: PETSc.Mat, Ms: PETSc.Mat, prefix: str, definite: bool) -> bool:
+    """CHOLMOD may factorise K − σM here (either path): not known to be indefinite, AIJ matrices, the
+    package's CHOLMOD shim built, and no factorisation chosen by the user
+    (``<prefix>st_pc_factor_mat_solver_type``)."""
+    return (definite and "aij" in K.getType() and "aij" in Ms.getType() and cholmod.available()
+            and user_option(f"{prefix}st_pc_factor_mat_solver_type") is None)
 
 
 def _fill_reducing_order(K: PETSc.Mat, prefix: str, definite: bool,

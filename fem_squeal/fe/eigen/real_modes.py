@@ -221,8 +221,7 @@ def _substructured_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: f
     interior at once, the interface by its dense Schur complement), on each rank's own rows.  None
     where it does not apply (as there; also ``<prefix>substructure 0``, or the path declines:
     :class:`fem_squeal.fe.substructured.Unavailable`), and MUMPS runs.  Collective."""
-    if (not _cholmod_applies(K, Ms, prefix, definite)
-            or user_option(f"{prefix}substructure") in ("0", "false", "no")):
+    if not _cholmod_applies(K, Ms, prefix, definite) or not _substructure(prefix):
         return None
     comm = K.getComm().tompi4py()
     t0 = time.perf_counter()
@@ -245,6 +244,16 @@ def _substructured_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: f
     seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1,
                "solver": "cholmod-substructured"}
     return (None, None, seconds) if got is None else (*got, seconds)
+
+
+def _substructure(prefix: str) -> bool:
+    """``<prefix>substructure``: 1/true/yes/on (the default) or 0/false/no/off; else a ModelError naming it."""
+    value = user_option(f"{prefix}substructure")
+    if value is None or value.lower() in ("1", "true", "yes", "on"):
+        return True
+    if value.lower() in ("0", "false", "no", "off"):
+        return False
+    raise ModelError(f"{prefix}substructure: must be 1/true/yes/on or 0/false/no/off (got {value!r})")
 
 
 def _cholmod_applies(K: PETSc.Mat, Ms: PETSc.Mat, prefix: str, definite: bool) -> bool:

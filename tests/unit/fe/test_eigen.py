@@ -169,3 +169,18 @@ def test_block_arnoldi_equals_krylov_schur(monkeypatch, ring_operators):
     low = solve_complex_modes(K, ops.M, None, 16, TARGET, band_hz=BAND, method="linear", prefix="bm_")
     assert low.algorithm == "Krylov-Schur"
     assert np.max(np.abs(low.eigenvalues / ks.eigenvalues - 1)) < 1e-9
+
+
+def test_a_bad_substructure_switch_is_a_named_error():
+    """``real_substructure`` takes a yes or a no; anything else names the option (checked before any
+    factorisation, on 2 ranks only in practice: here the function is called directly)."""
+    from fem_squeal.fe.eigen.real_modes import _substructure
+    from fem_squeal.fe.factorisation import scoped_options
+    from fem_squeal.util.errors import ModelError
+
+    with scoped_options({}, {"real_substructure": "off"}):
+        assert _substructure("real_") is False
+    with scoped_options({}, {"real_substructure": "maybe"}):
+        with pytest.raises(ModelError, match="real_substructure"):
+            _substructure("real_")
+    assert _substructure("real_") is True

@@ -2,7 +2,9 @@
 which parts carry it, how much it radiates, and which unstable modes to look at first.
 
 * **Mode coupling**: each complex mode's participation of the real modes of ½(K + Kᵀ)
-  (:mod:`fem_squeal.fe.coupling`, :mod:`fem_squeal.reduced.mode_coupling`), the pair named;
+  (:mod:`fem_squeal.fe.coupling`, :mod:`fem_squeal.reduced.mode_coupling`) or, for the projected CEA,
+  of its basis's real modes (no solve: :func:`fem_squeal.fe.projection.projected_cea.modal_coupling`),
+  the pair named;
 * **part participation**: the strain-energy shares of the parts (``energy_shares``) as bars;
 * **radiated sound**: the ERP of each mode at a stated kinetic energy (:mod:`fem_squeal.fe.radiation`)
   in dB re 1 pW, the squeal index ranking the unstable modes and 1/3-octave band summaries
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import csv
 import io
+import time
 from pathlib import Path
 
 import numpy as np
@@ -72,12 +75,17 @@ def check_parts(a, volumes) -> None:
             raise SceneError(f"analyses.cea.radiation.efficiency.{part}: unknown part; parts: {sorted(volumes)}")
 
 
-def compute(ctx, ops, K, fields, rows: list[dict], lam: np.ndarray, a) -> dict:
+def compute(ctx, ops, K, fields, rows: list[dict], lam: np.ndarray, a, coupling=None) -> dict:
     """Coupling and radiation of the CEA's modes ``fields`` (x = xr + i xi, M-normalised): adds keys to
-    ``rows`` and returns the CEA's new top-level results (module docstring)."""
+    ``rows`` and returns the CEA's new top-level results (module docstring).  ``coupling``: the modes'
+    coefficients already known (a :class:`~fem_squeal.reduced.mode_coupling.RealModeCoefficients`, the
+    projected CEA's); else, where analyses.cea.coupling asks, one real-mode solve gives them."""
     out: dict = {}
     if a["coupling"] and fields:
-        out["cea_coupling"] = _coupling(ctx, ops, K, fields, rows, a)
+        t = time.perf_counter()
+        rc = coupling if coupling is not None else _coefficients(ctx, ops, K, fields, a)
+        out["cea_coupling"] = {**coupling_summaries(rc, rows, ctx.products.get("basis"), ops.M),
+                               "seconds": time.perf_counter() - t}
     rad = radiation_settings(a["radiation"])
     if rad.enabled and fields:
         from fem_squeal.fe.radiation import radiated_power  # heavy: FE stack
@@ -104,20 +112,18 @@ def compute(ctx, ops, K, fields, rows: list[dict], lam: np.ndarray, a) -> dict:
     return out
 
 
-def _coupling(ctx, ops, K, fields, rows: list[dict], a) -> dict:
-    """The coefficients on the real modes of ½(K + Kᵀ) up to analyses.cea.coupling_f_max_hz and their
-    summaries into ``rows`` (:func:`coupling_summaries`)."""
+def _coefficients(ctx, ops, K, fields, a):
+    """The coefficients on the real modes of ½(K + Kᵀ) up to analyses.cea.coupling_f_max_hz."""
     from fem_squeal.fe.coupling import real_mode_coefficients  # heavy: FE stack
 
     f_max = a["coupling_f_max_hz"] or COUPLING_CUT_FACTOR * a["band_hz"][1]
-    rc = real_mode_coefficients(K, ops.M, fields, f_max, options=ctx.scene.solver.petsc_options,
-                                n_start=max(20, len(fields)))
-    return coupling_summaries(rc, rows, ctx.products.get("basis"), ops.M)
+    return real_mode_coefficients(K, ops.M, fields, f_max, options=ctx.scene.solver.petsc_options,
+                                  n_start=max(20, len(fields)))
 
 
 def coupling_summaries(rc, rows: list[dict], basis=None, M=None) -> dict:
     """Each row's ``coupling`` (:func:`fem_squeal.reduced.mode_coupling.summary` of its column of
-    ``rc``, a :class:`fem_squeal.fe.coupling.RealModeCoefficients`; ``pair_kind`` from the real
+    ``rc``, a :class:`fem_squeal.reduced.mode_coupling.RealModeCoefficients`; ``pair_kind`` from the real
     modes' descriptors by ``basis``, a :class:`fem_squeal.fe.descriptors.CircumferentialBasis`, when
     given with the mass matrix ``M``) and the CEA's ``cea_coupling`` section.  Drops ``rc.Phi``."""
     p, r = mode_coupling.participation(rc.coefficients, rc.norms)
@@ -131,21 +137,19 @@ def coupling_summaries(rc, rows: list[dict], basis=None, M=None) -> dict:
         pair = row["coupling"]["pair"]
         row["coupling"]["pair_kind"] = pair_kind([described.get(i) for i in pair], rc.freqs_hz[pair])
     return {"f_max_hz": rc.f_max_hz, "n_real_modes": int(len(rc.freqs_hz)), "real_freqs_hz": rc.freqs_hz,
-            "real_modes": [described[i] for i in sorted(described)],
-            "basis": "real modes of ½(K + Kᵀ) (the CEA's operating stiffness, symmetric part) and M, numbered "
-                     "from 0 by frequency"}
+            "real_modes": [described[i] for i in sorted(described)], "basis": rc.basis}
 
 
 def _describe_real_modes(basis, M, rc, which: list[int]) -> dict[int, dict]:
     """Frequency, nodal diameter, nodal and in-plane share of the real modes ``which`` (the columns of
-    ``rc.Phi``), by the descriptors of the complex modes (``basis``; None: frequencies only)."""
+    ``rc.columns``), by the descriptors of the complex modes (``basis``; None: frequencies only)."""
     out = {i: {"index": i, "freq_hz": float(rc.freqs_hz[i])} for i in which}
     if basis is None or rc.Phi is None or not which:
         return out
     vecs = []
-    for i in which:
+    for x in rc.columns(which).T:
         v = M.createVecRight()
-        v.array[:] = rc.Phi[:, i]
+        v.array[:] = x
         vecs.append(v)
     for i, d in zip(which, basis.describe_all([(v, None) for v in vecs])):
         out[i].update(nodal_diameter=d.nodal_diameter, nodal_share=d.nodal_share, in_plane_share=d.in_plane_share)
@@ -244,7 +248,8 @@ def report_html(res: dict) -> str:
     rad, cp = res.get("cea_radiation"), res.get("cea_coupling")
     notes = []
     if cp:
-        notes.append(f"Coupling: the participation p_i = |c_i|²/Σ|c_j|² of the real modes of ½(K + Kᵀ) "
+        basis = _e(cp.get("basis", "")).split(" and M", 1)[0] or "real modes of ½(K + Kᵀ)"
+        notes.append(f"Coupling: the participation p_i = |c_i|²/Σ|c_j|² of the {basis} "
                      f"({cp['n_real_modes']} modes up to {cp['f_max_hz']:.0f} Hz, numbered from 0 by frequency) "
                      "in each complex mode, c = ΦᵀMx; 'outside' is the share 1 − Σ|c_j|²/x^HMx of the mode's "
                      "M-norm that these real modes do not represent.")

@@ -559,6 +559,43 @@ def merging_pairs(path: Path, values: np.ndarray, lam: np.ndarray, unstable: np.
     plt.close(fig)
 
 
+def map_instabilities(path: Path, x: np.ndarray, y: np.ndarray, found: list[tuple[np.ndarray, str]], xlabel: str,
+                      ylabel: str, title: str = "", top: int = 9) -> None:
+    """Where each instability of a stability map lies, how fast it grows there and which real modes make
+    it up: one panel for each of the first ``top`` of ``found`` = [(Re λ of shape (len(y), len(x)), NaN
+    where stable; label)], its growth rate coloured over the (x, y) plane, its label as the panel's title.
+    The CSV: one row per instability and unstable grid point."""
+    plt = pyplot()
+    n = max(min(len(found), top), 1)
+    cols = min(n, 3)
+    rows_ = -(-n // cols)
+    fig, axes = plt.subplots(rows_, cols, figsize=(4.4 * cols, 3.5 * rows_), squeeze=False)
+    X, Y = np.meshgrid(x, y)
+    rows = []
+    for k, (ax, (growth, label)) in enumerate(zip(axes.ravel(), found[:top])):
+        im = ax.pcolormesh(x, y, np.ma.masked_invalid(growth), shading="nearest", cmap="magma_r",
+                           vmin=0.0, vmax=float(np.nanmax(growth)))
+        fig.colorbar(im, ax=ax, label="Re λ [1/s]")
+        if xlabel == "sign(v) μ":
+            ax.axvline(0.0, color="k", lw=0.4)
+        ax.set_xlim(x.min(), x.max())
+        ax.set_ylim(y.min(), y.max())
+        f, _, pair = label.partition(": ")
+        ax.set_title(f"{k + 1}: {f}" + (f"\n{pair}" if pair else ""), fontsize=8)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ok = np.isfinite(growth)
+        rows += [[k + 1, label, float(a), float(b), float(g)] for a, b, g in zip(X[ok], Y[ok], growth[ok])]
+    for ax in axes.ravel()[min(len(found), top):]:
+        ax.axis("off")
+    fig.suptitle((title + ": " if title else "") + "instabilities of the map, fastest first, and their coupled "
+                 "real modes", fontsize=9)
+    fig.tight_layout()
+    cols_ = [list(c) for c in zip(*rows)] if rows else [[]] * 5
+    save(fig, path, (["instability", "label", xlabel, ylabel, "growth_rate"], cols_))
+    plt.close(fig)
+
+
 def noise_matrix(path: Path, noise: dict, frequencies: np.ndarray, growth: np.ndarray, condition: np.ndarray,
                  title: str = "") -> None:
     """The operating matrix as a dynamometer squeal summary (SAE J2521 style): occurrence of instability

@@ -15,8 +15,6 @@ The summaries (participation in percent, the coupling pair) are pure NumPy:
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -24,18 +22,11 @@ from petsc4py import PETSc
 from fem_squeal.fe.dense import apply, gram
 from fem_squeal.fe.eigen import TWO_PI
 from fem_squeal.fe.projection.shifted import modes_below
+from fem_squeal.reduced.mode_coupling import RealModeCoefficients  # also importable from here, as before
 
-
-@dataclass
-class RealModeCoefficients:
-    """Coefficients c = ΦᵀMx of complex modes on real modes (``coefficients[i, j]``: real mode i,
-    complex mode j), the real modes' frequencies and each complex mode's M-norm ‖x‖²_M."""
-
-    freqs_hz: np.ndarray          # (n_real,) ascending
-    coefficients: np.ndarray      # (n_real, n_modes) complex
-    norms: np.ndarray             # (n_modes,) x^H M x
-    f_max_hz: float               # every real mode up to this frequency is in Φ
-    Phi: np.ndarray | None = None  # the real modes (rank-local rows, M-orthonormal columns)
+#: what the real modes of :func:`real_mode_coefficients` are (results.json: cea_coupling.basis)
+SYMMETRIC_PART = ("real modes of ½(K + Kᵀ) (the CEA's operating stiffness, symmetric part) and M, numbered "
+                  "from 0 by frequency")
 
 
 def symmetric_part(K: PETSc.Mat) -> PETSc.Mat:
@@ -76,4 +67,5 @@ def real_mode_coefficients(K: PETSc.Mat, M: PETSc.Mat, modes: list[tuple[PETSc.V
     finally:
         Ks.destroy()
     C, norms = coefficients_on(M, Phi, modes)
-    return RealModeCoefficients(np.sqrt(np.abs(w2)) * np.sign(w2) / TWO_PI, C, norms, float(f_max_hz), Phi)
+    return RealModeCoefficients(np.sqrt(np.abs(w2)) * np.sign(w2) / TWO_PI, C, norms, float(f_max_hz), Phi,
+                                basis=SYMMETRIC_PART)

@@ -16,8 +16,30 @@ their individual p_i depend on it (on the solver, on the number of ranks), their
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.linalg
+
+
+@dataclass
+class RealModeCoefficients:
+    """Coefficients c = ΦᵀMx of complex modes on real modes (``coefficients[i, j]``: real mode i,
+    complex mode j), the real modes' frequencies and each complex mode's M-norm ‖x‖²_M.  The real
+    modes themselves (rank-local rows, for their descriptors) are ``Phi`` or, where ``rotation`` is
+    given, ``Phi @ rotation`` (a basis block spanning them: the projected CEA's, :meth:`columns`)."""
+
+    freqs_hz: np.ndarray          # (n_real,) ascending
+    coefficients: np.ndarray      # (n_real, n_modes) complex
+    norms: np.ndarray             # (n_modes,) x^H M x
+    f_max_hz: float               # every real mode up to this frequency is in Φ
+    Phi: np.ndarray | None = None
+    rotation: np.ndarray | None = None
+    basis: str = ""               # what the real modes are (the report's words)
+
+    def columns(self, which: list[int]) -> np.ndarray:
+        """The real modes ``which`` (rank-local rows)."""
+        return self.Phi[:, which] if self.rotation is None else self.Phi @ self.rotation[:, which]
 
 
 def participation(C: np.ndarray, norms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -55,12 +77,15 @@ def label(modes: list[int], percent: list[float]) -> str:
     return "real mode " + parts[0] if len(parts) == 1 else "real modes " + " and ".join(parts)
 
 
-def degenerate_groups(freqs_hz: np.ndarray, rtol: float = 1e-3) -> list[list[int]]:
+def degenerate_groups(freqs_hz: np.ndarray, rtol: float = 1e-3, rigid_hz: float = 1.0) -> list[list[int]]:
     """Real modes grouped by frequency (consecutive modes within ``rtol`` of each other: a degenerate
-    pair of an axisymmetric part, split by the mesh's round-off or slightly by its asymmetry)."""
+    pair of an axisymmetric part, split by the mesh's round-off or slightly by its asymmetry; and the
+    rigid-body modes, |f| < ``rigid_hz``, whose computed frequencies are round-off around 0)."""
     groups: list[list[int]] = []
-    for i, f in enumerate(np.asarray(freqs_hz)):
-        if groups and abs(f - freqs_hz[groups[-1][-1]]) <= rtol * max(abs(f), 1.0):
+    f = np.asarray(freqs_hz)
+    for i in range(len(f)):
+        if groups and (abs(f[i] - f[groups[-1][-1]]) <= rtol * max(abs(f[i]), 1.0)
+                       or max(abs(f[i]), abs(f[groups[-1][-1]])) < rigid_hz):
             groups[-1].append(i)
         else:
             groups.append([i])

@@ -108,6 +108,14 @@ def test_map_points_equal_the_full_problem(serial):
     for c in red["verification"]:
         lam = in_band(dense(c["point"]["W"], c["point"]["s"]))
         assert c["n_unstable_full"] == c["n_unstable_reduced"] == np.sum(lam.real > 1e-6 * np.abs(lam))
+    # the map's instabilities (fem_squeal.reduced.stability_map.instabilities): every unstable point lies in
+    # at least one and in at most as many as it has unstable modes; masks in the npz, table and picture written
+    inst = data["instabilities"]
+    assert inst.shape[1:] == (7, 7) and len(inst) == len(res["map"]["instabilities"]) >= 1
+    cover = inst.sum(axis=0)
+    assert np.array_equal(cover > 0, data["total"] > 0) and np.all(cover <= data["total"])
+    files = ("stability_map_instabilities.csv", "stability_map_coupling.png", "stability_map_coupling.csv")
+    assert all((tmp / "out" / f).is_file() for f in files)
 
 
 def test_sensitivities_equal_central_differences_of_full_ceas(serial):
@@ -197,6 +205,7 @@ def test_two_ranks_equal_one(serial, mpirun, tmp_path):
     ma, mb = (np.load(d / "out" / "stability_map.npz") for d in (one_dir, tmp_path))
     la, lb = np.sort_complex(ma["eigenvalues"]), np.sort_complex(mb["eigenvalues"])
     assert np.max(np.abs(la - lb) / np.abs(la)) <= 1e-8 and np.array_equal(ma["total"], mb["total"])
+    assert np.array_equal(ma["instabilities"], mb["instabilities"])
     for ra, rb in zip(one["sensitivity"], two["sensitivity"], strict=True):
         for p_ in ("W", "s"):
             da = complex(ra["d_real_part"][p_], ra["d_freq_hz"][p_])

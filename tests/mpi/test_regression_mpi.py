@@ -95,9 +95,10 @@ def test_scene_with_real_modes_and_damping_writes_all_outputs(tmp_path):
                          write_fields=False, log=lambda *a: None)
     shift = eigenvalues(res).real - eigenvalues(undamped).real
     assert np.allclose(shift, -1.0, atol=1e-3)
-    # without fields: the report, the results and the CEA's radiation tables and plot (fem_squeal.app.nvh)
-    assert sorted(p.name for p in (tmp_path / "u").iterdir()) == [
-        "cea_bands.csv", "cea_erp.png", "cea_radiation.csv", "report.html", "results.json"]
+    # without fields: the report, the results and the CEA's coupling and radiation tables and plots
+    # (fem_squeal.app.nvh; the coupling is on by default)
+    nvh = ["cea_bands.csv", "cea_coupling.csv", "cea_coupling.png", "cea_erp.png", "cea_radiation.csv"]
+    assert sorted(p.name for p in (tmp_path / "u").iterdir()) == [*nvh, "report.html", "results.json"]
     shutil.rmtree(tmp_path / "u")
     fields = ["complex_modes.h5", "complex_modes.vtu", "complex_modes.xdmf", "real_modes.h5", "real_modes.vtu",
               "real_modes.xdmf"]
@@ -105,7 +106,6 @@ def test_scene_with_real_modes_and_damping_writes_all_outputs(tmp_path):
     pictures = ["mode_shapes.npz", "mode_shapes/surface_points.csv", "mode_shapes/surface_triangles.csv"] + [
         f"mode_shapes/mode_{j}{end}" for j in res["mode_shapes"]["modes"]
         for end in (".png", "_thumb.png", "_points.csv", "_triangles.csv")]
-    nvh = ["cea_bands.csv", "cea_erp.png", "cea_radiation.csv"]
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*fields, *nvh, "mode_shapes", "mode_shapes.npz",
                                                                  "report.html", "results.json"])
     assert sorted(res["files"]) == sorted(fields + pictures + nvh)

@@ -63,11 +63,13 @@ SECTION = {
                         "definition, fem_squeal.reduced.eigensolve.unstable: round-off of a neutral mode, "
                         "a gyroscopic disc's ~1e-9 |λ|, is not an instability)"),
     "describe_part": Field(str, "", None, "part for nodal diameters; '' = disc if present"),
-    "coupling": Field(bool, False, None, "each complex mode on the real modes of ½(K + Kᵀ): their participation "
-                      "and the coupling pair (one more real-mode solve, up to coupling_f_max_hz: off by default, "
-                      "it costs about as much as the CEA's own solve)"),
-    "coupling_f_max_hz": Field(REAL, None, positive, "the real modes of the coupling reach this frequency; "
-                               "not set: 1.25 × the upper end of band_hz", unset=0),
+    "coupling": Field(bool, True, None, "each complex mode on real modes: their participation and the coupling "
+                      "pair.  method 'projection': on the real modes of its basis (no solve); else on those "
+                      "of ½(K + Kᵀ) up to coupling_f_max_hz (one more real-mode solve: on the coarse brake "
+                      "corner on 2 ranks 3.2 s beside the CEA's 6.0 s, docs/validation.md)"),
+    "coupling_f_max_hz": Field(REAL, None, positive, "the real modes of the coupling reach this frequency "
+                               "(not with 'projection': its basis's cut); not set: 1.25 × the upper end of "
+                               "band_hz", unset=0),
     "radiation": Field(dict, {}, nvh.check_radiation, "the ERP of the modes and the squeal index: a table of "
                        + ", ".join(f"{k} ({f.doc}; default {f.default!r})" for k, f in nvh.RADIATION.items())),
 }
@@ -122,7 +124,8 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
             rows[-1]["energy_shares"] = e
     timings["cea_descriptors"] = time.perf_counter() - t
     t = time.perf_counter()
-    more = nvh.compute(ctx, ops, K, fields, rows, cm.eigenvalues, a)
+    more = nvh.compute(ctx, ops, K, fields, rows, cm.eigenvalues, a,
+                       coupling=projection.coupling if projection is not None else None)
     timings["cea_nvh"] = time.perf_counter() - t
     n_unstable = sum(r["unstable"] for r in rows)
     ctx.say(f"[fem_squeal] CEA ({cm.method}, {cm.algorithm}): {len(rows)} modes in {lo:g}-{hi:g} Hz, "

@@ -35,6 +35,7 @@ import numpy as np
 from fem_squeal.app import plots
 from fem_squeal.app.analyses import matrix_reduced
 from fem_squeal.app.analyses import robustness_summary as robustness
+from fem_squeal.app.analyses.map_instabilities import map_instabilities, masks
 from fem_squeal.app.analyses.matrix_reduced import BASIS_MODES, STUDY, check_parameter, parameter_range
 from fem_squeal.app.fields import REAL, Field, at_least, non_negative, one_of, positive
 from fem_squeal.app.stage import Context
@@ -137,8 +138,13 @@ def run_map(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     timings["map_check"] = time.perf_counter() - t
     worst = max((c["max_rel_error"] for c in checks), default=None)
     names = list(axes)
+    t = time.perf_counter()
+    # no coupling: a model given as matrices has no frictionless real modes to name (its parameters are its own)
+    found = map_instabilities(ctx, work, red, res, band, gt, (names[-1], names[0]), couple=False)
+    timings["map_instabilities"] = time.perf_counter() - t
     out = {"parameter": " × ".join(names), "parameters": names, "points": grid.size, "band_hz": list(band),
-           "seconds": res.seconds, "seconds_per_point": res.seconds_per_point, **smap.as_dict()}
+           "seconds": res.seconds, "seconds_per_point": res.seconds_per_point, **smap.as_dict(),
+           "instabilities": [x.as_dict() for x in found]}
     reduction = {**red.info, "verification": checks, "max_rel_error": worst, "tol": m["tol"],
                  "passed": worst is None or (worst <= m["tol"] and all(
                      c["n_unstable_full"] == c["n_unstable_reduced"] for c in checks))}
@@ -153,7 +159,8 @@ def run_map(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
         write_npz_atomic(work / "stability_map.npz", {**{f"axis/{p}": v for p, v in axes.items()},
                                                        "counts": smap.counts, "total": smap.total,
                                                        "eigenvalues": res.eigenvalues,
-                                                       "bands_hz": np.array(bands)})
+                                                       "bands_hz": np.array(bands),
+                                                       "instabilities": masks(found, grid.shape)})
         if len(names) == 2:
             plots.stability_maps(work / "stability_map.png", axes[names[1]], axes[names[0]], smap.counts,
                                  smap.total, bands, names[0], scene.title, x_label=names[1])

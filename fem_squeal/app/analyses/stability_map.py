@@ -1,8 +1,12 @@
 """The ``map`` analysis: the (sign(v)μ, E) full-factorial design of seed 001 §4 on the reduced model,
-dealt over the ranks, with the number of unstable modes per frequency band (Figs. 17-19).
-Files: stability_map.npz, stability_map.png."""
+dealt over the ranks, with the number of unstable modes per frequency band (Figs. 17-19), and the map's
+instabilities: each region where one mode is unstable, where it grows fastest and the real modes that
+couple in it there (:func:`fem_squeal.reduced.stability_map.instabilities`).
+Files: stability_map.npz, stability_map.png, stability_map_coupling.png (the instabilities' regions
+labelled by their real-mode pair) and stability_map_instabilities.csv."""
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Any
 
@@ -10,6 +14,7 @@ import numpy as np
 
 from fem_squeal.app import plots
 from fem_squeal.app.analyses import matrix_studies
+from fem_squeal.app.analyses.map_instabilities import instabilities_html, map_instabilities, masks
 from fem_squeal.app.analyses.reduced import (
     band_and_growth_tol,
     map_E_range,
@@ -58,13 +63,18 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     smap = stability_map(res, bands, gt)
     out = {"parameter": name, "points": grid.size, "seconds": res.seconds,
            "seconds_per_point": res.seconds_per_point, **smap.as_dict()}
+    t = time.perf_counter()
+    found = map_instabilities(ctx, work, model, res, band, gt, ("sign(v) μ", axis_label), scale)
+    out["instabilities"] = [x.as_dict() for x in found]
+    timings["map_instabilities"] = time.perf_counter() - t
     ctx.say(f"[fem_squeal] stability map: {grid.size} points in {res.seconds:.2f} s "
             f"({1e3 * res.seconds_per_point:.2f} ms per point per rank), "
-            f"at most {int(smap.total.max())} unstable modes")
+            f"at most {int(smap.total.max())} unstable modes, {len(found)} instabilities")
     if ctx.comm.rank == 0:
         write_npz_atomic(work / "stability_map.npz", {"mu": grid.axes[MU], m["second"]: E, "counts": smap.counts,
                                                        "total": smap.total, "eigenvalues": res.eigenvalues,
-                                                       "bands_hz": np.array(bands)})
+                                                       "bands_hz": np.array(bands),
+                                                       "instabilities": masks(found, grid.shape)})
         plots.stability_maps(work / "stability_map.png", grid.axes[MU], E * scale, smap.counts, smap.total,
                              bands, axis_label, scene.title)
     return {"map": out}
@@ -101,7 +111,7 @@ def report(res: dict) -> str:
     return (f"<h2>Stability map</h2><p>{m['points']} points of ({_e(axes)}) in "
                f"{_num(m['seconds'])} s; at most "
                f"{_num(int(np.max(m['total'])) if m.get('total') else 0)} "
-               "unstable modes.</p>")
+               "unstable modes.</p>" + instabilities_html(m.get("instabilities", [])))
 
 
 STAGE = Stage("map", ("reduced",), run, "(μ, E) stability map", section=SECTION, check=check, report=report,

@@ -32,6 +32,7 @@ from fem_squeal.fe.projection.basis import _new_block, _orthonormality, _stack, 
 from fem_squeal.fe.projection.reductor import build_basis
 from fem_squeal.fe.projection.shifted import ShiftedSolver, count_below, modes_below
 from fem_squeal.reduced.eigensolve import quadratic_eigs
+from fem_squeal.reduced.mode_coupling import RealModeCoefficients, basis_modes, modal_part
 from fem_squeal.util.errors import EigenSolveError, ModelError, ReductionError
 
 #: default number of enrichment rounds before the projection gives up
@@ -55,6 +56,7 @@ class ProjectionReport:
     worst_residual: float = np.inf  # ρ, the full CEA's residual, of the pairs returned
     worst_relative: float = np.inf  # η, relative to λ²M, of the last round's pairs in the band
     n_real_in_band: int = 0          # real modes of the symmetric part in the band (solved for the basis)
+    coupling: RealModeCoefficients | None = None  # the pairs on the basis's real modes (:func:`modal_coupling`)
 
     def as_dict(self) -> dict:
         return {"cut_hz": self.cut_hz, "shift_hz": self.sigma_hz, "basis_size": self.counts["size"],
@@ -62,6 +64,21 @@ class ProjectionReport:
                 "worst_residual": self.worst_residual, "worst_relative_residual": self.worst_relative,
                 "n_real_modes_in_band": self.n_real_in_band,
                 "rounds": self.rounds}
+
+
+#: what the real modes of :func:`modal_coupling` are (results.json: cea_coupling.basis)
+BASIS_MODES = ("real modes of the frictionless symmetric K (elasticity, springs, closed contacts) and M, those of "
+               "the projection's basis, numbered from 0 by frequency")
+
+
+def modal_coupling(K: PETSc.Mat, W: np.ndarray, Y: np.ndarray, f_max_hz: float) -> RealModeCoefficients:
+    """The pairs x = Φy (columns of ``Y``) on the real modes of (K, M) up to ``f_max_hz`` that the basis's
+    first columns ``W`` span (M-orthonormal, a rotation of them: :func:`~.basis._new_block`): with
+    WᵀKW = Q diag(ω²) Qᵀ the modes are WQ, and Φ being M-orthonormal with W first, c = Qᵀ y[:n] and
+    ‖x‖²_M = ‖y‖² (:mod:`fem_squeal.fe.coupling`, without its real-mode solve).  One product K W."""
+    freqs_hz, Q = basis_modes(project(K, W), W.shape[1])
+    c, norms = modal_part(Y, W.shape[1])
+    return RealModeCoefficients(freqs_hz, Q.T @ c, norms, float(f_max_hz), W, Q, basis=BASIS_MODES)
 
 
 def auto_method(ops: Operators, band_hz: tuple[float, float], min_dofs: int, min_modes: int, options=None,
@@ -237,7 +254,7 @@ def projected_complex_modes(ops: Operators, K: PETSc.Mat, C: PETSc.Mat | None, b
         if Mz is not M:
             Mz.destroy()
     t0 = MPI.Wtime()
-    lam, XX = lam[inside], XX[:, np.concatenate([inside, inside])]
+    lam, XX, Y = lam[inside], XX[:, np.concatenate([inside, inside])], Y[:, inside]
     k = lam.size
     xrs, xis, res = [], [], np.empty(k)
     for j in range(k):
@@ -251,6 +268,10 @@ def projected_complex_modes(ops: Operators, K: PETSc.Mat, C: PETSc.Mat | None, b
     lam, res = lam[order], res[order]
     xrs, xis = [xrs[i] for i in order], [xis[i] for i in order]
     report.worst_residual = float(np.max(res, initial=0.0))
+    # the modes lead the basis (build_basis: its first block, whole: M-orthonormal eigenvectors drop nothing);
+    # a copy of them, so that the rest of the basis is freed on return
+    report.coupling = modal_coupling(ops.K, np.array(blocks[0][0][:, :report.counts["modes"]], order="F"),
+                                     Y[:, order], cut)
     seconds["vectors"] = wall(t0)
     what = (f"projected CEA (prefix {prefix!r}, basis {report.counts['size']}, modes <= {cut:.0f} Hz, "
             f"{len(report.rounds) - 1} enrichment rounds; raise analyses.cea.cut_factor or use method "

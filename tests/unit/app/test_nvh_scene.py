@@ -14,7 +14,7 @@ BRAKE = ROOT / "scenes" / "brake_corner_cea.toml"
 
 def test_defaults():
     cea = load_scene(BRAKE).analyses["cea"]
-    assert cea["coupling"] is False and cea["coupling_f_max_hz"] is None and cea["radiation"] == {}
+    assert cea["coupling"] is True and cea["coupling_f_max_hz"] is None and cea["radiation"] == {}
     rad = radiation_settings(cea["radiation"])
     assert rad.enabled and rad.rho_c == pytest.approx(415.03) and rad.kinetic_energy == 1.0
     assert rad.default_efficiency == 1.0 and rad.efficiency == {} and rad.exclude_faces == []

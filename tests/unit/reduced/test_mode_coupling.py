@@ -47,6 +47,9 @@ def test_participation_and_outside_share():
     assert s["real_modes"] == [1] and s["label"] == "real mode 1 (100 %)"
     g = mode_coupling.degenerate_groups(np.array([10.0, 100.0, 100.001, 300.0]))
     assert g == [[0], [1, 2], [3]]
+    # rigid-body modes: round-off frequencies around 0 (−2e-3, 1.4e-3, 1.8e-3 Hz on the free ring) are one group
+    g = mode_coupling.degenerate_groups(np.array([-2.06e-3, 1.42e-3, 1.85e-3, 359.4396, 359.4396, 1008.5]))
+    assert g == [[0, 1, 2], [3, 4], [5]]
 
 
 def test_levels_squeal_index_and_bands():

@@ -292,7 +292,13 @@ def test_brake_scene_same_on_one_and_two_ranks(tmp_path, demo_two_ranks):
         matched += 1
         assert b[j]["freq_hz"] == pytest.approx(x["freq_hz"], rel=1e-8)
         assert b[j]["real_part"] == pytest.approx(x["real_part"], abs=1e-8 * 2 * np.pi * x["freq_hz"])
+        # its coupling (on by default): the same real modes and participations (0.01 percentage points:
+        # the vectors agree to ~1e-7, the solvers' tolerances over the real modes' smallest gaps)
+        ca, cb = x["coupling"], b[j]["coupling"]
+        assert ca["pair"] == cb["pair"] and ca["percent"][:2] == pytest.approx(cb["percent"][:2], abs=1e-2)
+        assert cb["outside"] == pytest.approx(ca["outside"], abs=1e-6)
     assert matched >= 20
+    assert np.allclose(out[2]["cea_coupling"]["real_freqs_hz"], out[1]["cea_coupling"]["real_freqs_hz"], rtol=1e-8)
     # the radiating surface (the disc under the pads left out by the slave points' positions)
     assert out[2]["cea_radiation"]["area_m2"] == pytest.approx(out[1]["cea_radiation"]["area_m2"], rel=1e-12)
     pa, pb = out[1]["preload"]["interfaces"], out[2]["preload"]["interfaces"]

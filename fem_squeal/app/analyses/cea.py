@@ -65,8 +65,8 @@ SECTION = {
     "describe_part": Field(str, "", None, "part for nodal diameters; '' = disc if present"),
     "coupling": Field(bool, True, None, "each complex mode on real modes: their participation and the coupling "
                       "pair.  method 'projection': on the real modes of its basis (no solve); else on those "
-                      "of ½(K + Kᵀ) up to coupling_f_max_hz (one more real-mode solve: on the coarse brake "
-                      "corner on 2 ranks 3.2 s beside the CEA's 6.0 s, docs/validation.md)"),
+                      "of ½(K + Kᵀ) up to coupling_f_max_hz (one more real-mode solve: in the main demo 17.7 s "
+                      "beside the CEA's 26.3 s, docs/validation.md; false saves it)"),
     "coupling_f_max_hz": Field(REAL, None, positive, "the real modes of the coupling reach this frequency "
                                "(not with 'projection': its basis's cut); not set: 1.25 × the upper end of "
                                "band_hz", unset=0),

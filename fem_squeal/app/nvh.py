@@ -1,10 +1,10 @@
 """What an NVH engineer reads off the CEA (issue 38): which real modes couple into each complex mode,
 which parts carry it, how much it radiates, and which unstable modes to look at first.
 
-* **Mode coupling**: each complex mode's participation of the real modes of ½(K + Kᵀ)
-  (:mod:`fem_squeal.fe.coupling`, :mod:`fem_squeal.reduced.mode_coupling`) or, for the projected CEA,
-  of its basis's real modes (no solve: :func:`fem_squeal.fe.projection.projected_cea.modal_coupling`),
-  the pair named;
+* **Mode coupling**: each complex mode's participation of the real modes of the frictionless K, the
+  reduced basis's (:mod:`fem_squeal.fe.coupling`: one real-mode solve; for the projected CEA read off
+  its basis, no solve: :func:`fem_squeal.fe.projection.projected_cea.modal_coupling`;
+  :mod:`fem_squeal.reduced.mode_coupling`), the pair named;
 * **part participation**: the strain-energy shares of the parts (``energy_shares``) as bars;
 * **radiated sound**: the ERP of each mode at a stated kinetic energy (:mod:`fem_squeal.fe.radiation`)
   in dB re 1 pW, the squeal index ranking the unstable modes and 1/3-octave band summaries
@@ -75,7 +75,7 @@ def check_parts(a, volumes) -> None:
             raise SceneError(f"analyses.cea.radiation.efficiency.{part}: unknown part; parts: {sorted(volumes)}")
 
 
-def compute(ctx, ops, K, fields, rows: list[dict], lam: np.ndarray, a, coupling=None) -> dict:
+def compute(ctx, ops, fields, rows: list[dict], lam: np.ndarray, a, coupling=None) -> dict:
     """Coupling and radiation of the CEA's modes ``fields`` (x = xr + i xi, M-normalised): adds keys to
     ``rows`` and returns the CEA's new top-level results (module docstring).  ``coupling``: the modes'
     coefficients already known (a :class:`~fem_squeal.reduced.mode_coupling.RealModeCoefficients`, the
@@ -83,7 +83,7 @@ def compute(ctx, ops, K, fields, rows: list[dict], lam: np.ndarray, a, coupling=
     out: dict = {}
     if a["coupling"] and fields:
         t = time.perf_counter()
-        rc = coupling if coupling is not None else _coefficients(ctx, ops, K, fields, a)
+        rc = coupling if coupling is not None else _coefficients(ctx, ops, fields, a)
         out["cea_coupling"] = {**coupling_summaries(rc, rows, ctx.products.get("basis"), ops.M),
                                "seconds": time.perf_counter() - t}
     rad = radiation_settings(a["radiation"])
@@ -112,13 +112,15 @@ def compute(ctx, ops, K, fields, rows: list[dict], lam: np.ndarray, a, coupling=
     return out
 
 
-def _coefficients(ctx, ops, K, fields, a):
-    """The coefficients on the real modes of ½(K + Kᵀ) up to analyses.cea.coupling_f_max_hz."""
+def _coefficients(ctx, ops, fields, a):
+    """The coefficients on the real modes of the frictionless K (``ops.K``: the reduced basis's modes, so
+    that a real mode has one number in the CEA's table and the sweep's, map's and operating matrix's) up
+    to analyses.cea.coupling_f_max_hz."""
     from fem_squeal.fe.coupling import real_mode_coefficients  # heavy: FE stack
 
     f_max = a["coupling_f_max_hz"] or COUPLING_CUT_FACTOR * a["band_hz"][1]
-    return real_mode_coefficients(K, ops.M, fields, f_max, options=ctx.scene.solver.petsc_options,
-                                  n_start=max(20, len(fields)))
+    return real_mode_coefficients(ops.K, ops.M, fields, f_max, frictionless=True,
+                                  options=ctx.scene.solver.petsc_options, n_start=max(20, len(fields)))
 
 
 def coupling_summaries(rc, rows: list[dict], basis=None, M=None) -> dict:
@@ -248,7 +250,7 @@ def report_html(res: dict) -> str:
     rad, cp = res.get("cea_radiation"), res.get("cea_coupling")
     notes = []
     if cp:
-        basis = _e(cp.get("basis", "")).split(" and M", 1)[0] or "real modes of ½(K + Kᵀ)"
+        basis = _e(cp.get("basis", "")).split(" and M", 1)[0] or "real modes"
         notes.append(f"Coupling: the participation p_i = |c_i|²/Σ|c_j|² of the {basis} "
                      f"({cp['n_real_modes']} modes up to {cp['f_max_hz']:.0f} Hz, numbered from 0 by frequency) "
                      "in each complex mode, c = ΦᵀMx; 'outside' is the share 1 − Σ|c_j|²/x^HMx of the mode's "

@@ -1,8 +1,9 @@
 """Mode coupling of the full CEA: each complex mode on the real modes of the symmetric system.
 
-With Φ the M-orthonormal real modes of (K_s, M), K_s = ½(K + Kᵀ) the symmetric part of the CEA's
-operating stiffness (elasticity, closed contacts, the symmetric part of the friction stiffness,
-prestress), every real mode up to ``f_max_hz``, a complex mode x (x^H M x = 1) has the coefficients
+With Φ the M-orthonormal real modes of (K_s, M) — the CEA stage's: K_s the frictionless symmetric K
+(elasticity, springs, closed contacts), whose modes the reduced basis and the projected CEA hold too, so
+that a real mode has one number in every table; or K_s = ½(K + Kᵀ) of a given operating stiffness —
+every real mode up to ``f_max_hz``, a complex mode x (x^H M x = 1) has the coefficients
 
     c = Φᵀ M x,    x = Φ c + r,    ‖x‖²_M = Σ |c_i|² + ‖r‖²_M        (M-orthogonality of Φ),
 
@@ -22,9 +23,9 @@ from petsc4py import PETSc
 from fem_squeal.fe.dense import apply, gram
 from fem_squeal.fe.eigen import TWO_PI
 from fem_squeal.fe.projection.shifted import modes_below
-from fem_squeal.reduced.mode_coupling import RealModeCoefficients  # also importable from here, as before
+from fem_squeal.reduced.mode_coupling import FRICTIONLESS_MODES, RealModeCoefficients  # the latter: as before
 
-#: what the real modes of :func:`real_mode_coefficients` are (results.json: cea_coupling.basis)
+#: what the real modes of :func:`real_mode_coefficients` are without ``frictionless`` (cea_coupling.basis)
 SYMMETRIC_PART = ("real modes of ½(K + Kᵀ) (the CEA's operating stiffness, symmetric part) and M, numbered "
                   "from 0 by frequency")
 
@@ -57,15 +58,18 @@ def coefficients_on(M: PETSc.Mat, Phi: np.ndarray, modes: list[tuple[PETSc.Vec, 
 
 
 def real_mode_coefficients(K: PETSc.Mat, M: PETSc.Mat, modes: list[tuple[PETSc.Vec, PETSc.Vec | None]],
-                           f_max_hz: float, *, options=None, prefix: str = "coupling_",
+                           f_max_hz: float, *, frictionless: bool = False, options=None, prefix: str = "coupling_",
                            n_start: int = 20) -> RealModeCoefficients:
     """The real modes of (½(K + Kᵀ), M) up to ``f_max_hz`` and the coefficients of ``modes`` on them
-    (module docstring).  ``options``/``prefix``: the PETSc options of the real-mode solve."""
-    Ks = symmetric_part(K)
+    (module docstring); ``frictionless``: K is the frictionless symmetric K itself (not symmetrised: its
+    modes are :data:`~fem_squeal.reduced.mode_coupling.FRICTIONLESS_MODES`).  ``options``/``prefix``: the
+    PETSc options of the real-mode solve."""
+    Ks = K if frictionless else symmetric_part(K)
     try:
         w2, Phi = modes_below(Ks, M, f_max_hz, n_start=n_start, options=options, prefix=prefix)
     finally:
-        Ks.destroy()
+        if Ks is not K:
+            Ks.destroy()
     C, norms = coefficients_on(M, Phi, modes)
     return RealModeCoefficients(np.sqrt(np.abs(w2)) * np.sign(w2) / TWO_PI, C, norms, float(f_max_hz), Phi,
-                                basis=SYMMETRIC_PART)
+                                basis=FRICTIONLESS_MODES if frictionless else SYMMETRIC_PART)

@@ -21,6 +21,13 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+#: the real modes every coupling of fem_squeal is read on unless told otherwise: those of the reduced basis
+#: (the μ sweep's, the map's, the operating matrix's) and of the projected CEA, so that a real mode has one
+#: number in every table of a run (numbered by frequency: up to the order inside a degenerate pair, and as
+#: far as both cuts reach; results.json: cea_coupling.basis)
+FRICTIONLESS_MODES = ("real modes of the frictionless symmetric K (elasticity, springs, closed contacts) and M, "
+                      "those of the reduced basis and the projected CEA, numbered from 0 by frequency")
+
 
 @dataclass
 class RealModeCoefficients:

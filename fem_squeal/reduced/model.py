@@ -459,12 +459,17 @@ class ReducedModel:
             for f in ("Kc", "Kt", "Kf", "kn", "mu", "sliding", "kt"):
                 if getattr(pl, f) is not None:
                     arrays[f"plate/{name}/{f}"] = np.asarray(getattr(pl, f))
+        # the basis description's counts (modes first: the couplings of a cached model need them)
+        for k, v in self.info.items():
+            if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
+                arrays[f"info/{k}"] = np.array(int(v))
         write_npz_atomic(path, arrays)
 
     @classmethod
     def load(cls, path) -> ReducedModel:
         """Read a model written by :meth:`save` (also one written before k_t, η and the interface
-        parameters existed: no G_t₂Φ, k_t = 0, η = 0)."""
+        parameters existed: no G_t₂Φ, k_t = 0, η = 0; or before its basis counts were saved: ``info``
+        empty, so no coupling is named on it)."""
         with np.load(path) as z:
             d = {k: z[k] for k in z.files}
         parts = sorted(k.split("/", 1)[1] for k in d if k.startswith("K_part/"))
@@ -487,4 +492,4 @@ class ReducedModel:
                    eta0={p: float(d[f"eta0/{p}"]) for p in parts if f"eta0/{p}" in d}, plates=plates,
                    speed0=float(d.get("speed0", 0.0)), G1=d.get("G1"), K2=d.get("K2"), Cd0=d.get("Cd0"),
                    speed_varies=bool(d.get("speed_varies", False)), Ksp=d.get("Ksp"),
-                   Cdp=d.get("Cdp"))
+                   Cdp=d.get("Cdp"), info={k.split("/", 1)[1]: int(d[k]) for k in d if k.startswith("info/")})

@@ -63,10 +63,11 @@ SECTION = {
                         "definition, fem_squeal.reduced.eigensolve.unstable: round-off of a neutral mode, "
                         "a gyroscopic disc's ~1e-9 |λ|, is not an instability)"),
     "describe_part": Field(str, "", None, "part for nodal diameters; '' = disc if present"),
-    "coupling": Field(bool, True, None, "each complex mode on real modes: their participation and the coupling "
-                      "pair.  method 'projection': on the real modes of its basis (no solve); else on those "
-                      "of ½(K + Kᵀ) up to coupling_f_max_hz (one more real-mode solve: in the main demo 17.7 s "
-                      "beside the CEA's 26.3 s, docs/validation.md; false saves it)"),
+    "coupling": Field(bool, True, None, "each complex mode on the real modes of the frictionless K (those of "
+                      "the reduced basis: one number per mode in every table): their participation and the "
+                      "coupling pair.  method 'projection': read off its basis (no solve); else one more "
+                      "real-mode solve up to coupling_f_max_hz (main demo: 16.1 s beside the CEA's 20.5 s, "
+                      "docs/validation.md; false saves it)"),
     "coupling_f_max_hz": Field(REAL, None, positive, "the real modes of the coupling reach this frequency "
                                "(not with 'projection': its basis's cut); not set: 1.25 × the upper end of "
                                "band_hz", unset=0),
@@ -124,7 +125,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
             rows[-1]["energy_shares"] = e
     timings["cea_descriptors"] = time.perf_counter() - t
     t = time.perf_counter()
-    more = nvh.compute(ctx, ops, K, fields, rows, cm.eigenvalues, a,
+    more = nvh.compute(ctx, ops, fields, rows, cm.eigenvalues, a,
                        coupling=projection.coupling if projection is not None else None)
     timings["cea_nvh"] = time.perf_counter() - t
     n_unstable = sum(r["unstable"] for r in rows)

@@ -32,7 +32,7 @@ from fem_squeal.fe.projection.basis import _new_block, _orthonormality, _stack, 
 from fem_squeal.fe.projection.reductor import build_basis
 from fem_squeal.fe.projection.shifted import ShiftedSolver, count_below, modes_below
 from fem_squeal.reduced.eigensolve import quadratic_eigs
-from fem_squeal.reduced.mode_coupling import RealModeCoefficients, basis_modes, modal_part
+from fem_squeal.reduced.mode_coupling import FRICTIONLESS_MODES, RealModeCoefficients, basis_modes, modal_part
 from fem_squeal.util.errors import EigenSolveError, ModelError, ReductionError
 
 #: default number of enrichment rounds before the projection gives up
@@ -66,11 +66,6 @@ class ProjectionReport:
                 "rounds": self.rounds}
 
 
-#: what the real modes of :func:`modal_coupling` are (results.json: cea_coupling.basis)
-BASIS_MODES = ("real modes of the frictionless symmetric K (elasticity, springs, closed contacts) and M, those of "
-               "the projection's basis, numbered from 0 by frequency")
-
-
 def modal_coupling(K: PETSc.Mat, W: np.ndarray, Y: np.ndarray, f_max_hz: float) -> RealModeCoefficients:
     """The pairs x = Φy (columns of ``Y``) on the real modes of (K, M) up to ``f_max_hz`` that the basis's
     first columns ``W`` span (M-orthonormal, a rotation of them: :func:`~.basis._new_block`): with
@@ -78,7 +73,7 @@ def modal_coupling(K: PETSc.Mat, W: np.ndarray, Y: np.ndarray, f_max_hz: float) 
     ‖x‖²_M = ‖y‖² (:mod:`fem_squeal.fe.coupling`, without its real-mode solve).  One product K W."""
     freqs_hz, Q = basis_modes(project(K, W), W.shape[1])
     c, norms = modal_part(Y, W.shape[1])
-    return RealModeCoefficients(freqs_hz, Q.T @ c, norms, float(f_max_hz), W, Q, basis=BASIS_MODES)
+    return RealModeCoefficients(freqs_hz, Q.T @ c, norms, float(f_max_hz), W, Q, basis=FRICTIONLESS_MODES)
 
 
 def auto_method(ops: Operators, band_hz: tuple[float, float], min_dofs: int, min_modes: int, options=None,

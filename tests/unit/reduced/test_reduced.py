@@ -144,10 +144,14 @@ def test_bad_parameters_named():
 def test_save_load_roundtrip(tmp_path):
     model = two_dof(0.01, 0.02)
     model.K_parts, model.E0, model.beta = {"x": np.eye(2)}, {"x": 2e11}, {"x": 1e-5}
+    model.info = {"modes": 2, "static": 0, "built_on": "two ranks"}
     model.save(tmp_path / "r.npz")
     back = ReducedModel.load(tmp_path / "r.npz")
     pts = {"mu": np.array([0.3]), "E.x": np.array([2.2e11])}
     assert np.allclose(solve_points(back, pts), solve_points(model, pts))
+    # the basis counts survive (a map or sweep on a cached model names its couplings by info['modes']);
+    # what is not a count is not kept
+    assert back.info == {"modes": 2, "static": 0}
 
 
 def _random_coupled(m: int = 30, seed: int = 3) -> ReducedModel:

@@ -7,6 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse
+import scipy.sparse.csgraph
 
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
 from fem_squeal.reduced.mode_coupling import basis_modes, coupling_of
@@ -103,15 +105,8 @@ def instabilities(sweep: SweepResult, band_hz: tuple[float, float], growth_tol: 
     L = lam.reshape(-1, m)
     f = L.imag / TWO_PI
     bad = unstable(L, growth_tol) & (f >= band_hz[0]) & (f <= band_hz[1])
-    parent = np.arange(L.size)
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
     idx = np.arange(L.shape[0]).reshape(shape)
+    links: list[tuple[int, int]] = []        # pairs of linked eigenvalues, as point·m + index
     for axis in range(len(shape)):
         a_idx = np.take(idx, np.arange(shape[axis] - 1), axis=axis).ravel()
         b_idx = np.take(idx, np.arange(1, shape[axis]), axis=axis).ravel()
@@ -121,13 +116,15 @@ def instabilities(sweep: SweepResult, band_hz: tuple[float, float], growth_tol: 
                 continue
             d = np.abs(L[p, ea][:, None] - L[q, eb][None, :])
             near_b, near_a = d.argmin(axis=1), d.argmin(axis=0)
-            for i, j in enumerate(near_b):
-                if near_a[j] == i and abs(f[p, ea[i]] - f[q, eb[j]]) <= rtol * abs(f[p, ea[i]]):
-                    parent[root(p * m + ea[i])] = root(q * m + eb[j])
-    nodes = np.flatnonzero(bad.ravel())
+            links += [(p * m + ea[i], q * m + eb[j]) for i, j in enumerate(near_b)
+                      if near_a[j] == i and abs(f[p, ea[i]] - f[q, eb[j]]) <= rtol * abs(f[p, ea[i]])]
+    nodes = np.flatnonzero(bad.ravel())                 # sorted: the links' ends are found by bisection
+    e = np.searchsorted(nodes, np.array(links, int).reshape(-1, 2))
+    graph = scipy.sparse.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), (nodes.size, nodes.size))
+    _, label = scipy.sparse.csgraph.connected_components(graph, directed=False)
     groups: dict[int, list[int]] = {}
-    for n in nodes:
-        groups.setdefault(root(int(n)), []).append(int(n))
+    for n, g in zip(nodes, label):
+        groups.setdefault(int(g), []).append(int(n))
     pts = grid.points()
     out = []
     for members in groups.values():

@@ -34,7 +34,7 @@ from dolfinx.fem.assemble import pack_constants
 from petsc4py import PETSc
 
 from fem_squeal.fe import kernels
-from fem_squeal.fe.csr import csr_values, csr_view, petsc_library
+from fem_squeal.fe.csr import csr_values, csr_view, find_sorted, petsc_library
 from fem_squeal.util.native import address
 
 
@@ -218,15 +218,12 @@ def kronecker_rows(A: PETSc.Mat, W: np.ndarray, drop: np.ndarray, like: PETSc.Ma
     n, start = len(ip) - 1, A.getOwnershipRange()[0]
     ind = ind.astype(np.int64)
 
-    def dropped(dofs: np.ndarray) -> np.ndarray:
-        at = np.minimum(np.searchsorted(drop, dofs), max(len(drop) - 1, 0))
-        return drop[at] == dofs if len(drop) else np.zeros(dofs.shape, bool)
     e_row = np.repeat(np.arange(n), np.diff(ip))
     per_c, counts = [], np.zeros(b * n, np.int64)
     for c in range(b):
         ds = np.flatnonzero(W[c])
-        keep = ~dropped(b * ind[:, None] + ds)                                  # (nnz, nd)
-        keep &= ~dropped(b * (start + e_row) + c)[:, None]
+        keep = ~find_sorted(drop, b * ind[:, None] + ds)[1]                    # (nnz, nd)
+        keep &= ~find_sorted(drop, b * (start + e_row) + c)[1][:, None]
         rows = np.broadcast_to(e_row[:, None], keep.shape)[keep]
         cols = (b * ind[:, None] + ds)[keep]
         vals = (av[:, None] * W[c, ds])[keep]

@@ -90,6 +90,16 @@ def _copies(A: PETSc.Mat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return A.getValuesCSR()
 
 
+def find_sorted(keys: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(position, found) of each of ``x`` in the sorted index array ``keys`` (a position in range
+    where not found; all False for empty ``keys``)."""
+    x = np.asarray(x)
+    if not len(keys):
+        return np.zeros(x.shape, np.int64), np.zeros(x.shape, bool)
+    pos = np.minimum(np.searchsorted(keys, x), len(keys) - 1)
+    return pos, keys[pos] == x
+
+
 def local_rows(A: PETSc.Mat) -> sp.csr_matrix:
     """This rank's rows of the AIJ matrix ``A`` with global column numbers, as SciPy CSR (copies)."""
     ai, aj, av = A.getValuesCSR()

@@ -34,6 +34,7 @@ from scipy.sparse.csgraph import maximum_bipartite_matching
 
 from fem_squeal.fe import kernels
 from fem_squeal.fe.cholmod import WMAX, Cholesky, NotPositiveDefinite, aligned_rows
+from fem_squeal.fe.csr import find_sorted
 from fem_squeal.fe.ordering import node_graph, node_order
 
 # The dense interface: S is n_Γ × n_Γ on every rank (8 n_Γ² bytes) and its factorisation n_Γ³/3
@@ -147,8 +148,7 @@ class SubstructuredCholesky:
         owned = (cols >= ranges[r]) & (cols < ranges[r + 1])
         where = np.empty(len(cols), np.int64)
         where[owned] = local[cols[owned] - ranges[r]]
-        pos = np.minimum(np.searchsorted(gamma, cols[~owned]), max(s - 1, 0))
-        hit = s > 0 and gamma[pos] == cols[~owned]
+        pos, hit = find_sorted(gamma, cols[~owned])
         where[~owned] = np.where(hit, n_i + pos, -1)
         counts_row = np.diff(A_rows.indptr)
         in_row = np.zeros(n_own, np.int8)               # 1: interior row, 2: interface row

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from fem_squeal.reduced.eigensolve import TWO_PI, unstable
-from fem_squeal.util.atomic import save_figure_atomic, write_csv_atomic
+from fem_squeal.util.atomic import columns_of, save_figure_atomic, write_csv_atomic
 
 #: the columns of a plot's CSV (one row per drawn point, bar or polygon corner)
 CSV_HEADER = ["panel", "title", "xlabel", "ylabel", "series", "x", "y", "value"]
@@ -94,7 +94,7 @@ def save(fig, path: Path, data: tuple[list[str], list] | None = None) -> None:
         write_csv_atomic(csv, *data)
     else:
         rows = figure_data(fig)
-        write_csv_atomic(csv, CSV_HEADER, [list(col) for col in zip(*rows)] if rows else [[]] * len(CSV_HEADER))
+        write_csv_atomic(csv, CSV_HEADER, columns_of(rows, len(CSV_HEADER)))
 
 
 def contact_pressure(path: Path, data: dict[str, tuple[np.ndarray, np.ndarray]], title: str = "") -> None:
@@ -591,8 +591,7 @@ def map_instabilities(path: Path, x: np.ndarray, y: np.ndarray, found: list[tupl
     fig.suptitle((title + ": " if title else "") + "instabilities of the map, fastest first, and their coupled "
                  "real modes", fontsize=9)
     fig.tight_layout()
-    cols_ = [list(c) for c in zip(*rows)] if rows else [[]] * 5
-    save(fig, path, (["instability", "label", xlabel, ylabel, "growth_rate"], cols_))
+    save(fig, path, (["instability", "label", xlabel, ylabel, "growth_rate"], columns_of(rows, 5)))
     plt.close(fig)
 
 

@@ -141,8 +141,8 @@ def instabilities(sweep: SweepResult, band_hz: tuple[float, float], growth_tol: 
     return out
 
 
-def instability_couplings(model, found: list[Instability], n_max: int | None = None) -> None:
-    """Each instability's ``coupling`` where it grows fastest (the first ``n_max``; all when None): the
+def instability_couplings(model, found: list[Instability]) -> None:
+    """Each instability's ``coupling`` where it grows fastest: the
     participation of the basis's real modes (the nominal frictionless modes, as the μ sweep's,
     :func:`~fem_squeal.reduced.mode_coupling.basis_modes`) in its eigenvector there, by inverse
     iteration at its eigenvalue (:func:`~fem_squeal.reduced.mode_coupling.coupling_of`: one m × m LU
@@ -151,6 +151,6 @@ def instability_couplings(model, found: list[Instability], n_max: int | None = N
     if not n_modes:
         return
     real = basis_modes(model.K0, n_modes)
-    for x in found[:n_max]:
+    for x in found:
         K, C = model.matrices({k: np.array([v]) for k, v in x.at.items()}, 1)
         x.coupling = coupling_of(K[0], None if C is None else C[0], x.eigenvalue, real)

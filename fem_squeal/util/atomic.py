@@ -106,6 +106,12 @@ def save_figure_atomic(fig, path: Path, dpi: int = 120) -> None:
         fig.savefig(tmp, dpi=dpi)
 
 
+def columns_of(rows: list[list], width: int) -> list[list]:
+    """The columns of a table given by its rows (``width`` values each), as :func:`write_csv_atomic`
+    takes them; ``width`` empty columns for no rows."""
+    return [list(c) for c in zip(*rows)] if rows else [[] for _ in range(width)]
+
+
 def write_csv_atomic(path: Path, header: list[str], columns: list, fmt: str = "%.9g") -> None:
     """Columns of equal length (numbers or texts) as CSV with a header line, atomically (rank 0)."""
     cols = [np.asarray(c) for c in columns]

@@ -14,7 +14,7 @@ from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context
 from fem_squeal.reduced.stability_map import Instability, instabilities, instability_couplings
 from fem_squeal.reduced.sweep import SweepResult
-from fem_squeal.util.atomic import write_csv_atomic
+from fem_squeal.util.atomic import columns_of, write_csv_atomic
 
 
 def label(x: Instability) -> str:
@@ -47,8 +47,7 @@ def map_instabilities(ctx: Context, work: Path, model, res: SweepResult, band: t
                  *[v for r in x.ranges.values() for v in r], x.coupling["label"] if x.coupling else "",
                  " ".join(f"{f:.6g}" for f in x.coupling["real_freqs_hz"][:2]) if x.coupling else ""]
                 for k, x in enumerate(found)]
-        write_csv_atomic(work / "stability_map_instabilities.csv", head,
-                         [list(c) for c in zip(*rows)] if rows else [[]] * len(head))
+        write_csv_atomic(work / "stability_map_instabilities.csv", head, columns_of(rows, len(head)))
         if len(names) == 2:
             plots.map_instabilities(work / "stability_map_coupling.png", res.grid.axes[names[1]],
                                     res.grid.axes[names[0]] * scale, [(x.growth, label(x)) for x in found],

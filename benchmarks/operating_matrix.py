@@ -36,11 +36,12 @@ def table(res: dict, ranks: int) -> tuple[list[str], dict]:
     """The benchmark's table from a results.json ``res``."""
     t, om = res["timings_s"], res["operating_matrix"]
     ver = om.get("verification", [])
+    pressures = om.get("pressure", {}).get("continuation", {}).get("pressures", [])
     row = {"dofs": res["model"].get("dofs"), "ranks": ranks, "conditions": om["n_conditions"],
            "preload_s": t.get("preload"), "continuation_s": t.get("preload_continuation"),
            "pressures": sorted({c["pressure"] for c in om["conditions"]}),
-           "same_contact_set": [p["same_contact_set"] for p in
-                                om.get("pressure", {}).get("continuation", {}).get("pressures", [])],
+           "same_contact_set": [p["same_contact_set"] for p in pressures],
+           "changed_points": [p["changed_points"] for p in pressures],
            "reduced_basis_s": t.get("reduced_basis"),
            "reduced_size": res["reduced"]["size"], "matrix_s": om["seconds"],
            "s_per_condition": om["seconds_per_condition"], "unstable_conditions": om["unstable_conditions"],
@@ -67,6 +68,10 @@ def main() -> None:
     ap.add_argument("--speeds", type=int, default=3, choices=(3, 15),
                     help="3: the issue's 5 p × 4 T × 3 Ω × 2 matrix; 15: the scene's p, 4 T × 15 Ω × 2")
     ap.add_argument("--set", action="append", default=[], help="more scene overrides key=value")
+    ap.add_argument("--taper", type=float, default=None,
+                    help="both pads' taper wear: initial_gap gradient [m/m] along y (the sliding direction at "
+                         "the pads' centre), so that the contact set changes with the pressure; written as "
+                         "operating_matrix_taper_<ranks>ranks")
     args = ap.parse_args()
     from mpi4py import MPI
 
@@ -77,13 +82,17 @@ def main() -> None:
     matrix = ([f"analyses.operating_matrix.speed={SPEEDS}"] if args.speeds == 15 else
               [f"analyses.operating_matrix.pressure={PRESSURES}",
                f"analyses.operating_matrix.friction.default={TABLE}"])
-    sets = [f"geometry.mesh_size={args.mesh_size}", *matrix, *args.set]
+    taper = [] if args.taper is None else [f"interfaces.{pad}.initial_gap={{gradient = [0.0, {args.taper}, 0.0]}}"
+                                           for pad in ("pad_inner", "pad_outer")]
+    sets = [f"geometry.mesh_size={args.mesh_size}", *matrix, *taper, *args.set]
     scene = load_scene(ROOT / "scenes" / "brake_operating_matrix.toml", sets)
-    out = casework.out_path("operating_matrix_run", comm.size, False, "d").with_name("operating_matrix_run")
+    run = "operating_matrix_run" if args.taper is None else "operating_matrix_taper_run"
+    out = casework.out_path(run, comm.size, False, "d").with_name(run)
     res = run_scene(scene, out, comm, write_fields=False, report=False)
     if comm.rank == 0:
         lines, row = table(res, comm.size)
-        casework.save("operating_matrix", lines, [row], comm.size, False)
+        casework.save("operating_matrix" if args.taper is None else "operating_matrix_taper", lines, [row],
+                      comm.size, False)
 
 
 if __name__ == "__main__":

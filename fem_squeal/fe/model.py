@@ -310,6 +310,30 @@ class RigidPlate:
 
 
 @dataclass(frozen=True)
+class GapProfile:
+    """A contact's initial gap beyond the geometry's, affine over the slave face:
+    g₀(x) += offset + gradient·(x − at), ``at`` the face's area centroid when None.  A pad's taper wear
+    (thicker at one end: a gradient along the sliding direction) or a lining that stands proud or sunk
+    (an offset, < 0: interference) [m, m/m]."""
+
+    offset: float = 0.0
+    gradient: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    at: tuple[float, float, float] | None = None
+
+    def __post_init__(self):
+        vals = [self.offset, *self.gradient, *(self.at or ())]
+        if len(self.gradient) != 3 or (self.at is not None and len(self.at) != 3) or \
+                not all(np.isfinite(v) for v in vals):
+            raise ModelError("initial_gap: offset, gradient = [gx, gy, gz] and at = [x, y, z] must be finite "
+                             f"numbers (got offset {self.offset!r}, gradient {self.gradient!r}, at {self.at!r})")
+
+    def values(self, x: np.ndarray, centroid: np.ndarray) -> np.ndarray:
+        """The added gap at the points ``x`` (n, 3), ``centroid`` the slave face's (used when ``at`` is None)."""
+        at = np.asarray(centroid if self.at is None else self.at, float)
+        return self.offset + (np.asarray(x, float) - at) @ np.asarray(self.gradient, float)
+
+
+@dataclass(frozen=True)
 class Interface:
     """Coupling of two deformable faces through the interface operator G (see ``interface``).
 
@@ -335,9 +359,13 @@ class Interface:
     friction_damping: bool = False
     law: Any = None
     speed: float = 0.0
+    #: the undeformed surfaces' own gap added to the geometric one (contacts: a pad's taper or wear)
+    initial_gap: GapProfile | None = None
 
     def __post_init__(self):
         _check_speed_terms(self)
+        if self.kind != "contact" and self.initial_gap is not None:
+            raise ModelError(f"initial_gap: only contact interfaces have a gap (kind {self.kind!r})")
         if self.kind != "contact" and (self.friction_damping or self.law is not None):
             raise ModelError(f"friction_damping, law: only contact interfaces have friction (kind {self.kind!r})")
         if self.kind not in ("contact", "spring", "bonded"):

@@ -109,27 +109,42 @@ class ContactRows:
         return self.normal
 
     # ---- the linearised penalty at the preload (fem_squeal.reduced.model)
-    def closed_weight(self) -> np.ndarray:
-        """w a: the quadrature weights of the points closed at the preload (0 at the open ones)."""
-        return self.weight * np.asarray(self.active, bool)
+    def closed_weight(self, active: np.ndarray | None = None) -> np.ndarray:
+        """w a: the quadrature weights of the closed points (0 at the open ones), those closed at the
+        preload or, given, of the flags ``active`` (another contact state: another brake pressure)."""
+        return self.weight * np.asarray(self.active if active is None else active, bool)
 
-    def normal_stiffness(self) -> np.ndarray:
-        """K_c = (G_nΦ)ᵀ diag(k_n w a) (G_nΦ): the closed-contact stiffness at the nominal k_n."""
+    def normal_stiffness(self, wa: np.ndarray | None = None) -> np.ndarray:
+        """K_c = (G_nΦ)ᵀ diag(k_n w a) (G_nΦ): the closed-contact stiffness at the nominal k_n (``wa``: the
+        closed weights w a to use, :meth:`closed_weight` when not given)."""
+        wa = self.closed_weight() if wa is None else wa
         Gn = self.Gn
-        return Gn.T @ ((self.kn * self.closed_weight())[:, None] * Gn)
+        return Gn.T @ ((self.kn * wa)[:, None] * Gn)
 
-    def friction_stiffness(self) -> np.ndarray:
+    def friction_stiffness(self, wa: np.ndarray | None = None) -> np.ndarray:
         """K_f¹ = (G_sΦ)ᵀ diag(k_n w a) (G_nΦ): the friction stiffness for μ = 1 at the nominal k_n."""
-        return self.Gt.T @ ((self.kn * self.closed_weight())[:, None] * self.Gn)
+        wa = self.closed_weight() if wa is None else wa
+        return self.Gt.T @ ((self.kn * wa)[:, None] * self.Gn)
 
-    def tangential_stiffness(self) -> np.ndarray | None:
+    def tangential_stiffness(self, wa: np.ndarray | None = None) -> np.ndarray | None:
         """K_t¹ for k_t = 1: (G_t₂Φ)ᵀ diag(w a) (G_t₂Φ), + (G_t₁Φ)ᵀ diag(w a) (G_t₁Φ) without sliding
         (None when G_t₂Φ was not stored: a model saved before k_t became a parameter)."""
         if self.Gt2 is None:
             return None
-        wa = self.closed_weight()[:, None]
+        wa = (self.closed_weight() if wa is None else wa)[:, None]
         T = self.Gt2.T @ (wa * self.Gt2)
         return T if self.sliding != 0 else T + self.Gt.T @ (wa * self.Gt)
+
+    def stiffness_change(self, active: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """(ΔK_c, ΔK_f¹ or None without sliding, ΔK_t¹ or None): the change of the three matrices above from
+        the preload's closed points to those flagged ``active``, the same forms with the weights
+        w (a − a₀) (exact: they are linear in the weights; only the rows that opened or closed enter)."""
+        changed = np.flatnonzero(np.asarray(active, bool) != np.asarray(self.active, bool))
+        sub = ContactRows(D=self.D[changed], T=self.T[:, changed], weight=self.weight[changed], kn=self.kn,
+                          sliding=self.sliding, active=np.ones(changed.size, bool), name=self.name)
+        wa = np.where(np.asarray(active, bool)[changed], 1.0, -1.0) * sub.weight
+        return (sub.normal_stiffness(wa), sub.friction_stiffness(wa) if self.sliding != 0 else None,
+                sub.tangential_stiffness(wa))
 
     @property
     def has_kt(self) -> bool:

@@ -47,8 +47,12 @@ K_σ(u(1))) and the friction damping C_d(p(s)) (C_d holds C_d(p(1))).  Both are 
 with the contact set of the scene and the linear penalty the state is affine in s, so
 K_σ(u(s)) = K_σ(u(1)) + (s − 1) K_σ(du/ds) and C_d(p(s)) = C_d(p(1)) + (s − 1) C_d(dp/ds) exactly:
 K_σ,s = Φᵀ K_σ(du/ds) Φ (``Ksp``), C_d,s = Φᵀ C_d(dp/ds) Φ (``Cdp``, at μ⁰, Ω₀ like C_d); the pressure is
-a parameter where the model has either.  The contact state itself is the scene's at every s (a pressure
-that opens or closes contact points is refused by the app).
+a parameter where the model has either.  Where the continued preloads open or close contact points
+(``contact_states``: the closed rows of every contact at each continued scale s), K at s holds the contact
+matrices of that state's closed points a(s): K(s) = K(1) + Σ_c [s_c ΔK_c,c + μ_c s_c ΔK_f,c¹ + k_t,c ΔK_t,c¹]
+with ΔK the forms above on the weights w (a(s) − a(1)) (exact at each continued s; between them the state
+is not known and a ModelError names the pressures the model holds).  The affine K_σ,s and C_d,s then do
+not hold (the app refuses them with a changing contact set).
 
 **Loss factor.**  η ≥ 0 makes K complex: the eigenvalues of λ²I + K(1 + iη) (one part, undamped)
 are λ = iω√(1 + iη) (Im λ > 0: Re λ = −ω Im√(1 + iη) < 0, the physical branch; the roots with
@@ -170,6 +174,8 @@ class ReducedModel:
     # the brake pressure (issue 39): K += (s − 1) Ksp, s the scale of loads.pressure
     Ksp: np.ndarray | None = None                             # K_σ(du/ds): stress stiffening per unit s
     Cdp: np.ndarray | None = None                             # C_d(dp/ds) at (μ⁰, Ω₀): friction damping per unit s
+    # the contact state at each continued pressure when one differs from the scene's: scale -> {contact: closed}
+    contact_states: dict[float, dict[str, np.ndarray]] = field(default_factory=dict)
 
     def __post_init__(self):
         m = self.K0.shape[0]
@@ -193,7 +199,13 @@ class ReducedModel:
         for p, v in self.eta0.items():
             if not v >= 0:
                 raise ModelError(f"{eta_param(p)}: must be >= 0 (got {v})")
-        self._interface_cache: dict[str, tuple] = {}
+        for sc, state in self.contact_states.items():
+            if not (np.isfinite(sc) and sc > 0):
+                raise ModelError(f"contact_states: a pressure scale must be a number > 0 (got {sc!r})")
+            for name, c in self.contacts.items():
+                if np.shape(state.get(name, ())) != (c.size,):
+                    raise ModelError(f"contact_states[{sc:g}].{name}: needs the closed flags of its {c.size} rows")
+        self._interface_cache: dict[tuple, tuple] = {}
 
     @property
     def interfaces(self) -> dict:
@@ -231,8 +243,21 @@ class ReducedModel:
 
     @property
     def pressure_varies(self) -> bool:
-        """The brake pressure is a parameter (a stress stiffening or friction damping term per unit s)."""
-        return self.Ksp is not None or self.Cdp is not None
+        """The brake pressure is a parameter (a stress stiffening or friction damping term per unit s, or
+        contact states that change with it)."""
+        return self.Ksp is not None or self.Cdp is not None or bool(self.contact_states)
+
+    def contact_state(self, pressure: float) -> dict[str, np.ndarray] | None:
+        """The closed rows of every contact at pressure scale ``pressure`` (None: the preload's, at s = 1 or
+        when the contact set does not change with the pressure); a ModelError for a pressure between the
+        continued ones when it does (the state there is not known: the preload was not solved there)."""
+        if not self.contact_states or pressure == 1.0:
+            return None
+        if pressure not in self.contact_states:
+            raise ModelError(f"pressure: the contact set changes with the pressure, and this model holds it at "
+                             f"{sorted([1.0, *self.contact_states])} × loads.pressure only (got {pressure:g}: "
+                             f"continue the preload there, e.g. add it to analyses.operating_matrix.pressure)")
+        return self.contact_states[pressure]
 
     def _friction_damping(self, pressure) -> np.ndarray:
         """C_d + (s − 1) C_d,s at the pressure scale(s) ``pressure`` (a number: (m, m); an array of n
@@ -247,15 +272,61 @@ class ReducedModel:
         """K is complex at the nominal point (a part has a loss factor η > 0)."""
         return any(v != 0 for v in self.eta0.values())
 
-    def interface_matrices(self, name: str) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    def interface_matrices(self, name: str, pressure: float = 1.0
+                           ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """(K_c, K_f¹ or None without sliding, K_t¹ or None) of contact or plate ``name`` (module
-        docstring)."""
-        if name not in self._interface_cache:
+        docstring), with the contact state at the pressure scale ``pressure`` (:meth:`contact_state`)."""
+        state = self.contact_state(pressure) if name in self.contacts else None
+        key = (name, 1.0 if state is None else float(pressure))
+        if key not in self._interface_cache:
             c = self.interfaces[name]
-            self._interface_cache[name] = (c.normal_stiffness(),
-                                           c.friction_stiffness() if c.sliding != 0 else None,
-                                           c.tangential_stiffness())
-        return self._interface_cache[name]
+            if state is None:
+                self._interface_cache[key] = (c.normal_stiffness(),
+                                              c.friction_stiffness() if c.sliding != 0 else None,
+                                              c.tangential_stiffness())
+            else:
+                self._interface_cache[key] = tuple(
+                    None if A is None else A + dA
+                    for A, dA in zip(self.interface_matrices(name), self.contact_change(name, pressure)))
+        return self._interface_cache[key]
+
+    def contact_change(self, name: str, pressure: float
+                       ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+        """(ΔK_c, ΔK_f¹, ΔK_t¹) of contact ``name`` from the preload's contact state to that at pressure
+        scale ``pressure`` (None each where the state is the preload's or the term absent):
+        :meth:`~fem_squeal.reduced.contact_rows.ContactRows.stiffness_change`."""
+        state = self.contact_state(pressure)
+        if state is None:
+            return None, None, None
+        return self.contacts[name].stiffness_change(state[name])
+
+    def _contact_terms(self, points: Mapping[str, np.ndarray], n: int) -> np.ndarray | None:
+        """Σ_c [s_c ΔK_c,c + μ_c s_c ΔK_f,c¹ + k_t,c ΔK_t,c¹] at each of ``n`` points' pressure: the contact
+        stiffness of its own contact state minus the preload's (s_c = k_n,c/k_n,c⁰, μ_c = ``mu.<c>`` or
+        μ·μ_c⁰/μ⁰, k_t,c its tangential penalty: the full coefficients of the three matrices in K);
+        None without contact states or pressure."""
+        if not self.contact_states or PRESSURE not in points:
+            return None
+        def vec(key, default):
+            return np.broadcast_to(np.asarray(points.get(key, default), float), (n,))
+
+        ps = vec(PRESSURE, 1.0)
+        out = np.zeros((n, self.size, self.size))
+        mu = vec(MU, self.mu0)
+        for p in np.unique(ps):
+            at = ps == p
+            for name, c in self.contacts.items():
+                dKc, dKf, dKt = self.contact_change(name, float(p))
+                if dKc is None:
+                    continue
+                sc = vec(f"kn.{name}", c.kn)[at] / c.kn
+                out[at] += sc[:, None, None] * dKc
+                if dKf is not None:
+                    mu_c = vec(f"mu.{name}", 0.0) if f"mu.{name}" in points else mu * self._mu_share(c)
+                    out[at] += (mu_c[at] * sc)[:, None, None] * dKf
+                if dKt is not None:
+                    out[at] += vec(f"kt.{name}", c.kt)[at][:, None, None] * dKt
+        return out
 
     def _mu_share(self, c: ContactRows | PlateProjection) -> float:
         """μ_c⁰/μ⁰: what a unit ``mu`` gives contact c (0 for a contact without friction at nominal)."""
@@ -341,19 +412,24 @@ class ReducedModel:
             if Cd is not None:
                 dC = dC - friction_damping_scale(mu, self.mu0, w, self.speed0) / w * Cd
             return dK, dC
+        p = val.get(PRESSURE, 1.0)
         if name == MU:
             dC = np.sign(mu) * friction_damping_scale(1.0, self.mu0, w, self.speed0) * Cd \
                 if Cd is not None else None
             dK = self.Kf1.copy()
             for cname, c in self.interfaces.items():
                 share = self._mu_share(c)
-                if share == 0 or (f"mu.{cname}" not in point and f"kn.{cname}" not in point):
+                if share == 0:
                     continue
-                Kf = self.interface_matrices(cname)[1]
-                if f"mu.{cname}" in point:
-                    dK = dK - share * Kf
-                else:
-                    dK = dK + share * (val[f"kn.{cname}"] / c.kn - 1.0) * Kf
+                if f"mu.{cname}" in point:     # its friction is its own: none of mu's (at the scene's state)
+                    dK = dK - share * self.interface_matrices(cname)[1]
+                    continue
+                sc = val.get(f"kn.{cname}", c.kn) / c.kn
+                if sc != 1.0:
+                    dK = dK + share * (sc - 1.0) * self.interface_matrices(cname)[1]
+                dKf = self.contact_change(cname, p)[1] if cname in self.contacts else None
+                if dKf is not None:            # the closed rows at this pressure, not the scene's
+                    dK = dK + share * sc * dKf
             return dK, dC
         if prefix in PART_PREFIXES:
             Kp, E0 = self.K_parts[target], self.E0[target]
@@ -364,7 +440,7 @@ class ReducedModel:
             beta = self.beta.get(target, 0.0)
             return (Ki if eta == 0 else (1.0 + 1j * eta) * Ki), (beta * Ki if beta else None)
         c = self.interfaces[target]
-        Kc, Kf, Kt = self.interface_matrices(target)
+        Kc, Kf, Kt = self.interface_matrices(target, p)
         s = val[f"kn.{target}"] / c.kn
         if prefix == "kt":
             return Kt.copy(), None
@@ -396,6 +472,9 @@ class ReducedModel:
         if self.Ksp is not None and PRESSURE in points:
             s = np.broadcast_to(np.asarray(points[PRESSURE], float), (n,))
             K = K + pressure_coefficient(s)[:, None, None] * self.Ksp
+        contact = self._contact_terms(points, n)
+        if contact is not None:
+            K = K + contact
         if not self.damped:
             return K, None
         C = np.broadcast_to(self.C0 if self.C0 is not None else np.zeros((self.size,) * 2),
@@ -459,6 +538,10 @@ class ReducedModel:
             for f in ("Kc", "Kt", "Kf", "kn", "mu", "sliding", "kt"):
                 if getattr(pl, f) is not None:
                     arrays[f"plate/{name}/{f}"] = np.asarray(getattr(pl, f))
+        for i, (sc, state) in enumerate(sorted(self.contact_states.items())):
+            arrays[f"contact_state/{i}/scale"] = np.array(sc)
+            for name, a in state.items():
+                arrays[f"contact_state/{i}/{name}"] = np.asarray(a, bool)
         # the basis description's counts (modes first: the couplings of a cached model need them)
         for k, v in self.info.items():
             if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
@@ -492,4 +575,15 @@ class ReducedModel:
                    eta0={p: float(d[f"eta0/{p}"]) for p in parts if f"eta0/{p}" in d}, plates=plates,
                    speed0=float(d.get("speed0", 0.0)), G1=d.get("G1"), K2=d.get("K2"), Cd0=d.get("Cd0"),
                    speed_varies=bool(d.get("speed_varies", False)), Ksp=d.get("Ksp"),
-                   Cdp=d.get("Cdp"), info={k.split("/", 1)[1]: int(d[k]) for k in d if k.startswith("info/")})
+                   Cdp=d.get("Cdp"), info={k.split("/", 1)[1]: int(d[k]) for k in d if k.startswith("info/")},
+                   contact_states=_contact_states(d))
+
+
+def _contact_states(d: Mapping[str, np.ndarray]) -> dict[float, dict[str, np.ndarray]]:
+    """The ``contact_state/<i>/…`` arrays of a saved model as {scale: {contact: closed}} ({} if none)."""
+    out: dict[float, dict[str, np.ndarray]] = {}
+    for i in sorted({int(k.split("/")[1]) for k in d if k.startswith("contact_state/")}):
+        head = f"contact_state/{i}/"
+        out[float(d[head + "scale"])] = {k[len(head):]: np.asarray(d[k], bool) for k in d
+                                         if k.startswith(head) and k != head + "scale"}
+    return out

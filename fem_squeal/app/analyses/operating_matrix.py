@@ -7,13 +7,16 @@ The physics of a condition is in :mod:`fem_squeal.reduced.operating_matrix`: tem
 through the friction laws (and the speed through the model's gyroscopic, centrifugal and friction-damping
 terms where Ω is a parameter), the direction turns the friction and gyroscopic terms.  The pressure is
 the scale of ``loads.pressure``: the preload stage continues the scene's preload to the other pressures
-(:mod:`fem_squeal.app.analyses.pressure_continuation`); they are evaluated on the one reduced model when
-the contact set at each is the scene's (checked after the preloads, a named error otherwise) and its
-operators either do not depend on the pressure or only through the stress stiffening and the contacts'
-friction damping, which make it the model's parameter ``pressure`` (K_σ(u(s)) = K_σ(u(1)) + (s − 1)
-K_σ(du/ds), C_d(p(s)) = C_d(p(1)) + (s − 1) C_d(dp/ds), exact for the fixed contact set and the linear
-penalty: :mod:`fem_squeal.fe.pressure_terms`); the other pressure-dependent terms are refused before any
-computation (:func:`pressure_dependent_terms`).  Parts with a loss-factor table
+(:mod:`fem_squeal.app.analyses.pressure_continuation`); they are evaluated on the one reduced model.  A
+pressure that opens or closes contact points (e.g. a pad's taper, ``interfaces.<c>.initial_gap``) is
+evaluated with its own contact state: the model's ``contact_states``, its basis enriched with the modes
+about each such state (:func:`fem_squeal.fe.projection.adaptive_reduce`), its corner checks solved on the
+full operators linearised about that state.  With the contact set of the scene the stress stiffening and
+the contacts' friction damping make the pressure the model's parameter ``pressure`` (K_σ(u(s)) = K_σ(u(1))
++ (s − 1) K_σ(du/ds), C_d(p(s)) = C_d(p(1)) + (s − 1) C_d(dp/ds), exact for the fixed contact set and the
+linear penalty: :mod:`fem_squeal.fe.pressure_terms`); with a changing set these two are refused (named
+error), as are the other pressure-dependent terms before any computation (:func:`pressure_dependent_terms`).
+Parts with a loss-factor table
 ``materials.<part>.eta_table`` η(f, T): at each condition's temperature, per band mode at its own frequency
 (fixed point; ``loss_factor_fixed_point`` in results.json: iterations, modes not converged).  ``verify``:
 full CEAs at the corner conditions, compared as analyses.reduced compares its check points; with a table
@@ -37,10 +40,12 @@ from fem_squeal.app.analyses.condition_values import VALUES, values
 from fem_squeal.app.analyses.reduced import (
     band_and_growth_tol,
     band_eigenvalues,
+    destroy_state_operators,
     full_cea,
     mismatches,
     parametric_operators,
     speed_not_a_parameter,
+    state_operators,
 )
 from fem_squeal.app.fields import Field, one_of
 from fem_squeal.app.html import escape as _e
@@ -262,15 +267,12 @@ def pressure_dependent_terms(scene) -> str:
 
 
 def pressure_states(ctx, cond: Conditions) -> dict | None:
-    """The preload's continuation to the conditions' other pressures (None: only the scene's pressure);
-    a SceneError naming the pressure where the contact set is not the scene's (the reduced model holds the
-    scene's contact state: a pressure that opens or closes contact points needs per-pressure contact
-    operators, not implemented: :func:`~fem_squeal.app.analyses.pressure_continuation.check_contact_sets`)."""
+    """The preload's continuation to the conditions' other pressures (None: only the scene's pressure).
+    A pressure whose contact set is not the scene's is evaluated with its own contact state (the reduced
+    model's ``contact_states``)."""
     if not set(cond.pressure.tolist()) - {1.0}:
         return None
-    summ = pressure_continuation.summary(ctx)
-    pressure_continuation.check_contact_sets(summ, _KEY)
-    return summ
+    return pressure_continuation.summary(ctx)
 
 
 def _full_cea(par, point: dict, reverse: bool, band, nev: int, options) -> tuple[np.ndarray, float]:
@@ -329,17 +331,29 @@ def verify_corners(ctx: Context, model, res, points: dict, band, gt: float, loss
     """Full CEAs at the corner conditions against the reduced eigenvalues (as analyses.reduced.verify:
     worst relative error of the unstable full eigenvalues, of all in the band when none is unstable).
     With loss-factor tables that vary with f (``loss``): the full nonlinear eigenproblem from the watched
-    reduced eigenvalues (:func:`_nep_corner`), each full answer against the reduced one it started from."""
+    reduced eigenvalues (:func:`_nep_corner`), each full answer against the reduced one it started from.
+    A corner at a pressure whose contact set is not the scene's is solved on the full operators about its
+    own continued state (:func:`~fem_squeal.app.analyses.reduced.state_operators`)."""
     from fem_squeal.fe.projection import relative_change  # heavy: FE stack
 
     cond = res.conditions
-    par = parametric_operators(ctx, model.mu0, sorted(model.K_parts))
+    parts = sorted(model.K_parts)
+    scene_par = parametric_operators(ctx, model.mu0, parts)
+    changed = pressure_continuation.changed_states(ctx)
+    at_state: dict[float, tuple] = {}         # pressure scale -> (operators about its state, their K, K_f)
     varying = loss.in_frequency() if loss is not None else {}
     options = ctx.scene.solver.petsc_options
     rows = []
     try:
         for k in cond.corners():
             point = {n: float(v[k]) for n, v in points.items()}
+            s = float(cond.pressure[k])
+            par = scene_par
+            if s in changed:
+                if s not in at_state:
+                    at_state[s] = state_operators(ctx, model.mu0, parts, changed[s])
+                par = at_state[s][0]
+                point.pop(PRESSURE, None)     # those operators are the pressure's: no pressure term
             lam_r, n_ask = band_eigenvalues(res.eigenvalues[k], band)
             if varying:
                 laws = {p: t.at_temperature(float(cond.temperature[k])) for p, t in varying.items()}
@@ -368,7 +382,9 @@ def verify_corners(ctx: Context, model, res, points: dict, band, gt: float, loss
             ctx.say(f"[fem_squeal] operating matrix corner {k}: reduced vs full {rows[-1]['max_rel_error']:.1e}, "
                     f"unstable {rows[-1]['n_unstable_reduced']}/{rows[-1]['n_unstable_full']}")
     finally:
-        par.destroy()
+        scene_par.destroy()
+        for made in at_state.values():
+            destroy_state_operators(*made)
     return rows
 
 
@@ -404,8 +420,20 @@ _PRESSURE_TERMS = (
     "from each pressure's own continued state")
 
 
+_PRESSURE_CONTACTS = (
+    "the contact set changes with the pressure: each pressure's contact stiffness, friction and tangential "
+    "matrices are those of its own closed points (from its continued preload), formed on the basis from the "
+    "interfaces' rows (contact_states: {changed} points differ from the scene's at most); with the linear "
+    "penalty the other operators are the scene's, so the pressure acts through the contact state and "
+    "μ(p, T, Ω); the corner checks solve the full operators linearised about each pressure's own state")
+
+
 def pressure_model(model) -> str:
     """How the reduced model follows the brake pressure (results.json ``pressure.model``)."""
+    if model.contact_states:
+        changed = max(sum(int(np.sum(a != model.contacts[n].active)) for n, a in st.items())
+                      for st in model.contact_states.values())
+        return _PRESSURE_CONTACTS.format(changed=changed)
     if PRESSURE not in model.parameters:
         return _PRESSURE_MODEL
     terms = [t for t, on in (("the stress stiffening K_σ(u(p)) = K_σ(u(1)) + (p − 1) K_σ(du/ds)",

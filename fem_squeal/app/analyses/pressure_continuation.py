@@ -107,14 +107,24 @@ def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
 
 def check_contact_sets(summ: dict, key: str = "analyses.operating_matrix") -> None:
     """A SceneError naming the first pressure of the continuation's summary ``summ`` where the contact set
-    is not the scene's (the reduced model holds one contact state: a pressure that opens or closes contact
-    points needs per-pressure contact operators, not implemented)."""
+    is not the scene's, for the terms that grow with the pressure (the stress stiffening and the friction
+    damping: affine in s only while the contact set holds; per-pressure projections of them are not
+    implemented).  The contact operators themselves follow each pressure's state (``contact_states`` of
+    the reduced model)."""
     for r in summ["pressures"]:
         if not r["same_contact_set"]:
             raise SceneError(f"{key}.pressure: at {r['scale']:g} × loads.pressure the contact set is not the "
-                             f"scene's ({r['changed_points']} contact points opened or closed): the reduced "
-                             f"model holds one contact state, and per-pressure contact operators in reduced "
-                             f"coordinates are not implemented; keep pressures where the contact set holds")
+                             f"scene's ({r['changed_points']} contact points opened or closed): with "
+                             f"preload.geometric_stiffness or a contact's friction_damping the reduced model "
+                             f"holds those terms affine in the pressure, exact only while the contact set "
+                             f"holds (per-pressure projections of them are not implemented); keep pressures "
+                             f"where the contact set holds, or those terms off")
+
+
+def changed_states(ctx) -> dict:
+    """The continued preload states whose contact set is not the scene's, by pressure scale ({} if none)."""
+    same = {r["scale"]: r["same_contact_set"] for r in summary(ctx)["pressures"]}
+    return {s: st for s, st in ctx.products.get("pressure_states", {}).items() if not same.get(s, True)}
 
 
 def pressure_terms(ctx):

@@ -250,6 +250,28 @@ def parametric_operators(ctx: Context, mu0: float, parts: list[str]):
                                pressure=pressure_continuation.pressure_terms(ctx))
 
 
+def state_operators(ctx: Context, mu0: float, parts: list[str], state):
+    """(the full-order K(p), C(p) about another contact state ``state`` (a continued preload: the operating
+    matrix's pressure whose contact set is not the scene's), the operators it was built on): the scene's
+    linearisation moved to that state's closed points (:func:`fem_squeal.fe.assembly.relinearise`), with
+    the rotation and prestress of :func:`parametric_operators`.  The caller destroys both (the operators'
+    new K and K_f: :func:`destroy_state_operators`)."""
+    from fem_squeal.fe.assembly import relinearise  # heavy: FE stack
+    from fem_squeal.fe.projection import ParametricOperators  # heavy: FE stack
+
+    ops = relinearise(ctx.products["linear"], ctx.products["preload"].active, state.active)
+    return ParametricOperators(ops, ctx.spec, mu0, parts, preload=state, operating=operating(ctx),
+                               speed0=ctx.scene.operating.speed), ops
+
+
+def destroy_state_operators(par, ops) -> None:
+    """Destroy what :func:`state_operators` made."""
+    par.destroy()
+    for A in (ops.K, ops.Kf):
+        if A is not None:
+            A.destroy()
+
+
 def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     """analyses.reduced: the basis grown to ``tol`` about the preload; ``reduced_model.npz``."""
     from fem_squeal.fe.output import write_basis_field  # heavy: FE stack
@@ -268,7 +290,8 @@ def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:
     model, basis, report = adaptive_reduce(
         ops, par, band, checks, tol=a["tol"], cut_factors=tuple(a["cut_factors"]), samples=samples,
         static=a["static_correction"], sigma_hz=a["sigma_hz"], growth_tol=a["growth_tol"],
-        enrich_rtol=a["enrich_rtol"], preload=preload, options=opts, log=say, extra=extra)
+        enrich_rtol=a["enrich_rtol"], preload=preload, options=opts, log=say, extra=extra,
+        states=ctx.products.get("pressure_states"))
     timings["reduced_basis"] = time.perf_counter() - t
     if comm.rank == 0:
         model.save(work / "reduced_model.npz")

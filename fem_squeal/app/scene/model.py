@@ -8,6 +8,7 @@ from collections.abc import Mapping
 
 from fem_squeal.fe.model import (
     FixedFace,
+    GapProfile,
     GroundSpring,
     Interface,
     Material,
@@ -52,6 +53,14 @@ def _friction(t, speed: float) -> dict:
             "speed": speed}
 
 
+def _gap(v: Mapping | None) -> GapProfile | None:
+    """An interface's ``initial_gap`` table as a :class:`~fem_squeal.fe.model.GapProfile` (None if not set)."""
+    if v is None:
+        return None
+    return GapProfile(float(v.get("offset", 0.0)), tuple(float(x) for x in v.get("gradient", (0.0, 0.0, 0.0))),
+                      tuple(float(x) for x in v["at"]) if "at" in v else None)
+
+
 def build_model_spec(scene: Mapping, materials: Mapping[str, Material] | None = None) -> ModelSpec:
     """The physics description of a validated finite-element scene; ``materials``: the parts'
     :class:`Material` where they are made already (by the validation pass), else made here."""
@@ -62,7 +71,7 @@ def build_model_spec(scene: Mapping, materials: Mapping[str, Material] | None = 
                    for name, t in scene["interfaces"].items() if t["type"] == "rigid_plate")
     interfaces = tuple(
         Interface(name, t["slave"], t["master"], t["type"], float(t["kn"]), float(t.get("kt", 0.0)),
-                  sliding=int(t.get("sliding", 0)), **_friction(t, speed))
+                  sliding=int(t.get("sliding", 0)), **_friction(t, speed), initial_gap=_gap(t.get("initial_gap")))
         for name, t in scene["interfaces"].items() if t["type"] != "rigid_plate")
     springs = tuple(GroundSpring(t["face"], float(t["k_axial"]), float(t["k_transverse"]))
                     for t in scene["boundary"]["ground_springs"].values())

@@ -137,6 +137,18 @@ MATERIAL["orientation"] = Field(dict, None, _orientation, "material frame of E1 
                                 "{system = 'rectangular' | 'cylindrical', a = [x, y, z], b = [x, y, z], c = "
                                 "origin (rectangular)} [m, in the model's frame: after geometry's scaling]; "
                                 "cylindrical: 1 radial, 2 tangential, 3 along a → b")
+def _gap_profile(v: dict) -> str | None:
+    unknown = sorted(set(v) - {"offset", "gradient", "at"})
+    if unknown:
+        return f"unknown key {unknown[0]!r}; allowed: offset, gradient, at"
+    if "offset" in v and not (isinstance(v["offset"], (int, float)) and not isinstance(v["offset"], bool)):
+        return f"offset: must be a number [m] (got {v['offset']!r})"
+    for k in ("gradient", "at"):
+        if k in v and _numbers((3,))(v[k]):
+            return f"{k}: {_numbers((3,))(v[k])}"
+    return None
+
+
 _TYPE = Field(str, "rigid_plate", one_of("rigid_plate", "contact", "spring", "bonded"))
 _PAIR = {"slave": Field(str, check=nonempty_str, doc="slave face (quadrature side: the lining)"),
          "master": Field(str, check=nonempty_str, doc="master face (the disc)")}
@@ -162,7 +174,12 @@ INTERFACES = {
                     "kn": Field(REAL, check=non_negative, doc="penalty stiffness per area [N/m³]"), **_FRICTION,
                     "kt": _KT, **_FRICTION_LAW},
     "contact": {"type": _TYPE, **_PAIR, "kn": Field(REAL, check=positive, doc="penalty [N/m³]"), **_FRICTION,
-                "kt": _KT, **_FRICTION_LAW},
+                "kt": _KT, **_FRICTION_LAW,
+                "initial_gap": Field(dict, None, _gap_profile, "the surfaces' own gap beyond the mesh's, affine "
+                                     "over the slave face: {offset = g [m], gradient = [gx, gy, gz] [m/m], at = "
+                                     "[x, y, z] [m] (default: the face's centroid)}, g₀ += offset + "
+                                     "gradient·(x − at): a pad's taper wear, a lining standing proud (offset < 0: "
+                                     "interference); with it the closed points change with the brake pressure")},
     "spring": {"type": _TYPE, **_PAIR, "kn": Field(REAL, check=positive, doc="normal stiffness [N/m³]"),
                "kt": Field(REAL, 0.0, non_negative, "tangential stiffness [N/m³]")},
     "bonded": {"type": _TYPE, **_PAIR, "kn": Field(REAL, 1e14, positive, "tie penalty [N/m³]")},

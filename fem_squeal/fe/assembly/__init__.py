@@ -32,6 +32,7 @@ from fem_squeal.fe.assembly.compiled import (  # noqa: F401
 from fem_squeal.fe.assembly.contact import (  # noqa: F401
     contact_matrices,
     linearise,
+    relinearise,
 )
 from fem_squeal.fe.assembly.operating import (  # noqa: F401
     OperatingTerms,

@@ -65,3 +65,29 @@ def linearise(ops: Operators, active: dict[str, np.ndarray] | None = None,
             _add(Kf, Fc)
             Fc.destroy()
     return ops._replace(K=K, Kf=Kf)
+
+
+def relinearise(ops: Operators, active: dict[str, np.ndarray], to: dict[str, np.ndarray],
+                friction: bool = True) -> Operators:
+    """Operators linearised about the contact state ``active`` (:func:`linearise`'s) moved to the state
+    ``to``: the contact matrices of the points that closed added, of those that opened subtracted (the
+    same K and K_f as :func:`linearise` about ``to``, without re-assembling the rest).  New K and K_f."""
+    if not ops.contacts:
+        return ops
+    comm = ops.K.getComm().tompi4py()
+    K, Kf = ops.K.copy(), (ops.Kf.copy() if ops.Kf is not None else None)
+    for sign, flags in ((1.0, {n: to[n] & ~active[n] for n in to}), (-1.0, {n: active[n] & ~to[n] for n in to})):
+        if not comm.allreduce(int(sum(np.count_nonzero(f) for f in flags.values()))):   # collective: every rank
+            continue
+        Kc, Fc = contact_matrices(ops, {it.name: it.kn * flags[it.name].astype(float) for it, _ in ops.contacts},
+                                  friction)
+        _add(K, Kc, sign)
+        Kc.destroy()
+        if Fc is not None:
+            if Kf is None:
+                Kf = Fc
+                Kf.scale(sign)
+            else:
+                _add(Kf, Fc, sign)
+                Fc.destroy()
+    return ops._replace(K=K, Kf=Kf)

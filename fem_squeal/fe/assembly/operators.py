@@ -76,9 +76,15 @@ def build_interface(V, mesh_data, spec: ModelSpec, it: Interface) -> itf.Interfa
         if face not in mesh_data.faces:
             raise UnknownNameError(f"interfaces.{it.name}: face {face!r} not in mesh; "
                                    f"faces: {sorted(mesh_data.faces)}")
-    return itf.interface_operator(V, mesh_data.facet_tags, mesh_data.faces[it.slave],
-                                  mesh_data.faces[it.master], sliding=float(it.sliding), axis=spec.axis,
-                                  quadrature_degree=spec.interface_quadrature_degree, name=it.name)
+    op = itf.interface_operator(V, mesh_data.facet_tags, mesh_data.faces[it.slave],
+                                mesh_data.faces[it.master], sliding=float(it.sliding), axis=spec.axis,
+                                quadrature_degree=spec.interface_quadrature_degree, name=it.name)
+    if it.initial_gap is not None:
+        comm = V.mesh.comm
+        area = comm.allreduce(float(np.sum(op.weight)), op=MPI.SUM)
+        centroid = np.array(comm.allreduce(op.weight @ op.x if len(op.weight) else np.zeros(3), op=MPI.SUM)) / area
+        op = op._replace(gap0=op.gap0 + it.initial_gap.values(op.x, centroid))
+    return op
 
 
 def plate_friction_fields(V, plate) -> tuple[fem.Function, fem.Function]:

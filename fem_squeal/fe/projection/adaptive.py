@@ -2,20 +2,21 @@
 residuals meet the tolerance."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal.fe.assembly import Operators
+from fem_squeal.fe.assembly import Operators, relinearise
 from fem_squeal.fe.dense import apply
 from fem_squeal.fe.eigen import (
     TWO_PI,
 )
 from fem_squeal.fe.projection.basis import Basis
 from fem_squeal.fe.projection.parametric import ParametricOperators, lifted_residuals_at
-from fem_squeal.fe.projection.reductor import build_basis, reduce
+from fem_squeal.fe.projection.reductor import build_basis, contact_states, reduce
 from fem_squeal.fe.projection.shifted import ShiftedSolver, modes_below
+from fem_squeal.reduced.affine import PRESSURE
 from fem_squeal.reduced.eigensolve import in_band
 from fem_squeal.reduced.model import (
     ReducedModel,
@@ -81,8 +82,8 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
                     check_points: list[dict[str, float]], *, tol: float = 1e-3,
                     cut_factors: tuple[float, ...] = (1.25, 1.6, 2.0, 2.5), samples=(), static: bool = True,
                     sigma_hz: float | None = None, growth_tol: float = 1e-6, enrich_rtol: float = 1e-3,
-                    preload=None, options=None, log=None, extra: np.ndarray | None = None
-                    ) -> tuple[ReducedModel, Basis, ReductionReport]:
+                    preload=None, options=None, log=None, extra: np.ndarray | None = None,
+                    states: dict | None = None) -> tuple[ReducedModel, Basis, ReductionReport]:
     """Grow the basis (modes up to factor × the band's top, for each factor in turn) until the
     unstable eigenvalues in the band (all of them where none is unstable) at ``check_points``
     move by less than ``tol`` (relative) between two rounds.  The model of the last round is
@@ -107,6 +108,12 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
       K + (2π·1.6 kHz)²M and 1.2e-3 (one unstable mode missed) with the re-solved samples (255);
       on more than one rank the modes too come from this factorisation (:func:`modes_below`);
     * the modes are asked for by their cut, not their number (no inertia count first).
+
+    ``states`` (pressure scale -> continued preload result: the operating matrix's other pressures):
+    the model's ``contact_states``; where a state's contact set is not ``preload``'s, its frictionless
+    modes (of K about that state, :func:`~fem_squeal.fe.assembly.relinearise`) join the basis as the
+    sampled modes do (beyond ``enrich_rtol``), solved once to the same cut as the nominal ones, and the
+    check points are also checked at that pressure, so the rounds converge at every contact state.
     Each round's row gives the seconds of its parts (``factor_seconds``, ``modes_seconds``,
     ``directions_seconds``, ``basis_seconds``: corrections and orthonormalisation,
     ``project_seconds``, ``checks_seconds``)."""
@@ -131,6 +138,12 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
         if need_solver else None
     factor_s = wall(t)
     modes, solved_cut, dirs = None, 0.0, None
+    cstates = contact_states(ops, preload, states) if states else {}
+    moved = [s for s in cstates if comm.allreduce(int(sum(np.sum(states[s].active[n] != preload.active[n])
+                                                          for n in preload.active)), op=MPI.SUM)]
+    state_ops = {s: relinearise(ops, preload.active, states[s].active) for s in moved}
+    state_modes: dict[float, tuple] = {}
+    checks = [*check_points, *({**p, PRESSURE: s} for s in moved for p in check_points)]
     try:
         for i, factor in enumerate(cut_factors):
             t = MPI.Wtime()
@@ -147,6 +160,9 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
                                     prefix="basis_", solver=solver)
                 n_start = V.shape[1] + 2
                 modes, solved_cut, dirs = (w2, V), want, None
+                for s, o in state_ops.items():      # the frictionless modes about each other contact state
+                    state_modes[s] = modes_below(o.K, ops.M, want, n_start=n_start, options=options,
+                                                 prefix="basis_state_")
                 row["modes_seconds"] = wall(t0)
             keep = np.sqrt(np.abs(modes[0])) / TWO_PI <= cut
             if e_parts and dirs is None:
@@ -156,6 +172,9 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
             directions = None
             if dirs is not None:  # the derivatives of the modes of this round, every order
                 directions = np.hstack([d[:, keep] for d in dirs])
+            if state_modes:       # and the modes about the other contact states, to this round's cut
+                at = [V_s[:, np.sqrt(np.abs(w2_s)) / TWO_PI <= cut] for w2_s, V_s in state_modes.values()]
+                directions = np.hstack(([directions] if directions is not None else []) + at)
             t0 = MPI.Wtime()
             basis = build_basis(ops, par, cut, samples=other_samples, static=static, sigma_hz=sigma_hz,
                                 options=options, n_start=n_start, enrich_rtol=enrich_rtol, extra=extra,
@@ -164,10 +183,12 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
             row["basis_seconds"] = wall(t0)
             t0 = MPI.Wtime()
             model = reduce(ops, par, basis, preload)
+            if cstates:
+                model = replace(model, contact_states=cstates)
             row["project_seconds"] = wall(t0)
             t0 = MPI.Wtime()
             lams = [_in_band(solve_points(model, {k: np.array([v]) for k, v in p.items()})[0], band_hz)
-                    for p in check_points]
+                    for p in checks]
             row["checks_seconds"] = wall(t0)
             if prev is not None:
                 change = max(relative_change(_watched(a, growth_tol), b) for a, b in zip(lams, prev))
@@ -181,6 +202,10 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
     finally:
         if solver is not None:
             solver.destroy()
+        for o in state_ops.values():
+            o.K.destroy()
+            if o.Kf is not None and o.Kf is not ops.Kf:
+                o.Kf.destroy()
     converged = change <= tol
     if not converged:
         raise ReductionError(

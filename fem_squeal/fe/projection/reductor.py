@@ -48,6 +48,24 @@ def restrict_contacts(ops: Operators, Phi: np.ndarray, preload=None) -> dict[str
     return out
 
 
+def contact_states(ops: Operators, preload, states) -> dict[float, dict[str, np.ndarray]]:
+    """The closed rows of every contact (all points, canonical order: :func:`restrict_contacts`' rows) at
+    each pressure scale of ``states`` (scale -> its preload result), for the reduced model's
+    ``contact_states``; {} when the contact set of every state is ``preload``'s (the model is then affine in
+    the pressure).  Collective."""
+    out: dict[float, dict[str, np.ndarray]] = {}
+    changed = False
+    for scale, st in sorted(states.items()):
+        out[float(scale)] = {}
+        for it, op in ops.contacts:
+            comm = op.Gn.getComm().tompi4py()
+            o = canonical_order(_gather_rows(comm, op.x))
+            a = _gather_rows(comm, np.asarray(st.active[it.name], bool))[o]
+            changed |= bool(np.any(a != _gather_rows(comm, np.asarray(preload.active[it.name], bool))[o]))
+            out[float(scale)][it.name] = a
+    return out if changed else {}
+
+
 def build_basis(ops: Operators, par: ParametricOperators | None, f_cut_hz: float, *,
                 samples: list[dict[str, float]] = (), static: bool = True, sigma_hz: float | None = None,
                 options=None, prefix: str = "basis_", rtol: float = 1e-8, enrich_rtol: float = 1e-3,

@@ -162,20 +162,53 @@ def test_a_scene_speed_law_needs_its_law_at_the_conditions():
     load_scene(SCENE, stribeck + ["analyses.operating_matrix.speed=[60.0]"])   # the scene's speed: fine
 
 
-def test_a_pressure_that_changes_the_contact_set_is_named():
-    """The continuation's summary (from the preload stage) decides: the scene's contact set at every other
-    pressure, or a SceneError naming the pressure."""
+def test_a_pressure_that_changes_the_contact_set():
+    """The continuation's summary (from the preload stage): a pressure whose contact set is not the scene's
+    is evaluated with its own contact state (the reduced model's contact_states), but the terms that grow
+    with the pressure (stress stiffening, friction damping: affine in it only while the set holds) refuse
+    it, naming the pressure."""
+    from fem_squeal.app.analyses import pressure_continuation
+
     scene = load_scene(SCENE, ["analyses.operating_matrix.pressure=[1.0, 2.0, 3.0]"])
     cond = om.conditions(scene)
 
     class Ctx:
         products = {"pressure_continuation": {"pressures": [
             {"scale": 2.0, "same_contact_set": True, "changed_points": 0},
-            {"scale": 3.0, "same_contact_set": False, "changed_points": 7}]}}
+            {"scale": 3.0, "same_contact_set": False, "changed_points": 7}]},
+            "pressure_states": {2.0: "state at 2", 3.0: "state at 3"}}
 
+    assert [r["scale"] for r in om.pressure_states(Ctx(), cond)["pressures"]] == [2.0, 3.0]
+    assert pressure_continuation.changed_states(Ctx()) == {3.0: "state at 3"}
     with pytest.raises(SceneError, match=r"^analyses\.operating_matrix\.pressure: at 3 × loads\.pressure the "
-                                         r"contact set is not the scene's \(7 contact points opened or closed\)"):
-        om.pressure_states(Ctx(), cond)
+                                         r"contact set is not the scene's \(7 contact points opened or closed\): "
+                                         r"with preload\.geometric_stiffness or a contact's friction_damping"):
+        pressure_continuation.check_contact_sets(Ctx.products["pressure_continuation"])
     Ctx.products["pressure_continuation"]["pressures"].pop()
-    assert om.pressure_states(Ctx(), cond)["pressures"][0]["scale"] == 2.0
+    pressure_continuation.check_contact_sets(Ctx.products["pressure_continuation"])
+    assert pressure_continuation.changed_states(Ctx()) == {}
     assert om.pressure_states(Ctx(), om.conditions(load_scene(SCENE))) is None
+
+
+@pytest.mark.parametrize("value,message", [
+    ("{slope = 1.0}", r"interfaces\.pad_inner\.initial_gap: unknown key 'slope'; allowed: offset, gradient, at"),
+    ("{gradient = [1.0, 2.0]}", r"interfaces\.pad_inner\.initial_gap: gradient: must be 3 numbers"),
+    ("{offset = true}", r"interfaces\.pad_inner\.initial_gap: offset: must be a number \[m\] \(got True\)"),
+    ("{at = [0.1, 'a', 0.0]}", r"interfaces\.pad_inner\.initial_gap: at: must be 3 numbers")])
+def test_initial_gap_is_checked(value, message):
+    with pytest.raises(SceneError, match=message):
+        load_scene(SCENE, [f"interfaces.pad_inner.initial_gap={value}"])
+    with pytest.raises(SceneError, match=r"interfaces\.piston_pad\.initial_gap: unknown key"):   # bonded: none
+        load_scene(SCENE, ["interfaces.piston_pad.initial_gap={offset = 1e-6}"])
+
+
+def test_initial_gap_reaches_the_model_spec():
+    from fem_squeal.app.scene.validation import model_spec
+    from fem_squeal.fe.model import GapProfile
+
+    scene = load_scene(SCENE, ["interfaces.pad_inner.initial_gap={offset = -1e-6, gradient = [0.0, 1e-4, 0.0]}"])
+    spec = model_spec(scene)
+    gaps = {it.name: it.initial_gap for it in spec.interfaces}
+    assert gaps["pad_inner"] == GapProfile(-1e-6, (0.0, 1e-4, 0.0), None) and gaps["pad_outer"] is None
+    x = np.array([[0.1, 0.02, 0.0], [0.1, -0.02, 0.0]])
+    assert np.allclose(gaps["pad_inner"].values(x, np.array([0.1, 0.0, 0.0])), [-1e-6 + 2e-6, -1e-6 - 2e-6])

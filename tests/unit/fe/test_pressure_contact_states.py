@@ -1,0 +1,139 @@
+"""Contact sets that change with the brake pressure (issue 39): on the two blocks pressed together through a
+crowned, tilted contact (the upper block's face rises by CROWN = 4 µm towards its ends across x, while the
+closure p/k_n is 1 µm: under the pressure only its middle touches; and ``initial_gap`` tilts it by 2 µm
+over its length, which the free block turns away), half the pressure opens part of the face and twice the
+pressure closes more of it.
+
+Checked: the tilt enters the gaps as asked; the operators moved to another contact state
+(``relinearise``) are those linearised about it afresh; the reduced model at each continued pressure is
+the projection of the full operators about that pressure's own state (round-off: 1e-10); and the basis
+holds each state's frictionless modes but for the 1e-3 of their norm that its enrichment may drop."""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+from support.blocks import UPPER, two_blocks
+
+from fem_squeal.fe.model import GapProfile, GroundSpring, Interface, Material, ModelSpec, Pressure
+
+COMM = MPI.COMM_WORLD
+MU = 0.3
+SCALES = [0.5, 2.0]
+TILT = GapProfile(offset=0.0, gradient=(2e-6 / UPPER[3], 0.0, 0.0))   # 2 µm over the face, about its centre
+CROWN = 3e-4                    # the face's rise at its ends [m], against the block's own closure p h/E = 80 µm
+
+
+def spec() -> ModelSpec:
+    return ModelSpec({"lower": Material(2e10, 0.3, 7000.0), "upper": Material(5e9, 0.25, 2500.0)},
+                     clamped=("lower_bottom",),
+                     interfaces=(Interface("pad", "slave", "master", "contact", kn=1e12, kt=1e10, mu=MU,
+                                           sliding=1, initial_gap=TILT),),
+                     ground_springs=(GroundSpring("upper_sides", 0.0, 1e9),),
+                     pressures=(Pressure("upper_top", 1.0e6),))
+
+
+@functools.cache
+def model():
+    """The raw operators, the preload at s = 1 and its continuation to SCALES, the operators linearised
+    about s = 1, the basis with the states' modes and the reduced model (adaptive_reduce)."""
+    from fem_squeal.fe.assembly import assemble_operators, linearise
+    from fem_squeal.fe.preload import NewtonFactor, solve_preload
+    from fem_squeal.fe.preload_continuation import continue_preload
+    from fem_squeal.fe.projection import ParametricOperators, adaptive_reduce
+
+    md, sp = two_blocks(COMM), spec()
+    ops = assemble_operators(md, sp)
+    (_, op), = ops.contacts
+    tilted = op.gap0.copy()                # the mesh's gap and the tilt (checked below)
+    op.gap0[:] += CROWN * ((op.x[:, 0] - UPPER[0] - 0.5 * UPPER[3]) / (0.5 * UPPER[3])) ** 2
+    factor = NewtonFactor()
+    pre = solve_preload(ops, factor=factor)
+    states = {st.scale: st.result for st in continue_preload(ops, SCALES, start=(1.0, pre.u), factor=factor)}
+    lin = linearise(ops, pre.active)
+    par = ParametricOperators(lin, sp, MU, [], preload=pre)
+    red, basis, _ = adaptive_reduce(lin, par, (0.0, 800.0), [{"mu": MU}], tol=1e-2, preload=pre,
+                                    states=states)
+    return ops, lin, pre, states, tilted, basis, red
+
+
+def _closed(active) -> int:
+    return COMM.allreduce(int(np.sum(active["pad"])), op=MPI.SUM)
+
+
+def test_the_tilt_changes_the_contact_set_with_the_pressure():
+    ops, _, pre, states, tilted, _, red = model()
+    (_, op), = ops.contacts
+    area = COMM.allreduce(float(np.sum(op.weight)), op=MPI.SUM)
+    centre = np.array(COMM.allreduce(op.weight @ op.x, op=MPI.SUM)) / area
+    # the faces are flat and touch: the mesh's gap is round-off, the rest is the tilt
+    assert np.allclose(tilted, TILT.values(op.x, centre), rtol=0, atol=1e-12)
+    n = [_closed(states[0.5].active), _closed(pre.active), _closed(states[2.0].active)]
+    assert n[0] < n[1] < n[2] < COMM.allreduce(len(op.weight), op=MPI.SUM), n
+    assert sorted(red.contact_states) == SCALES and "pressure" in red.parameters
+
+
+@pytest.mark.parametrize("scale", SCALES)
+def test_relinearised_operators_are_those_about_the_state(scale):
+    from fem_squeal.fe.assembly import linearise, relinearise
+
+    ops, lin, pre, states, _, _, _ = model()
+    moved, fresh = relinearise(lin, pre.active, states[scale].active), linearise(ops, states[scale].active)
+    for A, B in ((moved.K, fresh.K), (moved.Kf, fresh.Kf)):
+        D = A.copy()
+        D.axpy(-1.0, B)
+        assert D.norm() <= 1e-13 * B.norm()
+        for X in (A, D):
+            X.destroy()
+    for X in (fresh.K, fresh.Kf):
+        X.destroy()
+
+
+@pytest.mark.parametrize("scale", SCALES)
+@pytest.mark.parametrize("point", [{"mu": MU}, {"mu": -0.5, "kn.pad": 2e12, "kt.pad": 0.0}])
+def test_reduced_model_at_a_pressure_is_the_projection_about_its_state(scale, point):
+    from fem_squeal.fe.assembly import relinearise
+    from fem_squeal.fe.projection import ParametricOperators, project
+
+    _, lin, pre, states, _, basis, red = model()
+    at = relinearise(lin, pre.active, states[scale].active)
+    par = ParametricOperators(at, spec(), MU, [], preload=states[scale])
+    try:
+        full = par.matrices(point)[0]
+        P = project(full, basis.Phi)
+        full.destroy()
+        R = red.matrices({**{k: np.array([v]) for k, v in point.items()}, "pressure": np.array([scale])})[0][0]
+        assert np.max(np.abs(R - P)) <= 1e-10 * np.max(np.abs(P))
+        # and it is not the scene's state's: the change is what the test measures
+        R1 = red.matrices({k: np.array([v]) for k, v in point.items()})[0][0]
+        assert np.max(np.abs(R1 - P)) > 1e-4 * np.max(np.abs(P))
+    finally:
+        par.destroy()
+        for X in (at.K, at.Kf):
+            X.destroy()
+
+
+@pytest.mark.parametrize("scale", SCALES)
+def test_the_basis_holds_the_modes_of_each_state(scale):
+    """Each frictionless mode about the state (to the band's top) lies in the basis but for at most
+    enrich_rtol = 1e-3 of its M-norm: the rule by which the sampled modes join it (the rest is below it)."""
+    from fem_squeal.fe.assembly import relinearise
+    from fem_squeal.fe.dense import apply
+    from fem_squeal.fe.projection.shifted import modes_below
+
+    _, lin, pre, states, _, basis, _ = model()
+    at = relinearise(lin, pre.active, states[scale].active)
+    try:
+        _, V = modes_below(at.K, at.M, 800.0, n_start=10)
+    finally:
+        for X in (at.K, at.Kf):
+            X.destroy()
+    Phi = basis.Phi
+    MV = apply(lin.M, V)
+    R = V - Phi @ (Phi.T @ MV)
+    out = np.sqrt(np.einsum("ij,ij->j", R, apply(lin.M, R)) / np.einsum("ij,ij->j", V, MV))
+    assert V.shape[1] >= 5 and np.max(out) <= 1.001e-3
+    # and they are not the scene's modes: the state's own enrich the basis
+    assert basis.counts["sampled_modes"] > 0

@@ -36,7 +36,8 @@ MU = "mu"
 SPEED = "speed"
 #: the brake pressure as a scale s of the scene's ``loads.pressure`` (issue 39): with the contact set of the
 #: scene and the linear penalty the preload u(s) is affine in s, so its stress stiffening K_σ(u(s)) and the
-#: friction damping C_d(p(s)) (∝ the contact pressure) are too
+#: friction damping C_d(p(s)) (∝ the contact pressure) are too; where the continued preloads open or close
+#: contact points the model holds each pressure's contact state (``ReducedModel.contact_states``)
 PRESSURE = "pressure"
 #: prefixes of the per-part and per-interface parameters: ``<prefix>.<part or interface>``
 PART_PREFIXES = ("E", "eta")

@@ -1,7 +1,5 @@
 """Contact sets that change with the brake pressure (issue 39): on the two blocks pressed together through a
-crowned, tilted contact (the upper block's face rises by CROWN = 4 µm towards its ends across x, while the
-closure p/k_n is 1 µm: under the pressure only its middle touches; and ``initial_gap`` tilts it by 2 µm
-over its length, which the free block turns away), half the pressure opens part of the face and twice the
+crowned, tilted contact (support.contact_blocks), half the pressure opens part of the face and twice the
 pressure closes more of it.
 
 Checked: the tilt enters the gaps as asked; the operators moved to another contact state
@@ -10,57 +8,10 @@ the projection of the full operators about that pressure's own state (round-off:
 holds each state's frictionless modes but for the 1e-3 of their norm that its enrichment may drop."""
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 import pytest
 from mpi4py import MPI
-from support.blocks import UPPER, two_blocks
-
-from fem_squeal.fe.model import GapProfile, GroundSpring, Interface, Material, ModelSpec, Pressure
-
-COMM = MPI.COMM_WORLD
-MU = 0.3
-SCALES = [0.5, 2.0]
-TILT = GapProfile(offset=0.0, gradient=(2e-6 / UPPER[3], 0.0, 0.0))   # 2 µm over the face, about its centre
-CROWN = 3e-4                    # the face's rise at its ends [m], against the block's own closure p h/E = 80 µm
-
-
-def spec() -> ModelSpec:
-    return ModelSpec({"lower": Material(2e10, 0.3, 7000.0), "upper": Material(5e9, 0.25, 2500.0)},
-                     clamped=("lower_bottom",),
-                     interfaces=(Interface("pad", "slave", "master", "contact", kn=1e12, kt=1e10, mu=MU,
-                                           sliding=1, initial_gap=TILT),),
-                     ground_springs=(GroundSpring("upper_sides", 0.0, 1e9),),
-                     pressures=(Pressure("upper_top", 1.0e6),))
-
-
-@functools.cache
-def model():
-    """The raw operators, the preload at s = 1 and its continuation to SCALES, the operators linearised
-    about s = 1, the basis with the states' modes and the reduced model (adaptive_reduce)."""
-    from fem_squeal.fe.assembly import assemble_operators, linearise
-    from fem_squeal.fe.preload import NewtonFactor, solve_preload
-    from fem_squeal.fe.preload_continuation import continue_preload
-    from fem_squeal.fe.projection import ParametricOperators, adaptive_reduce
-
-    md, sp = two_blocks(COMM), spec()
-    ops = assemble_operators(md, sp)
-    (_, op), = ops.contacts
-    tilted = op.gap0.copy()                # the mesh's gap and the tilt (checked below)
-    op.gap0[:] += CROWN * ((op.x[:, 0] - UPPER[0] - 0.5 * UPPER[3]) / (0.5 * UPPER[3])) ** 2
-    factor = NewtonFactor()
-    pre = solve_preload(ops, factor=factor)
-    states = {st.scale: st.result for st in continue_preload(ops, SCALES, start=(1.0, pre.u), factor=factor)}
-    lin = linearise(ops, pre.active)
-    par = ParametricOperators(lin, sp, MU, [], preload=pre)
-    red, basis, _ = adaptive_reduce(lin, par, (0.0, 800.0), [{"mu": MU}], tol=1e-2, preload=pre,
-                                    states=states)
-    return ops, lin, pre, states, tilted, basis, red
-
-
-def _closed(active) -> int:
-    return COMM.allreduce(int(np.sum(active["pad"])), op=MPI.SUM)
+from support.contact_blocks import COMM, MU, SCALES, TILT, closed, model, spec
 
 
 def test_the_tilt_changes_the_contact_set_with_the_pressure():
@@ -70,7 +21,7 @@ def test_the_tilt_changes_the_contact_set_with_the_pressure():
     centre = np.array(COMM.allreduce(op.weight @ op.x, op=MPI.SUM)) / area
     # the faces are flat and touch: the mesh's gap is round-off, the rest is the tilt
     assert np.allclose(tilted, TILT.values(op.x, centre), rtol=0, atol=1e-12)
-    n = [_closed(states[0.5].active), _closed(pre.active), _closed(states[2.0].active)]
+    n = [closed(states[0.5].active), closed(pre.active), closed(states[2.0].active)]
     assert n[0] < n[1] < n[2] < COMM.allreduce(len(op.weight), op=MPI.SUM), n
     assert sorted(red.contact_states) == SCALES and "pressure" in red.parameters
 

@@ -1,0 +1,60 @@
+"""The two blocks pressed together through a crowned, tilted contact whose closed points change with the
+pressure (issue 39): the model of tests/unit/fe/test_pressure_contact_states.py and
+tests/mpi/test_contact_states_ranks.py.  The upper block's face rises by CROWN = 300 µm towards its ends
+across x, against the block's own closure p h/E = 80 µm, so only its middle touches; ``initial_gap`` tilts it
+by 2 µm over its length (which the free block turns away).  Half the pressure opens part of the face, twice
+the pressure closes more of it."""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from mpi4py import MPI
+
+from fem_squeal.fe.model import GapProfile, GroundSpring, Interface, Material, ModelSpec, Pressure
+from support.blocks import UPPER, two_blocks
+
+COMM = MPI.COMM_WORLD
+MU = 0.3
+SCALES = [0.5, 2.0]
+TILT = GapProfile(offset=0.0, gradient=(2e-6 / UPPER[3], 0.0, 0.0))   # 2 µm over the face, about its centre
+CROWN = 3e-4                    # the face's rise at its ends [m], against the block's own closure p h/E = 80 µm
+
+
+def spec() -> ModelSpec:
+    return ModelSpec({"lower": Material(2e10, 0.3, 7000.0), "upper": Material(5e9, 0.25, 2500.0)},
+                     clamped=("lower_bottom",),
+                     interfaces=(Interface("pad", "slave", "master", "contact", kn=1e12, kt=1e10, mu=MU,
+                                           sliding=1, initial_gap=TILT),),
+                     ground_springs=(GroundSpring("upper_sides", 0.0, 1e9),),
+                     pressures=(Pressure("upper_top", 1.0e6),))
+
+
+@functools.cache
+def model():
+    """The raw operators, the preload at s = 1 and its continuation to SCALES, the operators linearised
+    about s = 1, the basis with the states' modes and the reduced model (adaptive_reduce)."""
+    from fem_squeal.fe.assembly import assemble_operators, linearise
+    from fem_squeal.fe.preload import NewtonFactor, solve_preload
+    from fem_squeal.fe.preload_continuation import continue_preload
+    from fem_squeal.fe.projection import ParametricOperators, adaptive_reduce
+
+    md, sp = two_blocks(COMM), spec()
+    ops = assemble_operators(md, sp)
+    (_, op), = ops.contacts
+    tilted = op.gap0.copy()                # the mesh's gap and the tilt (checked below)
+    op.gap0[:] += CROWN * ((op.x[:, 0] - UPPER[0] - 0.5 * UPPER[3]) / (0.5 * UPPER[3])) ** 2
+    factor = NewtonFactor()
+    pre = solve_preload(ops, factor=factor)
+    states = {st.scale: st.result for st in continue_preload(ops, SCALES, start=(1.0, pre.u), factor=factor)}
+    lin = linearise(ops, pre.active)
+    par = ParametricOperators(lin, sp, MU, [], preload=pre)
+    red, basis, _ = adaptive_reduce(lin, par, (0.0, 800.0), [{"mu": MU}], tol=1e-2, preload=pre,
+                                    states=states)
+    return ops, lin, pre, states, tilted, basis, red
+
+
+def closed(active) -> int:
+    return COMM.allreduce(int(np.sum(active["pad"])), op=MPI.SUM)
+
+

@@ -52,7 +52,8 @@ a parameter where the model has either.  Where the continued preloads open or cl
 matrices of that state's closed points a(s): K(s) = K(1) + Σ_c [s_c ΔK_c,c + μ_c s_c ΔK_f,c¹ + k_t,c ΔK_t,c¹]
 with ΔK the forms above on the weights w (a(s) − a(1)) (exact at each continued s; between them the state
 is not known and a ModelError names the pressures the model holds).  The affine K_σ,s and C_d,s then do
-not hold (the app refuses them with a changing contact set).
+not hold: ``pressure_tables`` holds each continued scale's own Φᵀ(K_σ(u(s)) − K_σ(u(1)))Φ and
+Φᵀ(C_d(p(s)) − C_d(p(1)))Φ in their place (∂K/∂s, ∂C/∂s keep the slopes: the state is piecewise affine).
 
 **Loss factor.**  η ≥ 0 makes K complex: the eigenvalues of λ²I + K(1 + iη) (one part, undamped)
 are λ = iω√(1 + iη) (Im λ > 0: Re λ = −ω Im√(1 + iη) < 0, the physical branch; the roots with
@@ -176,6 +177,9 @@ class ReducedModel:
     Cdp: np.ndarray | None = None                             # C_d(dp/ds) at (μ⁰, Ω₀): friction damping per unit s
     # the contact state at each continued pressure when one differs from the scene's: scale -> {contact: closed}
     contact_states: dict[float, dict[str, np.ndarray]] = field(default_factory=dict)
+    # with contact_states and a pressure term: its change at each continued scale, s -> {"Ks": Φᵀ(K_σ(u(s)) −
+    # K_σ(u(1)))Φ, "Cd": Φᵀ(C_d(p(s)) − C_d(p(1)))Φ at (μ⁰, Ω₀)}, in place of the affine (s − 1) Ksp, (s − 1) Cdp
+    pressure_tables: dict[float, dict[str, np.ndarray]] = field(default_factory=dict)
 
     def __post_init__(self):
         m = self.K0.shape[0]
@@ -205,6 +209,12 @@ class ReducedModel:
             for name, c in self.contacts.items():
                 if np.shape(state.get(name, ())) != (c.size,):
                     raise ModelError(f"contact_states[{sc:g}].{name}: needs the closed flags of its {c.size} rows")
+        for sc, tab in self.pressure_tables.items():
+            if sc not in self.contact_states:
+                raise ModelError(f"pressure_tables[{sc:g}]: a pressure without a contact state in contact_states")
+            for key, A in tab.items():
+                if key not in ("Ks", "Cd") or np.shape(A) != (m, m):
+                    raise ModelError(f"pressure_tables[{sc:g}].{key}: must be Ks or Cd, {m}×{m} like K0")
         self._interface_cache: dict[tuple, tuple] = {}
 
     @property
@@ -265,7 +275,18 @@ class ReducedModel:
         if self.Cdp is None:
             return self.Cd0
         s = np.asarray(pressure, float)
+        if self.pressure_tables:
+            return self.Cd0 + self._pressure_change("Cd", s.reshape(-1)).reshape(s.shape + self.Cd0.shape)
         return self.Cd0 + pressure_coefficient(s)[..., None, None] * self.Cdp
+
+    def _pressure_change(self, key: str, s: np.ndarray) -> np.ndarray:
+        """(n, m, m): the table ``key`` (Ks or Cd) at each scale of ``s`` (zero at 1; a ModelError between the
+        continued scales, :meth:`contact_state`)."""
+        out = np.zeros((s.size, self.size, self.size))
+        for p in np.unique(s):
+            if self.contact_state(float(p)) is not None:
+                out[s == p] = self.pressure_tables[float(p)][key]
+        return out
 
     @property
     def complex_stiffness(self) -> bool:
@@ -471,7 +492,8 @@ class ReducedModel:
             K = K + (speed ** 2)[:, None, None] * self.K2
         if self.Ksp is not None and PRESSURE in points:
             s = np.broadcast_to(np.asarray(points[PRESSURE], float), (n,))
-            K = K + pressure_coefficient(s)[:, None, None] * self.Ksp
+            K = K + (self._pressure_change("Ks", s) if self.pressure_tables else
+                     pressure_coefficient(s)[:, None, None] * self.Ksp)
         contact = self._contact_terms(points, n)
         if contact is not None:
             K = K + contact
@@ -542,6 +564,8 @@ class ReducedModel:
             arrays[f"contact_state/{i}/scale"] = np.array(sc)
             for name, a in state.items():
                 arrays[f"contact_state/{i}/{name}"] = np.asarray(a, bool)
+            for key, A in self.pressure_tables.get(sc, {}).items():
+                arrays[f"pressure_table/{i}/{key}"] = A
         # the basis description's counts (modes first: the couplings of a cached model need them)
         for k, v in self.info.items():
             if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
@@ -576,7 +600,17 @@ class ReducedModel:
                    speed0=float(d.get("speed0", 0.0)), G1=d.get("G1"), K2=d.get("K2"), Cd0=d.get("Cd0"),
                    speed_varies=bool(d.get("speed_varies", False)), Ksp=d.get("Ksp"),
                    Cdp=d.get("Cdp"), info={k.split("/", 1)[1]: int(d[k]) for k in d if k.startswith("info/")},
-                   contact_states=_contact_states(d))
+                   contact_states=_contact_states(d), pressure_tables=_pressure_tables(d))
+
+
+def _pressure_tables(d: Mapping[str, np.ndarray]) -> dict[float, dict[str, np.ndarray]]:
+    """The ``pressure_table/<i>/…`` arrays of a saved model by their contact state's scale ({} if none)."""
+    out: dict[float, dict[str, np.ndarray]] = {}
+    for k in d:
+        if k.startswith("pressure_table/"):
+            _, i, key = k.split("/")
+            out.setdefault(float(d[f"contact_state/{i}/scale"]), {})[key] = d[k]
+    return out
 
 
 def _contact_states(d: Mapping[str, np.ndarray]) -> dict[float, dict[str, np.ndarray]]:

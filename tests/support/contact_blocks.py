@@ -21,25 +21,42 @@ TILT = GapProfile(offset=0.0, gradient=(2e-6 / UPPER[3], 0.0, 0.0))   # 2 µm ov
 CROWN = 3e-4                    # the face's rise at its ends [m], against the block's own closure p h/E = 80 µm
 
 
-def spec() -> ModelSpec:
+W0 = 20.0                       # disc speed of the damped variant [rad/s] (friction damping ∝ p|μ|/V)
+
+
+def spec(damped: bool = False) -> ModelSpec:
+    """The blocks; ``damped``: the contact with friction damping (at W0), which grows with the pressure."""
     return ModelSpec({"lower": Material(2e10, 0.3, 7000.0), "upper": Material(5e9, 0.25, 2500.0)},
                      clamped=("lower_bottom",),
                      interfaces=(Interface("pad", "slave", "master", "contact", kn=1e12, kt=1e10, mu=MU,
-                                           sliding=1, initial_gap=TILT),),
+                                           sliding=1, initial_gap=TILT, friction_damping=damped,
+                                           speed=W0 if damped else 0.0),),
                      ground_springs=(GroundSpring("upper_sides", 0.0, 1e9),),
                      pressures=(Pressure("upper_top", 1.0e6),))
 
 
+def damping_terms(lin, damped: bool, states: dict):
+    """The friction damping across the states (a new PressureTerms) of the damped variant, else None."""
+    from fem_squeal.fe.preload import friction_damping
+    from fem_squeal.fe.pressure_terms import PressureTerms
+
+    if not damped:
+        return None
+    md, sp = two_blocks(COMM), spec(True)
+    return PressureTerms(states, None, lambda p: friction_damping(lin, md, sp, None, p))
+
+
 @functools.cache
-def model():
+def model(damped: bool = False):
     """The raw operators, the preload at s = 1 and its continuation to SCALES, the operators linearised
-    about s = 1, the basis with the states' modes and the reduced model (adaptive_reduce)."""
+    about s = 1 (``damped``: with the friction damping, and the pressure a parameter through it), the basis
+    with the states' modes and the reduced model (adaptive_reduce)."""
     from fem_squeal.fe.assembly import assemble_operators, linearise
-    from fem_squeal.fe.preload import NewtonFactor, solve_preload
+    from fem_squeal.fe.preload import NewtonFactor, friction_damping, solve_preload
     from fem_squeal.fe.preload_continuation import continue_preload
     from fem_squeal.fe.projection import ParametricOperators, adaptive_reduce
 
-    md, sp = two_blocks(COMM), spec()
+    md, sp = two_blocks(COMM), spec(damped)
     ops = assemble_operators(md, sp)
     (_, op), = ops.contacts
     tilted = op.gap0.copy()                # the mesh's gap and the tilt (checked below)
@@ -48,7 +65,11 @@ def model():
     pre = solve_preload(ops, factor=factor)
     states = {st.scale: st.result for st in continue_preload(ops, SCALES, start=(1.0, pre.u), factor=factor)}
     lin = linearise(ops, pre.active)
-    par = ParametricOperators(lin, sp, MU, [], preload=pre)
+    if damped:
+        Cd = friction_damping(lin, md, sp, None, pre.pressure)
+        lin = lin._replace(C=Cd, Cd=Cd)
+    par = ParametricOperators(lin, sp, MU, [], preload=pre, speed0=W0 if damped else 0.0,
+                              pressure=damping_terms(lin, damped, {1.0: pre, **states}))
     red, basis, _ = adaptive_reduce(lin, par, (0.0, 800.0), [{"mu": MU}], tol=1e-2, preload=pre,
                                     states=states)
     return ops, lin, pre, states, tilted, basis, red

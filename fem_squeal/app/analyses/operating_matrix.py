@@ -353,7 +353,8 @@ def verify_corners(ctx: Context, model, res, points: dict, band, gt: float, loss
                 if s not in at_state:
                     at_state[s] = state_operators(ctx, model.mu0, parts, changed[s])
                 par = at_state[s][0]
-                point.pop(PRESSURE, None)     # those operators are the pressure's: no pressure term
+                if par.pressure is None:      # those operators are the pressure's: no other pressure term
+                    point.pop(PRESSURE, None)
             lam_r, n_ask = band_eigenvalues(res.eigenvalues[k], band)
             if varying:
                 laws = {p: t.at_temperature(float(cond.temperature[k])) for p, t in varying.items()}
@@ -424,8 +425,9 @@ _PRESSURE_CONTACTS = (
     "the contact set changes with the pressure: each pressure's contact stiffness, friction and tangential "
     "matrices are those of its own closed points (from its continued preload), formed on the basis from the "
     "interfaces' rows (contact_states: {changed} points differ from the scene's at most); with the linear "
-    "penalty the other operators are the scene's, so the pressure acts through the contact state and "
-    "μ(p, T, Ω); the corner checks solve the full operators linearised about each pressure's own state")
+    "penalty the other operators are the scene's{terms}, so the pressure acts through the contact "
+    "state{and_terms} and μ(p, T, Ω); the corner checks solve the full operators linearised about each "
+    "pressure's own state")
 
 
 def pressure_model(model) -> str:
@@ -433,7 +435,13 @@ def pressure_model(model) -> str:
     if model.contact_states:
         changed = max(sum(int(np.sum(a != model.contacts[n].active)) for n, a in st.items())
                       for st in model.contact_states.values())
-        return _PRESSURE_CONTACTS.format(changed=changed)
+        terms = [t for t, key in (("the stress stiffening K_σ(u(p))", "Ks"),
+                                  ("the friction damping C_d(p(p))", "Cd"))
+                 if any(key in tab for tab in model.pressure_tables.values())]
+        said = " and ".join(terms)
+        return _PRESSURE_CONTACTS.format(
+            changed=changed, terms=f" but {said}, projected from each pressure's own state" if terms else "",
+            and_terms=f", {said}" if terms else "")
     if PRESSURE not in model.parameters:
         return _PRESSURE_MODEL
     terms = [t for t, on in (("the stress stiffening K_σ(u(p)) = K_σ(u(1)) + (p − 1) K_σ(du/ds)",

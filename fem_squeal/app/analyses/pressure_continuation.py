@@ -25,7 +25,6 @@ from mpi4py import MPI
 
 from fem_squeal.app.analyses.condition_values import values
 from fem_squeal.util.atomic import write_json_atomic
-from fem_squeal.util.errors import SceneError
 
 FILE = "pressure_continuation.json"
 #: the scene's own pressure as a scale of loads.pressure (a table row without a pressure)
@@ -105,22 +104,6 @@ def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
     return out
 
 
-def check_contact_sets(summ: dict, key: str = "analyses.operating_matrix") -> None:
-    """A SceneError naming the first pressure of the continuation's summary ``summ`` where the contact set
-    is not the scene's, for the terms that grow with the pressure (the stress stiffening and the friction
-    damping: affine in s only while the contact set holds; per-pressure projections of them are not
-    implemented).  The contact operators themselves follow each pressure's state (``contact_states`` of
-    the reduced model)."""
-    for r in summ["pressures"]:
-        if not r["same_contact_set"]:
-            raise SceneError(f"{key}.pressure: at {r['scale']:g} × loads.pressure the contact set is not the "
-                             f"scene's ({r['changed_points']} contact points opened or closed): with "
-                             f"preload.geometric_stiffness or a contact's friction_damping the reduced model "
-                             f"holds those terms affine in the pressure, exact only while the contact set "
-                             f"holds (per-pressure projections of them are not implemented); keep pressures "
-                             f"where the contact set holds, or those terms off")
-
-
 def changed_states(ctx) -> dict:
     """The continued preload states whose contact set is not the scene's, by pressure scale ({} if none)."""
     same = {r["scale"]: r["same_contact_set"] for r in summary(ctx)["pressures"]}
@@ -131,11 +114,10 @@ def pressure_terms(ctx):
     """The operators across the pressures of this run (:class:`fem_squeal.fe.pressure_terms.PressureTerms`,
     a new one: its owner destroys it) from the scene's preload and the continued states: the stress stiffening
     (preload.geometric_stiffness) and the contacts' friction damping, or None when the pressure is not a
-    parameter (:func:`pressure_parameter`).  A SceneError names a pressure whose contact set is not the
-    scene's (there the state is not affine in s)."""
+    parameter (:func:`pressure_parameter`).  Where a pressure's contact set is not the scene's the state is not
+    affine in s: the reduced model then holds each pressure's own projected terms (``pressure_tables``)."""
     if not pressure_parameter(ctx.scene):
         return None
-    check_contact_sets(summary(ctx))
     from fem_squeal.fe.assembly import geometric_stiffness  # heavy: FE stack
     from fem_squeal.fe.preload import friction_damping  # heavy: FE stack
     from fem_squeal.fe.pressure_terms import REFERENCE, PressureTerms  # heavy: FE stack

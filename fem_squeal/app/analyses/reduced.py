@@ -261,7 +261,8 @@ def state_operators(ctx: Context, mu0: float, parts: list[str], state):
 
     ops = relinearise(ctx.products["linear"], ctx.products["preload"].active, state.active)
     return ParametricOperators(ops, ctx.spec, mu0, parts, preload=state, operating=operating(ctx),
-                               speed0=ctx.scene.operating.speed), ops
+                               speed0=ctx.scene.operating.speed,
+                               pressure=pressure_continuation.pressure_terms(ctx)), ops
 
 
 def destroy_state_operators(par, ops) -> None:

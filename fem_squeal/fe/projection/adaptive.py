@@ -14,7 +14,7 @@ from fem_squeal.fe.eigen import (
 )
 from fem_squeal.fe.projection.basis import Basis
 from fem_squeal.fe.projection.parametric import ParametricOperators, lifted_residuals_at
-from fem_squeal.fe.projection.reductor import build_basis, contact_states, reduce
+from fem_squeal.fe.projection.reductor import build_basis, contact_states, pressure_tables, reduce
 from fem_squeal.fe.projection.shifted import ShiftedSolver, modes_below
 from fem_squeal.reduced.affine import PRESSURE
 from fem_squeal.reduced.eigensolve import in_band
@@ -184,7 +184,8 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
             t0 = MPI.Wtime()
             model = reduce(ops, par, basis, preload)
             if cstates:
-                model = replace(model, contact_states=cstates)
+                model = replace(model, contact_states=cstates,
+                                pressure_tables=pressure_tables(par, basis.Phi, cstates))
             row["project_seconds"] = wall(t0)
             t0 = MPI.Wtime()
             lams = [_in_band(solve_points(model, {k: np.array([v]) for k, v in p.items()})[0], band_hz)

@@ -12,6 +12,7 @@ from fem_squeal.fe.eigen import (
     TWO_PI,
     drop_zeros,
 )
+from fem_squeal.fe.pressure_terms import REFERENCE
 from fem_squeal.fe.projection.basis import (
     Basis,
     _gather_rows,
@@ -262,6 +263,24 @@ def reduce(ops: Operators, par: ParametricOperators, basis: Basis, preload=None)
                         contacts=restrict_contacts(ops, Phi, preload), info=dict(basis.counts), f=f, q_static=q_s,
                         eta0=dict(par.eta0), plates=project_plates(par, Phi), **speed,
                         **_project_pressure_slopes(par, Phi))
+
+
+def pressure_tables(par: ParametricOperators, Phi: np.ndarray, scales) -> dict[float, dict[str, np.ndarray]]:
+    """The reduced model's ``pressure_tables`` at each continued scale of ``scales``: Φᵀ(K_σ(u(s)) −
+    K_σ(u(1)))Φ and Φᵀ(C_d(p(s)) − C_d(p(1)))Φ from each state's own operators (``par.pressure``), for contact
+    sets that change with the pressure (where the affine slopes do not hold); {} without pressure terms."""
+    pt = par.pressure if par is not None else None
+    if pt is None:
+        return {}
+    out: dict[float, dict[str, np.ndarray]] = {}
+    for key, at in (("Ks", pt.stiffness_at if pt.stiffness is not None else None),
+                    ("Cd", pt.damping_at if pt.damping is not None else None)):
+        if at is None:
+            continue
+        ref = project(at(REFERENCE), Phi)
+        for s in scales:
+            out.setdefault(float(s), {})[key] = project(at(float(s)), Phi) - ref
+    return out
 
 
 def _project_pressure_slopes(par: ParametricOperators, Phi: np.ndarray) -> dict[str, np.ndarray]:

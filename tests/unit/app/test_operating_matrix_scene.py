@@ -164,9 +164,7 @@ def test_a_scene_speed_law_needs_its_law_at_the_conditions():
 
 def test_a_pressure_that_changes_the_contact_set():
     """The continuation's summary (from the preload stage): a pressure whose contact set is not the scene's
-    is evaluated with its own contact state (the reduced model's contact_states), but the terms that grow
-    with the pressure (stress stiffening, friction damping: affine in it only while the set holds) refuse
-    it, naming the pressure."""
+    is evaluated with its own contact state (the reduced model's contact_states)."""
     from fem_squeal.app.analyses import pressure_continuation
 
     scene = load_scene(SCENE, ["analyses.operating_matrix.pressure=[1.0, 2.0, 3.0]"])
@@ -180,14 +178,8 @@ def test_a_pressure_that_changes_the_contact_set():
 
     assert [r["scale"] for r in om.pressure_states(Ctx(), cond)["pressures"]] == [2.0, 3.0]
     assert pressure_continuation.changed_states(Ctx()) == {3.0: "state at 3"}
-    with pytest.raises(SceneError, match=r"^analyses\.operating_matrix\.pressure: at 3 × loads\.pressure the "
-                                         r"contact set is not the scene's \(7 contact points opened or closed\): "
-                                         r"with preload\.geometric_stiffness or a contact's friction_damping"):
-        pressure_continuation.check_contact_sets(Ctx.products["pressure_continuation"])
     Ctx.products["pressure_continuation"]["pressures"].pop()
-    pressure_continuation.check_contact_sets(Ctx.products["pressure_continuation"])
     assert pressure_continuation.changed_states(Ctx()) == {}
-    assert om.pressure_states(Ctx(), om.conditions(load_scene(SCENE))) is None
 
 
 @pytest.mark.parametrize("value,message", [

@@ -88,3 +88,34 @@ def test_the_basis_holds_the_modes_of_each_state(scale):
     assert V.shape[1] >= 5 and np.max(out) <= 1.001e-3
     # and they are not the scene's modes: the state's own enrich the basis
     assert basis.counts["sampled_modes"] > 0
+
+
+@pytest.mark.parametrize("scale", SCALES)
+def test_friction_damping_at_a_pressure_is_its_states_own(scale):
+    """With the friction damping (∝ the contact pressure) the pressure's C(p) on the reduced model is the
+    projection of the full C about that pressure's state, C_d(p(s)) assembled from it (the reduced
+    model's pressure_tables; not the affine slope, which a changing contact set breaks): 1e-10."""
+    from support.contact_blocks import W0, damping_terms
+
+    from fem_squeal.fe.assembly import relinearise
+    from fem_squeal.fe.projection import ParametricOperators, project
+
+    _, lin, pre, states, _, basis, red = model(True)
+    assert red.pressure_tables and "Cd" in red.pressure_tables[scale]
+    at = relinearise(lin, pre.active, states[scale].active)
+    par = ParametricOperators(at, spec(True), MU, [], preload=states[scale], speed0=W0,
+                              pressure=damping_terms(at, True, {1.0: pre, **states}))
+    point = {"mu": -0.4, "speed": 2 * W0, "pressure": scale}
+    try:
+        for full, R in zip(par.matrices(point), red.matrices({k: np.array([v]) for k, v in point.items()})):
+            P = project(full, basis.Phi)
+            full.destroy()
+            assert np.max(np.abs(R[0] - P)) <= 1e-10 * np.max(np.abs(P))
+        # the affine slope would not do: C_d(p(s)) − C_d(p(1)) against (s − 1) C_d,s (the slope is taken at
+        # s = 2, the farthest state, so it differs at 0.5 only)
+        assert scale == 2.0 or np.max(np.abs(red.pressure_tables[scale]["Cd"] - (scale - 1.0) * red.Cdp)) > \
+            1e-3 * np.max(np.abs(red.pressure_tables[scale]["Cd"]))
+    finally:
+        par.destroy()
+        for X in (at.K, at.Kf):
+            X.destroy()

@@ -6,6 +6,8 @@ rows with that state's closed points): K(p), C(p) and ∂K/∂p at every paramet
 (1e-12 relative: the same sums in another order)."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -85,3 +87,28 @@ def test_bad_contact_states_are_named():
         _model(A1, {2.0: {"pad": A2[:4]}})
     with pytest.raises(ModelError, match="contact_states: a pressure scale must be a number > 0"):
         _model(A1, {-1.0: {"pad": A2}})
+
+
+def test_pressure_terms_at_a_changed_contact_state_are_the_pressures_own(tmp_path):
+    """With a stress stiffening and a friction damping per pressure (pressure_tables: each state's own
+    projections, the affine slopes not holding across contact sets), K(s) and C(s) are those of a model
+    built at that state with its terms in K₀ and C_d (the friction damping still scaled by |μ|/|μ⁰|)."""
+    rng = np.random.default_rng(11)
+    sym = lambda: (lambda A: 1e-2 * (A + A.T))(rng.normal(size=(M, M)))   # noqa: E731
+    Ks, Cd, dKs, dCd = sym(), sym(), sym(), sym()
+    base = _model(A1, {2.0: {"pad": A2}, 0.5: {"pad": A05}})
+    model = replace(base, Ksp=Ks, Cd0=Cd, Cdp=0.5 * Cd, speed0=10.0,
+                    pressure_tables={2.0: {"Ks": dKs, "Cd": dCd}, 0.5: {"Ks": -dKs, "Cd": -dCd}})
+    direct = _model(A2)
+    direct = replace(direct, K0=direct.K0 + dKs, Cd0=Cd + dCd, speed0=10.0)
+    K, C = model.matrices({"mu": np.array([0.2]), "pressure": np.array([2.0])})
+    Kd, Cdd = direct.matrices({"mu": np.array([0.2])})
+    assert np.abs(K - Kd).max() <= 1e-12 * np.abs(Kd).max() and np.abs(C - Cdd).max() <= 1e-12 * np.abs(Cdd).max()
+    K1, C1 = model.matrices({"mu": np.array([0.2]), "pressure": np.array([1.0])})   # s = 1: the scene's
+    assert np.array_equal(K1, model.matrices({"mu": np.array([0.2])})[0])
+    assert np.array_equal(C1, model.matrices({"mu": np.array([0.2])})[1])
+    model.save(tmp_path / "m.npz")
+    back = ReducedModel.load(tmp_path / "m.npz")
+    assert np.array_equal(back.pressure_tables[0.5]["Cd"], -dCd)
+    at = {"pressure": np.array([0.5])}
+    assert np.array_equal(back.matrices(at)[1], model.matrices(at)[1])

@@ -62,6 +62,12 @@ class PreloadResult(NamedTuple):
     update_columns: int = 0           # columns J_f⁻¹ a_q of the low-rank updates (fe.kept_factorisation)
 
 
+def changed_points(a: PreloadResult, b: PreloadResult, comm) -> int:
+    """How many contact points are closed in one of the states ``a``, ``b`` and open in the other (all
+    ranks' points; collective)."""
+    return comm.allreduce(int(sum(np.count_nonzero(a.active[n] != b.active[n]) for n in a.active)), op=MPI.SUM)
+
+
 def _traction(g: np.ndarray, kn: float, k3: float) -> tuple[np.ndarray, np.ndarray]:
     """Normal traction σ = −p (≤ 0) per unit area and dσ/dg at gaps ``g``, from the cubic unilateral law
     of the reduced layer (one definition: p = k_n δ + k_3 δ³ for the closure δ = −g > 0, else 0)."""

@@ -20,7 +20,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from mpi4py import MPI
 
 from fem_squeal.app.analyses.condition_values import values
@@ -69,6 +68,7 @@ def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
     """Continue the converged preload ``pre`` (scale 1, solved with ``factor``) to the other scales; the
     summary (also written to ``work``/FILE for the operating matrix); the states are kept in
     ``ctx.products["pressure_states"]`` by scale (:func:`pressure_terms`)."""
+    from fem_squeal.fe.preload import changed_points  # heavy: FE stack
     from fem_squeal.fe.preload_continuation import StateCache, continue_preload  # heavy: FE stack
 
     comm = ctx.comm
@@ -80,8 +80,7 @@ def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
     rows, kept = [], {}
     for st in states:
         r = st.result
-        changed = comm.allreduce(int(sum(int(np.sum(r.active[n] != pre.active[n])) for n in pre.active)),
-                                 op=MPI.SUM)
+        changed = changed_points(r, pre, comm)
         closed = comm.allreduce(int(sum(int(a.sum()) for a in r.active.values())), op=MPI.SUM)
         d = pre.u.copy()
         d.scale(st.scale)

@@ -12,6 +12,7 @@ from fem_squeal.fe.dense import apply
 from fem_squeal.fe.eigen import (
     TWO_PI,
 )
+from fem_squeal.fe.preload import changed_points
 from fem_squeal.fe.projection.basis import Basis
 from fem_squeal.fe.projection.parametric import ParametricOperators, lifted_residuals_at
 from fem_squeal.fe.projection.reductor import build_basis, contact_states, pressure_tables, reduce
@@ -139,8 +140,7 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
     factor_s = wall(t)
     modes, solved_cut, dirs = None, 0.0, None
     cstates = contact_states(ops, preload, states) if states else {}
-    moved = [s for s in cstates if comm.allreduce(int(sum(np.sum(states[s].active[n] != preload.active[n])
-                                                          for n in preload.active)), op=MPI.SUM)]
+    moved = [s for s in cstates if changed_points(states[s], preload, comm)]
     state_ops = {s: relinearise(ops, preload.active, states[s].active) for s in moved}
     state_modes: dict[float, tuple] = {}
     checks = [*check_points, *({**p, PRESSURE: s} for s in moved for p in check_points)]

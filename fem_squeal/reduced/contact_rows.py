@@ -109,10 +109,9 @@ class ContactRows:
         return self.normal
 
     # ---- the linearised penalty at the preload (fem_squeal.reduced.model)
-    def closed_weight(self, active: np.ndarray | None = None) -> np.ndarray:
-        """w a: the quadrature weights of the closed points (0 at the open ones), those closed at the
-        preload or, given, of the flags ``active`` (another contact state: another brake pressure)."""
-        return self.weight * np.asarray(self.active if active is None else active, bool)
+    def closed_weight(self) -> np.ndarray:
+        """w a: the quadrature weights of the points closed at the preload (0 at the open ones)."""
+        return self.weight * np.asarray(self.active, bool)
 
     def normal_stiffness(self, wa: np.ndarray | None = None) -> np.ndarray:
         """K_c = (G_nΦ)ᵀ diag(k_n w a) (G_nΦ): the closed-contact stiffness at the nominal k_n (``wa``: the

@@ -93,6 +93,11 @@ from fem_squeal.util.atomic import write_npz_atomic
 from fem_squeal.util.errors import ModelError
 
 
+def _at_points(points: Mapping[str, np.ndarray], name: str, default: float, n: int) -> np.ndarray:
+    """Parameter ``name`` at each of ``n`` points (``default`` where not given), as an (n,) array."""
+    return np.broadcast_to(np.asarray(points.get(name, default), float), (n,))
+
+
 def format_point(point: Mapping[str, float]) -> str:
     """A parameter point for people: ``sign(v)μ = −1.000, E(disc) = 100 GPa`` (units by parameter)."""
     out = []
@@ -319,7 +324,10 @@ class ReducedModel:
         state = self.contact_state(pressure)
         if state is None:
             return None, None, None
-        return self.contacts[name].stiffness_change(state[name])
+        key = ("change", name, float(pressure))
+        if key not in self._interface_cache:
+            self._interface_cache[key] = self.contacts[name].stiffness_change(state[name])
+        return self._interface_cache[key]
 
     def _contact_terms(self, points: Mapping[str, np.ndarray], n: int) -> np.ndarray | None:
         """Σ_c [s_c ΔK_c,c + μ_c s_c ΔK_f,c¹ + k_t,c ΔK_t,c¹] at each of ``n`` points' pressure: the contact
@@ -329,7 +337,7 @@ class ReducedModel:
         if not self.contact_states or PRESSURE not in points:
             return None
         def vec(key, default):
-            return np.broadcast_to(np.asarray(points.get(key, default), float), (n,))
+            return _at_points(points, key, default, n)
 
         ps = vec(PRESSURE, 1.0)
         out = np.zeros((n, self.size, self.size))
@@ -384,7 +392,7 @@ class ReducedModel:
         and interface terms of K for ``n`` points; None when none applies (only μ and E vary and no
         part has a loss factor: K is then the μ/E model's, bit for bit)."""
         def vec(name, default):
-            return np.broadcast_to(np.asarray(points.get(name, default), float), (n,))
+            return _at_points(points, name, default, n)
 
         coefs, mats = [], []
         for part, Kp in self.K_parts.items():

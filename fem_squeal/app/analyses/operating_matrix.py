@@ -14,8 +14,9 @@ about each such state (:func:`fem_squeal.fe.projection.adaptive_reduce`), its co
 full operators linearised about that state.  With the contact set of the scene the stress stiffening and
 the contacts' friction damping make the pressure the model's parameter ``pressure`` (K_σ(u(s)) = K_σ(u(1))
 + (s − 1) K_σ(du/ds), C_d(p(s)) = C_d(p(1)) + (s − 1) C_d(dp/ds), exact for the fixed contact set and the
-linear penalty: :mod:`fem_squeal.fe.pressure_terms`); with a changing set these two are refused (named
-error), as are the other pressure-dependent terms before any computation (:func:`pressure_dependent_terms`).
+linear penalty: :mod:`fem_squeal.fe.pressure_terms`); with a changing set the model holds each pressure's
+own projections of these two (``pressure_tables``); the other pressure-dependent terms are refused before
+any computation (:func:`pressure_dependent_terms`).
 Parts with a loss-factor table
 ``materials.<part>.eta_table`` η(f, T): at each condition's temperature, per band mode at its own frequency
 (fixed point; ``loss_factor_fixed_point`` in results.json: iterations, modes not converged).  ``verify``:

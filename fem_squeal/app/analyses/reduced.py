@@ -267,10 +267,10 @@ def state_operators(ctx: Context, mu0: float, parts: list[str], state):
 
 def destroy_state_operators(par, ops) -> None:
     """Destroy what :func:`state_operators` made."""
+    from fem_squeal.fe.assembly import destroy_relinearised  # heavy: FE stack
+
     par.destroy()
-    for A in (ops.K, ops.Kf):
-        if A is not None:
-            A.destroy()
+    destroy_relinearised(ops)
 
 
 def run(ctx: Context, work: Path, timings: dict) -> dict[str, Any]:

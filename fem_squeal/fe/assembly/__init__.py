@@ -31,6 +31,7 @@ from fem_squeal.fe.assembly.compiled import (  # noqa: F401
 )
 from fem_squeal.fe.assembly.contact import (  # noqa: F401
     contact_matrices,
+    destroy_relinearised,
     linearise,
     relinearise,
 )

@@ -91,3 +91,10 @@ def relinearise(ops: Operators, active: dict[str, np.ndarray], to: dict[str, np.
                 _add(Kf, Fc, sign)
                 Fc.destroy()
     return ops._replace(K=K, Kf=Kf)
+
+
+def destroy_relinearised(ops: Operators) -> None:
+    """Destroy the K and K_f that :func:`relinearise` made (the other operators are its input's)."""
+    for A in (ops.K, ops.Kf):
+        if A is not None:
+            A.destroy()

@@ -7,7 +7,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal.fe.assembly import Operators, relinearise
+from fem_squeal.fe.assembly import Operators, destroy_relinearised, relinearise
 from fem_squeal.fe.dense import apply
 from fem_squeal.fe.eigen import (
     TWO_PI,
@@ -204,9 +204,7 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
         if solver is not None:
             solver.destroy()
         for o in state_ops.values():
-            o.K.destroy()
-            if o.Kf is not None and o.Kf is not ops.Kf:
-                o.Kf.destroy()
+            destroy_relinearised(o)
     converged = change <= tol
     if not converged:
         raise ReductionError(

@@ -72,6 +72,9 @@ def main() -> None:
     ap.add_argument("--mesh-size", type=float, default=0.016)
     ap.add_argument("--k3", type=float, nargs="*", default=[0.0, 1e23], help="penalty cubic terms, one row each")
     ap.add_argument("--no-check", action="store_true", help="skip the cold solves the states are compared with")
+    ap.add_argument("--taper", type=float, default=None,
+                    help="both pads' taper wear: initial_gap gradient [m/m] along y, so that the contact set "
+                         "changes with the pressure")
     a = ap.parse_args()
     from mpi4py import MPI
 
@@ -80,7 +83,9 @@ def main() -> None:
     from fem_squeal.fe.assembly import assemble_operators
 
     comm = MPI.COMM_WORLD
-    scene = load_scene(SCENE, [f"geometry.mesh_size={a.mesh_size}"])
+    taper = [] if a.taper is None else [f"interfaces.{pad}.initial_gap={{gradient = [0.0, {a.taper}, 0.0]}}"
+                                        for pad in ("pad_inner", "pad_outer")]
+    scene = load_scene(SCENE, [f"geometry.mesh_size={a.mesh_size}", *taper])
     ops = assemble_operators(build_mesh(comm, scene), model_spec(scene), parts=False)
     dofs = ops.K.getSize()[0]
     rows = [{"dofs": dofs, "ranks": comm.size, **row(ops, scene["preload"]["friction"], k3, not a.no_check)}

@@ -104,3 +104,11 @@ def factor_solver(A: PETSc.Mat, factorisation: Factorisation, prefix: str, optio
         ksp.setFromOptions()
         ksp.setUp()
     return ksp
+
+
+def refactorise(ksp: PETSc.KSP) -> None:
+    """Factorise ``ksp``'s operator anew, now, after its values changed (same pattern: numerically only,
+    with the kept ordering).  Once a KSP has been set up, KSPSetUp leaves the new factorisation to the
+    next solve; PCSetUp sees the operator's new state and performs it here, so that it can be timed."""
+    ksp.getPC().setUp()
+

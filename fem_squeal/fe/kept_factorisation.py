@@ -108,6 +108,11 @@ class KeptFactorisation:
         self.factorisations = 1
         self.columns_before = self.columns_computed
 
+    @property
+    def has_update(self) -> bool:
+        """Whether the last step was solved by an update (:meth:`solve` then applies that step's J_k)."""
+        return self._step is not None
+
     def may_refactorise(self) -> bool:
         return self.factorisations < self.max_factorisations
 

@@ -42,6 +42,7 @@ from fem_squeal.fe.assembly import (
     plate_friction_fields,
 )
 from fem_squeal.fe.assembly import static_displacement as assembly_static_displacement
+from fem_squeal.fe.factorisation import refactorise
 from fem_squeal.fe.kept_factorisation import KeptFactorisation, RankOneFamily
 from fem_squeal.fe.model import ModelSpec, sliding_speed, speed_friction
 from fem_squeal.reduced.laws.contact import UnilateralLaw
@@ -85,6 +86,29 @@ class NewtonFactor:
         self.J: PETSc.Mat | None = None
         self.ksp: PETSc.KSP | None = None
         self.kept: KeptFactorisation | None = None
+
+    def load_rate(self, ops: Operators) -> PETSc.Vec | None:
+        """du/ds = J⁻¹ f: the rate of the equilibrium R(u(s)) = K u + F_nl(u) − s f = 0 along the load
+        scale, with J the Jacobian of the last Newton step (the kept factorisation and its last update;
+        at a converged state, the state's own Jacobian).  None when nothing is kept or the update's
+        residual check fails."""
+        if self.ksp is None:
+            return None
+        b = ops.f.copy()
+        bc = _owned_global_rows(ops.K, ops.V, ops.bc_dofs)
+        b.setValues(bc, np.zeros(len(bc)))          # J's clamped rows are identity rows (as R's)
+        b.assemble()
+        x = b.duplicate()
+        if self.kept is not None and self.kept.has_update:
+            ok = self.kept.solve(b, x)
+        else:
+            self.ksp.solve(b, x)
+            ok = self.ksp.getConvergedReason() > 0
+        b.destroy()
+        if not ok:
+            x.destroy()
+            return None
+        return x
 
     def destroy(self) -> None:
         for obj in (self.kept, self.ksp, self.J):
@@ -221,8 +245,8 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         t0 = time.perf_counter()
         if ksp is None:
             ksp = direct_solver(J, options, prefix)
-        else:                              # PETSc sees J's new values and refactorises (numerically)
-            ksp.setUp()
+        else:                              # J's new values, factorised now so that the cost rule sees
+            refactorise(ksp)               # their seconds (not at the next solve, as KSPSetUp would)
         factorisations += 1
         if jacobian == "update":
             if kept is None:

@@ -13,7 +13,7 @@ from mpi4py import MPI
 from support.blocks import two_blocks
 
 from fem_squeal.fe.assembly import assemble_operators
-from fem_squeal.fe.model import GroundSpring, Interface, Material, ModelSpec, Pressure
+from fem_squeal.fe.model import GapProfile, GroundSpring, Interface, Material, ModelSpec, Pressure
 from fem_squeal.util.errors import ModelError
 
 COMM = MPI.COMM_WORLD
@@ -22,10 +22,13 @@ SCALES = [2.0, 0.5, 1.0]
 
 
 @functools.cache
-def blocks_ops():
+def blocks_ops(interference: float = 0.0):
+    """The two blocks; ``interference`` [m]: the upper block's face stands that far proud (g₀ −= it)."""
+    gap = GapProfile(offset=-interference)
     spec = ModelSpec({"lower": Material(2e10, 0.3, 7000.0), "upper": Material(5e9, 0.25, 2500.0)},
                      clamped=("lower_bottom",),
-                     interfaces=(Interface("pad", "slave", "master", "contact", kn=1e12, mu=0.3, sliding=1),),
+                     interfaces=(Interface("pad", "slave", "master", "contact", kn=1e12, mu=0.3, sliding=1,
+                                           initial_gap=gap),),
                      ground_springs=(GroundSpring("upper_sides", 0.0, 1e9),),
                      pressures=(Pressure("upper_top", 1.0e6),))
     return assemble_operators(two_blocks(COMM), spec)
@@ -63,6 +66,29 @@ def test_continued_states_are_the_separate_solves(continued):
     u1, u2 = continued[2].result.u.copy(), continued[0].result.u
     u1.scale(2.0)
     assert rel(u1, u2) > 1e-3
+
+
+def test_the_tangent_predictor_is_the_state_while_the_contact_set_holds():
+    """With the face 1 µm proud (every point closed at every pressure here) the linear penalty's state is
+    affine in the pressure scale, not proportional to it: the continued start u(s') + (s − s') J⁻¹f is
+    the state itself, accepted without a Newton step (the scaled start (s/s') u(s') was not: it took
+    one), and equal to the cold solve to the preload's tolerance (‖R‖ ≤ 1e-9‖f‖ both)."""
+    from fem_squeal.fe.preload import solve_preload
+    from fem_squeal.fe.preload_continuation import continue_preload
+
+    ops = blocks_ops(1e-6)
+    states = continue_preload(ops, [1.0, 2.0, 3.0])
+    assert all(st.result.active["pad"].all() for st in states)
+    assert [st.result.iterations for st in states[1:]] == [0, 0]
+    for st in states[1:]:
+        cold = solve_preload(ops, scale=st.scale)
+        assert rel(st.result.u, cold.u) < 1e-8
+        cold.u.destroy()
+    scaled = states[0].result.u.copy()
+    scaled.scale(2.0)
+    assert rel(scaled, states[1].result.u) > 1e-3          # the interference: not proportional
+    for obj in [scaled, *(st.result.u for st in states)]:
+        obj.destroy()
 
 
 def test_cached_states_need_no_newton_step(continued, tmp_path):

@@ -47,8 +47,8 @@ def damping_terms(lin, damped: bool, states: dict):
 
 
 @functools.cache
-def model(damped: bool = False):
-    """The raw operators, the preload at s = 1 and its continuation to SCALES, the operators linearised
+def model(damped: bool = False, scales: tuple[float, ...] = tuple(SCALES)):
+    """The raw operators, the preload at s = 1 and its continuation to ``scales``, the operators linearised
     about s = 1 (``damped``: with the friction damping, and the pressure a parameter through it), the basis
     with the states' modes and the reduced model (adaptive_reduce)."""
     from fem_squeal.fe.assembly import assemble_operators, linearise
@@ -63,7 +63,7 @@ def model(damped: bool = False):
     op.gap0[:] += CROWN * ((op.x[:, 0] - UPPER[0] - 0.5 * UPPER[3]) / (0.5 * UPPER[3])) ** 2
     factor = NewtonFactor()
     pre = solve_preload(ops, factor=factor)
-    states = {st.scale: st.result for st in continue_preload(ops, SCALES, start=(1.0, pre.u), factor=factor)}
+    states = {st.scale: st.result for st in continue_preload(ops, scales, start=(1.0, pre.u), factor=factor)}
     lin = linearise(ops, pre.active)
     if damped:
         Cd = friction_damping(lin, md, sp, None, pre.pressure)
@@ -79,3 +79,21 @@ def closed(active) -> int:
     return COMM.allreduce(int(np.sum(active["pad"])), op=MPI.SUM)
 
 
+def outside(lin, pre, state, basis) -> np.ndarray:
+    """‖(I − ΦΦᵀM)v‖_M / ‖v‖_M of each frictionless mode v about ``state`` to the band's top (800 Hz):
+    how much of the state's modes the basis misses (collective)."""
+    from fem_squeal.fe.assembly import relinearise
+    from fem_squeal.fe.dense import apply
+    from fem_squeal.fe.projection.shifted import modes_below
+
+    at = relinearise(lin, pre.active, state.active)
+    try:
+        _, V = modes_below(at.K, at.M, 800.0, n_start=10)
+    finally:
+        for X in (at.K, at.Kf):
+            X.destroy()
+    assert V.shape[1] >= 5
+    MV = apply(lin.M, V)
+    R = V - basis.Phi @ COMM.allreduce(basis.Phi.T @ MV)
+    num = COMM.allreduce(np.einsum("ij,ij->j", R, apply(lin.M, R)))
+    return np.sqrt(num / COMM.allreduce(np.einsum("ij,ij->j", V, MV)))

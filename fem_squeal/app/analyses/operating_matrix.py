@@ -327,9 +327,29 @@ def _nep_corner(par, point: dict, laws: dict, reverse: bool, lam_r: np.ndarray, 
     return lam_r[watched], full, worst, time.perf_counter() - t
 
 
+def checked_conditions(cond: Conditions, changed: dict[float, int]) -> list[tuple[int, bool]]:
+    """(condition, between the corners) of the checks: the corners, and where the contact set changes
+    with the pressure (``changed``: pressure scale -> points that opened or closed), one condition at the
+    pressure inside the matrix whose set changed most, at the first corner's temperature, speed and
+    direction where the matrix has it (its state enters the basis only through its contact rows and the
+    static derivatives of the modes, as the corners' do)."""
+    corners = cond.corners()
+    out = [(k, False) for k in corners]
+    inner = {s: n for s, n in changed.items() if n and s not in (cond.pressure.min(), cond.pressure.max())}
+    if inner:
+        s = max(sorted(inner), key=lambda x: inner[x])
+        first = corners[0]
+        at = np.flatnonzero(cond.pressure == s)
+        like = [k for k in at if all(getattr(cond, v)[k] == getattr(cond, v)[first]
+                                     for v in ("temperature", "speed", "direction"))]
+        out.append((int((like or at)[0]), True))
+    return out
+
+
 def verify_corners(ctx: Context, model, res, points: dict, band, gt: float, loss: LossFactors | None = None
                    ) -> list[dict]:
-    """Full CEAs at the corner conditions against the reduced eigenvalues (as analyses.reduced.verify:
+    """Full CEAs at the conditions of :func:`checked_conditions` (the corners, and a pressure between
+    them where the contact set changes) against the reduced eigenvalues (as analyses.reduced.verify:
     worst relative error of the unstable full eigenvalues, of all in the band when none is unstable).
     With loss-factor tables that vary with f (``loss``): the full nonlinear eigenproblem from the watched
     reduced eigenvalues (:func:`_nep_corner`), each full answer against the reduced one it started from.
@@ -346,8 +366,11 @@ def verify_corners(ctx: Context, model, res, points: dict, band, gt: float, loss
     options = ctx.scene.solver.petsc_options
     rows = []
     try:
-        for k in cond.corners():
+        counts = {r["scale"]: r["changed_points"] for r in pressure_continuation.summary(ctx)["pressures"]} \
+            if changed else {}
+        for k, between in checked_conditions(cond, counts):
             point = {n: float(v[k]) for n, v in points.items()}
+            what = "condition between the corners" if between else "corner"
             s = float(cond.pressure[k])
             par = scene_par
             if s in changed:
@@ -362,13 +385,14 @@ def verify_corners(ctx: Context, model, res, points: dict, band, gt: float, loss
                 red, full, backward, seconds = _nep_corner(par, point, laws, cond.direction[k] < 0, lam_r, gt,
                                                            options)
                 rows.append({"condition": k, **cond.row(k), "point": point, "method": "full NEP",
+                             "between_corners": between,
                              "n_full": int(full.size), "n_unstable_full": int(unstable(full, gt).sum()),
                              "n_unstable_reduced": int(unstable(red, gt).sum()),
                              "max_rel_error": float(np.max(np.abs(full - red) / np.abs(full), initial=0.0)),
                              "backward_error": backward, "full_cea_s": seconds,
                              "modes": [{"reduced": [float(a.real), float(a.imag)],
                                         "full": [float(b.real), float(b.imag)]} for a, b in zip(red, full)]})
-                ctx.say(f"[fem_squeal] operating matrix corner {k}: reduced vs full NEP "
+                ctx.say(f"[fem_squeal] operating matrix {what} {k}: reduced vs full NEP "
                         f"{rows[-1]['max_rel_error']:.1e} ({full.size} modes), unstable "
                         f"{rows[-1]['n_unstable_reduced']}/{rows[-1]['n_unstable_full']}")
                 continue
@@ -377,11 +401,12 @@ def verify_corners(ctx: Context, model, res, points: dict, band, gt: float, loss
             bad = unstable(full, gt)
             watched = full[bad] if bad.any() else full
             rows.append({"condition": k, **cond.row(k), "point": point, "method": "full CEA",
+                         "between_corners": between,
                          "n_full": int(full.size), "n_unstable_full": int(bad.sum()),
                          "n_unstable_reduced": int(unstable(lam_r, gt).sum()),
                          "max_rel_error": relative_change(watched, lam_r), "full_cea_s": seconds,
                          "unstable_full": [[float(x.real), float(x.imag)] for x in full[bad]]})
-            ctx.say(f"[fem_squeal] operating matrix corner {k}: reduced vs full {rows[-1]['max_rel_error']:.1e}, "
+            ctx.say(f"[fem_squeal] operating matrix {what} {k}: reduced vs full {rows[-1]['max_rel_error']:.1e}, "
                     f"unstable {rows[-1]['n_unstable_reduced']}/{rows[-1]['n_unstable_full']}")
     finally:
         scene_par.destroy()
@@ -427,8 +452,9 @@ _PRESSURE_CONTACTS = (
     "matrices are those of its own closed points (from its continued preload), formed on the basis from the "
     "interfaces' rows (contact_states: {changed} points differ from the scene's at most); with the linear "
     "penalty the other operators are the scene's{terms}, so the pressure acts through the contact "
-    "state{and_terms} and μ(p, T, Ω); the corner checks solve the full operators linearised about each "
-    "pressure's own state")
+    "state{and_terms} and μ(p, T, Ω); the basis holds the static derivatives of its modes to second order in "
+    "each state's contact change; the checks, at the corners and at the pressure between them whose set "
+    "changed most, solve the full operators linearised about each pressure's own state")
 
 
 def pressure_model(model) -> str:
@@ -560,7 +586,9 @@ def report(res: dict) -> str:
             ["condition", "p [× loads.pressure]", "T [°C]", "|Ω| [rad/s]", "direction", "full model",
              "max rel. error", "unstable full", "unstable reduced"],
             [[v["condition"], v["pressure"], v["temperature"], v["speed"], v["direction"],
-              v.get("method", "full CEA"), v["max_rel_error"], v["n_unstable_full"], v["n_unstable_reduced"]]
+              v.get("method", "full CEA") + (" (a pressure between the corners)"
+                                             if v.get("between_corners") else ""),
+              v["max_rel_error"], v["n_unstable_full"], v["n_unstable_reduced"]]
              for v in r["verification"]])
     return txt
 

@@ -30,6 +30,7 @@ from fem_squeal.fe.assembly.compiled import (  # noqa: F401
     _owned_global_rows,
 )
 from fem_squeal.fe.assembly.contact import (  # noqa: F401
+    contact_change,
     contact_matrices,
     destroy_relinearised,
     linearise,

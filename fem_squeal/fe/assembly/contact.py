@@ -67,29 +67,48 @@ def linearise(ops: Operators, active: dict[str, np.ndarray] | None = None,
     return ops._replace(K=K, Kf=Kf)
 
 
-def relinearise(ops: Operators, active: dict[str, np.ndarray], to: dict[str, np.ndarray],
-                friction: bool = True) -> Operators:
-    """Operators linearised about the contact state ``active`` (:func:`linearise`'s) moved to the state
-    ``to``: the contact matrices of the points that closed added, of those that opened subtracted (the
-    same K and K_f as :func:`linearise` about ``to``, without re-assembling the rest).  New K and K_f."""
-    if not ops.contacts:
-        return ops
+def contact_change(ops: Operators, active: dict[str, np.ndarray], to: dict[str, np.ndarray],
+                   friction: bool = True) -> tuple[PETSc.Mat | None, PETSc.Mat | None]:
+    """ΔK_c, ΔK_f from the contact state ``active`` to the state ``to``: the contact matrices
+    (:func:`contact_matrices`) of the points that closed added, of those that opened subtracted; None where
+    nothing changes.  Collective (a rank without changed points still takes part)."""
     comm = ops.K.getComm().tompi4py()
-    K, Kf = ops.K.copy(), (ops.Kf.copy() if ops.Kf is not None else None)
+    total: list[PETSc.Mat | None] = [None, None]
     for sign, flags in ((1.0, {n: to[n] & ~active[n] for n in to}), (-1.0, {n: active[n] & ~to[n] for n in to})):
         if not comm.allreduce(int(sum(np.count_nonzero(f) for f in flags.values()))):   # collective: every rank
             continue
-        Kc, Fc = contact_matrices(ops, {it.name: it.kn * flags[it.name].astype(float) for it, _ in ops.contacts},
-                                  friction)
-        _add(K, Kc, sign)
-        Kc.destroy()
-        if Fc is not None:
-            if Kf is None:
-                Kf = Fc
-                Kf.scale(sign)
+        mats = contact_matrices(ops, {it.name: it.kn * flags[it.name].astype(float) for it, _ in ops.contacts},
+                                friction)
+        for j, A in enumerate(mats):
+            if A is None:
+                continue
+            if total[j] is None:
+                A.scale(sign)
+                total[j] = A
             else:
-                _add(Kf, Fc, sign)
-                Fc.destroy()
+                _add(total[j], A, sign)
+                A.destroy()
+    return total[0], total[1]
+
+
+def relinearise(ops: Operators, active: dict[str, np.ndarray], to: dict[str, np.ndarray],
+                friction: bool = True) -> Operators:
+    """Operators linearised about the contact state ``active`` (:func:`linearise`'s) moved to the state
+    ``to`` by :func:`contact_change` (the same K and K_f as :func:`linearise` about ``to``, without
+    re-assembling the rest).  New K and K_f."""
+    if not ops.contacts:
+        return ops
+    dK, dF = contact_change(ops, active, to, friction)
+    K, Kf = ops.K.copy(), (ops.Kf.copy() if ops.Kf is not None else None)
+    if dK is not None:
+        _add(K, dK)
+        dK.destroy()
+    if dF is not None:
+        if Kf is None:
+            Kf = dF
+        else:
+            _add(Kf, dF)
+            dF.destroy()
     return ops._replace(K=K, Kf=Kf)
 
 

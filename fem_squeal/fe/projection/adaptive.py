@@ -7,7 +7,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal.fe.assembly import Operators, destroy_relinearised, relinearise
+from fem_squeal.fe.assembly import Operators, contact_change, destroy_relinearised, relinearise
 from fem_squeal.fe.dense import apply
 from fem_squeal.fe.eigen import (
     TWO_PI,
@@ -61,6 +61,13 @@ def relative_change(new: np.ndarray, old: np.ndarray) -> float:
     return float(np.max(np.min(np.abs(new[:, None] - old[None, :]), axis=1) / np.abs(new)))
 
 
+#: share of the preload's closed contact points that must open or close at a pressure for its state's
+#: modes to be solved (below it they enter as static derivatives in the contact change).  Measured on
+#: the coarse tapered brake (2 ranks, benchmarks/README.md): where 3.5 % and 5 % changed (p = 2, 4) the
+#: derivatives matched the full CEAs to 1.7e-5 and 2.0e-5 (the re-solved modes: 3.1e-5 at p = 4); where
+#: 19 % changed (p = 0.25), 2.2e-4 against 8.5e-5 with the re-solved modes
+RESOLVE_SHARE = 0.1
+
 #: orders of the static modal derivatives that stand in for the modes sampled at other E (1: the
 #: tangent (K + σM)⁻¹K_iφ alone; 2: and (K + σM)⁻¹K_i of it; measured on the brake, see adaptive_reduce)
 DERIVATIVE_ORDER = 2
@@ -70,11 +77,21 @@ def _modal_derivatives(par: ParametricOperators, solver: ShiftedSolver, V: np.nd
                        parts: list[str], order: int | None = None) -> list[np.ndarray]:
     """[(K + σM)⁻¹K_i V, ((K + σM)⁻¹K_i)² V, …] for each part i, ``order`` terms each: the
     static modal derivatives of the modes V with respect to θ_i = E_i/E_i⁰, and their powers."""
+    return _modal_derivatives_of([par.K_parts[q] for q in parts], solver, V, order)
+
+
+def _modal_derivatives_of(changes, solver: ShiftedSolver, V: np.ndarray, order: int | None = None
+                          ) -> list[np.ndarray]:
+    """[(K + σM)⁻¹ΔK V, ((K + σM)⁻¹ΔK)² V, …] for each stiffness change ΔK of ``changes`` (None: none),
+    ``order`` terms each: the modes of K + ΔK to that order in ΔK, φ + Δφ with
+    Δφ = −(K − ω²M)⁺ΔK φ + …, the resolvent taken at the shift σ."""
     out = []
-    for q in parts:
+    for dK in changes:
+        if dK is None:
+            continue
         D = V
         for _ in range(order or DERIVATIVE_ORDER):
-            D = solver.solve(apply(par.K_parts[q], D))
+            D = solver.solve(apply(dK, D))
             out.append(D)
     return out
 
@@ -111,10 +128,15 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
     * the modes are asked for by their cut, not their number (no inertia count first).
 
     ``states`` (pressure scale -> continued preload result: the operating matrix's other pressures):
-    the model's ``contact_states``; where a state's contact set is not ``preload``'s, its frictionless
-    modes (of K about that state, :func:`~fem_squeal.fe.assembly.relinearise`) join the basis as the
-    sampled modes do (beyond ``enrich_rtol``), solved once to the same cut as the nominal ones, and the
-    check points are also checked at that pressure, so the rounds converge at every contact state.
+    the model's ``contact_states``; the check points are also checked at each pressure whose contact set
+    is not ``preload``'s, so the rounds converge at every contact state.  The modes of each such state's
+    stiffness K + ΔK_s (ΔK_s: the contact matrices of the points that closed minus those of the points
+    that opened, :func:`~fem_squeal.fe.assembly.contact_change`) join the basis (beyond ``enrich_rtol``,
+    as the sampled modes do): where more than :data:`RESOLVE_SHARE` of the preload's closed points
+    changed, solved (frictionless, about that state, :func:`~fem_squeal.fe.assembly.relinearise`) to the
+    same cut as the nominal ones; else as their static derivatives in ΔK_s to second order,
+    (K + σM)⁻¹ΔK_s V and ((K + σM)⁻¹ΔK_s)² V, on the one factorisation (as the E samples'), in place of an
+    eigensolve per state.
     Each round's row gives the seconds of its parts (``factor_seconds``, ``modes_seconds``,
     ``directions_seconds``, ``basis_seconds``: corrections and orthonormalisation,
     ``project_seconds``, ``checks_seconds``)."""
@@ -132,7 +154,8 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
     # default: the band centre, K − ω_c²M (above)
     sigma_hz = sigma_hz if sigma_hz is not None else -0.5 * (band_hz[0] + band_hz[1])
     gyroscopic = par.operating is not None and par.operating.G is not None
-    need_solver = (static and (ops.Kf is not None or gyroscopic or par.pressure is not None)) or e_parts
+    need_solver = (static and (ops.Kf is not None or gyroscopic or par.pressure is not None)) or e_parts \
+        or bool(states)
     wall = lambda t0: comm.allreduce(MPI.Wtime() - t0, op=MPI.MAX)  # noqa: E731
     t = MPI.Wtime()
     solver = ShiftedSolver(ops.K, ops.M, np.sign(sigma_hz) * (TWO_PI * sigma_hz) ** 2, options, "basis_static_") \
@@ -140,9 +163,17 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
     factor_s = wall(t)
     modes, solved_cut, dirs = None, 0.0, None
     cstates = contact_states(ops, preload, states) if states else {}
-    moved = [s for s in cstates if changed_points(states[s], preload, comm)]
-    state_ops = {s: relinearise(ops, preload.active, states[s].active) for s in moved}
+    share = {}
+    if cstates:       # the share of the preload's closed points that opened or closed at each pressure
+        closed = comm.allreduce(int(sum(np.count_nonzero(a) for a in preload.active.values())), op=MPI.SUM)
+        share = {s: changed_points(states[s], preload, comm) / max(closed, 1) for s in cstates}
+    resolved = [s for s in cstates if share[s] > RESOLVE_SHARE]
+    state_ops = {s: relinearise(ops, preload.active, states[s].active) for s in resolved}
+    changes = [contact_change(ops, preload.active, states[s].active, friction=False)[0]
+               for s in cstates if 0 < share[s] <= RESOLVE_SHARE]
+    moved = [s for s in cstates if share[s] > 0]
     state_modes: dict[float, tuple] = {}
+    state_dirs: list[np.ndarray] = []
     checks = [*check_points, *({**p, PRESSURE: s} for s in moved for p in check_points)]
     try:
         for i, factor in enumerate(cut_factors):
@@ -160,9 +191,10 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
                                     prefix="basis_", solver=solver)
                 n_start = V.shape[1] + 2
                 modes, solved_cut, dirs = (w2, V), want, None
-                for s, o in state_ops.items():      # the frictionless modes about each other contact state
+                for s, o in state_ops.items():      # the frictionless modes about each state changed most
                     state_modes[s] = modes_below(o.K, ops.M, want, n_start=n_start, options=options,
                                                  prefix="basis_state_")
+                state_dirs = _modal_derivatives_of(changes, solver, V)
                 row["modes_seconds"] = wall(t0)
             keep = np.sqrt(np.abs(modes[0])) / TWO_PI <= cut
             if e_parts and dirs is None:
@@ -172,9 +204,12 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
             directions = None
             if dirs is not None:  # the derivatives of the modes of this round, every order
                 directions = np.hstack([d[:, keep] for d in dirs])
-            if state_modes:       # and the modes about the other contact states, to this round's cut
+            if state_modes:       # and the modes about the states changed most, to this round's cut
                 at = [V_s[:, np.sqrt(np.abs(w2_s)) / TWO_PI <= cut] for w2_s, V_s in state_modes.values()]
                 directions = np.hstack(([directions] if directions is not None else []) + at)
+            if state_dirs:        # and the static derivatives of the modes about the other states
+                directions = np.hstack(([directions] if directions is not None else []) +
+                                       [d[:, keep] for d in state_dirs])
             t0 = MPI.Wtime()
             basis = build_basis(ops, par, cut, samples=other_samples, static=static, sigma_hz=sigma_hz,
                                 options=options, n_start=n_start, enrich_rtol=enrich_rtol, extra=extra,
@@ -203,6 +238,9 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
     finally:
         if solver is not None:
             solver.destroy()
+        for dK in changes:
+            if dK is not None:
+                dK.destroy()
         for o in state_ops.values():
             destroy_relinearised(o)
     converged = change <= tol

@@ -182,6 +182,24 @@ def test_a_pressure_that_changes_the_contact_set():
     assert pressure_continuation.changed_states(Ctx()) == {}
 
 
+def test_checks_at_the_corners_and_between_them():
+    """The verification's conditions: the corners, and where the contact set changes at a pressure inside
+    the matrix, the one that changed most, at the first corner's other variables; none inside when only
+    the extreme pressures change it."""
+    scene = load_scene(SCENE, ["analyses.operating_matrix.pressure=[0.5, 1.0, 1.5, 2.0]"])
+    cond = om.conditions(scene)
+    corners = [(k, False) for k in cond.corners()]
+    first = cond.row(cond.corners()[0])
+    checks = om.checked_conditions(cond, {0.5: 40, 1.5: 12, 2.0: 30})
+    assert checks[:-1] == corners and checks[-1][1]
+    k = checks[-1][0]
+    assert cond.row(k) == {**first, "pressure": 1.5}
+    assert om.checked_conditions(cond, {0.5: 40, 1.5: 0, 2.0: 30}) == corners
+    assert om.checked_conditions(cond, {}) == corners
+    k = om.checked_conditions(cond, {1.5: 3, 1.0: 0})[-1][0]     # the pressure that changed, not the scene's
+    assert cond.pressure[k] == 1.5
+
+
 @pytest.mark.parametrize("value,message", [
     ("{slope = 1.0}", r"interfaces\.pad_inner\.initial_gap: unknown key 'slope'; allowed: offset, gradient, at"),
     ("{gradient = [1.0, 2.0]}", r"interfaces\.pad_inner\.initial_gap: gradient: must be 3 numbers"),

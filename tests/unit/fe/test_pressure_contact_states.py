@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from mpi4py import MPI
-from support.contact_blocks import COMM, MU, SCALES, TILT, closed, model, spec
+from support.contact_blocks import COMM, MU, SCALES, TILT, closed, model, outside, spec
 
 
 def test_the_tilt_changes_the_contact_set_with_the_pressure():
@@ -69,25 +69,30 @@ def test_reduced_model_at_a_pressure_is_the_projection_about_its_state(scale, po
 @pytest.mark.parametrize("scale", SCALES)
 def test_the_basis_holds_the_modes_of_each_state(scale):
     """Each frictionless mode about the state (to the band's top) lies in the basis but for at most
-    enrich_rtol = 1e-3 of its M-norm: the rule by which the sampled modes join it (the rest is below it)."""
-    from fem_squeal.fe.assembly import relinearise
-    from fem_squeal.fe.dense import apply
-    from fem_squeal.fe.projection.shifted import modes_below
-
+    enrich_rtol = 1e-3 of its M-norm: the rule by which the sampled modes join it (the rest is below it).
+    These states open or close 30 % of the closed points or more: their modes are solved."""
     _, lin, pre, states, _, basis, _ = model()
-    at = relinearise(lin, pre.active, states[scale].active)
-    try:
-        _, V = modes_below(at.K, at.M, 800.0, n_start=10)
-    finally:
-        for X in (at.K, at.Kf):
-            X.destroy()
-    Phi = basis.Phi
-    MV = apply(lin.M, V)
-    R = V - Phi @ (Phi.T @ MV)
-    out = np.sqrt(np.einsum("ij,ij->j", R, apply(lin.M, R)) / np.einsum("ij,ij->j", V, MV))
-    assert V.shape[1] >= 5 and np.max(out) <= 1.001e-3
+    assert np.max(outside(lin, pre, states[scale], basis)) <= 1.001e-3
     # and they are not the scene's modes: the state's own enrich the basis
     assert basis.counts["sampled_modes"] > 0
+
+
+NEAR = (0.9, 1.1)      # pressures that open or close 5 and 7 of the 103 closed points: below RESOLVE_SHARE
+
+
+def test_a_small_contact_change_enters_as_static_derivatives_of_the_modes():
+    """Where few points open or close (≤ RESOLVE_SHARE of the closed ones) the state's modes are not solved:
+    (K + σM)⁻¹ΔK_s V and its square join the basis, the modes of K + ΔK_s to second order in ΔK_s.  The
+    state's own modes then lie in the basis but for 2.5e-3 of their M-norm (measured 1.3e-3 and 5.5e-4,
+    the third-order remainder and the enrichment's own 1e-3 cut; the basis without them misses them by
+    2.4e-2 and 1.2e-2, so the bound fails without the derivatives)."""
+    from fem_squeal.fe.projection.adaptive import RESOLVE_SHARE
+
+    _, lin, pre, states, _, basis, _ = model(False, NEAR)
+    for s in NEAR:
+        moved = COMM.allreduce(int(np.sum(states[s].active["pad"] != pre.active["pad"])))
+        assert 0 < moved <= RESOLVE_SHARE * closed(pre.active)
+        assert np.max(outside(lin, pre, states[s], basis)) <= 2.5e-3, s
 
 
 @pytest.mark.parametrize("scale", SCALES)

@@ -104,7 +104,10 @@ def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
 
 
 def changed_states(ctx) -> dict:
-    """The continued preload states whose contact set is not the scene's, by pressure scale ({} if none)."""
+    """The continued preload states whose contact set is not the scene's, by pressure scale ({} if none,
+    also when the scene asks for no other pressure: then there is no continuation to read)."""
+    if not ctx.products.get("pressure_states"):
+        return {}
     same = {r["scale"]: r["same_contact_set"] for r in summary(ctx)["pressures"]}
     return {s: st for s, st in ctx.products.get("pressure_states", {}).items() if not same.get(s, True)}
 

@@ -181,6 +181,14 @@ def test_a_pressure_that_changes_the_contact_set():
     Ctx.products["pressure_continuation"]["pressures"].pop()
     assert pressure_continuation.changed_states(Ctx()) == {}
 
+    class Alone:          # only the scene's pressure: no continuation ran, none to read (the corner checks)
+        products: dict = {}
+
+        def entry(self, name):
+            raise AssertionError(f"read the {name} stage's files")
+
+    assert pressure_continuation.changed_states(Alone()) == {}
+
 
 def test_checks_at_the_corners_and_between_them():
     """The verification's conditions: the corners, and where the contact set changes at a pressure inside

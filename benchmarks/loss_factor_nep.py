@@ -11,8 +11,9 @@ comparison at a constant η = 0.1 (the linear QEP, also through loss_nep) separa
 fixed point: the two columns agree when the fixed point adds no error of its own.
 
 ``--snapshot-eta 0.1``: the basis also holds the full band eigenvectors (Re, Im) of the linear QEP at that
-constant η (a training point: one greedy reduced-basis step, as the full checks at a design's corners would
-give; the η = 0.1 rows are then exact by construction and only the η(f) rows, η 0.04–0.08, test it).
+constant η (a training point: the product's greedy reduced-basis step,
+fem_squeal.fe.projection.snapshot_step, as analyses.reduced.loss_snapshot takes it at the tables' nominal η;
+the η = 0.1 rows are then exact by construction and only the η(f) rows, η 0.04–0.08, test it).
 
     .venv/bin/python benchmarks/loss_factor_nep.py [--cut 3000] [--band 200 560] [--snapshot-eta 0.1]
 
@@ -46,7 +47,7 @@ def main() -> None:
     from fem_squeal.fe.factorisation import LU, factor_solver
     from fem_squeal.fe.model import GroundSpring, Interface, Material, ModelSpec, Pressure
     from fem_squeal.fe.preload import solve_preload
-    from fem_squeal.fe.projection import ParametricOperators, build_basis, reduce
+    from fem_squeal.fe.projection import ParametricOperators, build_basis, reduce, snapshot_step
     from fem_squeal.fe.projection.loss_nep import full_loss_nep
     from fem_squeal.reduced.eigensolve import TWO_PI, quadratic_eigs
     from fem_squeal.reduced.laws.loss_factor import LossTable
@@ -78,16 +79,8 @@ def main() -> None:
     basis = build_basis(lin, par, args.cut, extra=np.column_stack(extra), n_start=10)
     model = reduce(lin, par, basis, pre)
     if args.snapshot_eta is not None:        # one greedy step: the full band eigenvectors at a training η
-        law = LossTable([100.0, 2000.0], [20.0], [[args.snapshot_eta] * 2], name="shim").at_temperature(20.0)
-        K, C = matrices_at(model, {"eta.upper": args.snapshot_eta}, 1.0)
-        ls, Y = (a[0] for a in quadratic_eigs(K[None], None if C is None else C[None], vectors=True))
-        f = ls.imag / TWO_PI
-        for j in np.flatnonzero((f >= args.band[0]) & (f <= args.band[1])):
-            x0 = matmul_f(basis.Phi, np.column_stack([Y[:, j].real, Y[:, j].imag]))
-            x = full_loss_nep(par, {}, {"upper": law}, ls[j], x0[:, 0] + 1j * x0[:, 1]).vector
-            extra.append(np.column_stack([x.real, x.imag]))
-        basis = build_basis(lin, par, args.cut, extra=np.column_stack(extra), n_start=10)
-        model = reduce(lin, par, basis, pre)
+        model, basis, _ = snapshot_step(lin, par, model, basis, [{"eta.upper": args.snapshot_eta}],
+                                        tuple(args.band), None, lambda b: reduce(lin, par, b, pre))
     setup = time.perf_counter() - t0
     n_dofs = lin.K.getSize()[0]
 

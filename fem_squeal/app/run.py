@@ -65,7 +65,10 @@ cea_bands        [{band_hz, lower_hz, upper_hz, n_modes, n_unstable, max_level_d
 reduced          size, parameters, mu0, rounds [{cut_hz, modes, sampled_modes, static, dropped,
                  size, change, seconds}], converged, tol, estimated_error, lifted_residuals
                  [{point, freq_hz, real_part, backward_error}], verification [{point,
-                 max_rel_error, n_unstable_full, n_unstable_reduced, full_cea_s, ...}]
+                 max_rel_error, n_unstable_full, n_unstable_reduced, full_cea_s, ...}], contact_states
+                 [{pressure, changed_share, entered_as ("modes" or "static derivatives")}] (the
+                 operating matrix's pressures whose contact set is not the scene's), snapshots [{point,
+                 vectors, seconds}] (analyses.reduced.nominal_snapshot: the greedy step's full CEA)
 sweep            parameter, values, critical [{branch, partner, value, bracket, freq_hz, kind,
                  onset, labels, zero_crossing (False: no Re λ = 0 in reach, value is where Re λ =
                  growth_tol |λ|)}], solves (reduced solves while tracking), vector_solves (of which
@@ -88,8 +91,9 @@ operating_matrix conditions [{pressure, temperature, speed, direction}], n_condi
                  occurrence, third_octave [{band_hz, lower_hz, upper_hz, conditions, occurrence,
                  in_model_band}], by_variable {variable: [{value, conditions, unstable, occurrence}]},
                  modes [{condition, frequency_hz, growth_rate, damping_ratio}], squeal_index (why
-                 not), seconds, seconds_per_condition, verification [{condition, point,
-                 max_rel_error, n_unstable_full, n_unstable_reduced, full_cea_s, ...}] (corners)
+                 not), seconds, seconds_per_condition, verification [{condition, point, method,
+                 between_corners, max_rel_error, n_unstable_full, n_unstable_reduced, full_cea_s,
+                 ...}] (the corners, and the inner pressure whose contact set changed most)
 masa             cases [{mu, equilibrium, elements, basis, instabilities [{freq_hz, real_part,
                  stationary_amplitudes, stationary_in_unit, broke_at, steps}], seconds}]
 transient        basis, contact_elements, steps, steps_computed (fewer when resumed), dt, t_end,

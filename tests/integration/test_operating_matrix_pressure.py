@@ -76,6 +76,8 @@ def test_reduced_model_follows_a_contact_set_that_changes_with_the_pressure(tmp_
     assert "contact_states" in om["pressure"]["model"] and "pressure" in res["reduced"]["parameters"]
     assert ("projected from each pressure's own state" in om["pressure"]["model"]) == bool(terms)
     assert res["reduced"]["rounds"][-1]["sampled_modes"] > 0
+    assert {r["pressure"]: r["entered_as"] for r in res["reduced"]["contact_states"]} == {
+        0.25: "modes", 2.0: "static derivatives", 4.0: "static derivatives"}
     ver = om["verification"]
     assert sorted((v["pressure"], v["between_corners"]) for v in ver) == [(0.25, False), (2.0, True), (4.0, False)]
     for v in ver:        # the full operators are the pressure's own state's (with its terms: at that pressure)

@@ -46,6 +46,10 @@ def damping_terms(lin, damped: bool, states: dict):
     return PressureTerms(states, None, lambda p: friction_damping(lin, md, sp, None, p))
 
 
+#: adaptive_reduce's report of each model (its arguments as key), beside model()'s cached tuple
+REPORTS: dict = {}
+
+
 @functools.cache
 def model(damped: bool = False, scales: tuple[float, ...] = tuple(SCALES)):
     """The raw operators, the preload at s = 1 and its continuation to ``scales``, the operators linearised
@@ -70,8 +74,8 @@ def model(damped: bool = False, scales: tuple[float, ...] = tuple(SCALES)):
         lin = lin._replace(C=Cd, Cd=Cd)
     par = ParametricOperators(lin, sp, MU, [], preload=pre, speed0=W0 if damped else 0.0,
                               pressure=damping_terms(lin, damped, {1.0: pre, **states}))
-    red, basis, _ = adaptive_reduce(lin, par, (0.0, 800.0), [{"mu": MU}], tol=1e-2, preload=pre,
-                                    states=states)
+    red, basis, REPORTS[damped, scales] = adaptive_reduce(lin, par, (0.0, 800.0), [{"mu": MU}], tol=1e-2,
+                                                          preload=pre, states=states)
     return ops, lin, pre, states, tilted, basis, red
 
 

@@ -30,6 +30,7 @@ from fem_squeal.fe.projection.adaptive import (  # noqa: F401
     ReductionReport,
     adaptive_reduce,
     relative_change,
+    snapshot_step,
 )
 from fem_squeal.fe.projection.basis import Basis, canonical_order, m_extend, m_orthonormalise, project  # noqa: F401
 from fem_squeal.fe.projection.parametric import (  # noqa: F401

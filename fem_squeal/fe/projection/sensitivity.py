@@ -91,12 +91,13 @@ def full_sensitivities(par: ParametricOperators, eigenvalues: np.ndarray, names:
 
 def full_modes(par: ParametricOperators, point: Mapping[str, float], nev: int, target_hz: float, *,
                band_hz: tuple[float, float] | None = None, options=None, prefix: str = "verify_",
-               progress: bool = False) -> np.ndarray:
+               progress: bool = False, vectors: bool = False):
     """Eigenvalues (Im λ > 0, in ``band_hz``) of the full λ²M + λC + K(p) at ``point``: the CEA of
     :meth:`ParametricOperators.matrices`, or, when a part has a loss factor (K complex), the real
     problem of twice the size (:meth:`ParametricOperators.real_equivalent`) with 2·``nev`` pairs,
     of which those of Q(λ) are kept: their vectors are [x; −ix], i.e. ‖a − ib‖ ≪ ‖a + ib‖ for the
-    halves a, b of the vector (those of Q̄, the mirrored spurious roots of K(1 − iη), are [x; ix])."""
+    halves a, b of the vector (those of Q̄, the mirrored spurious roots of K(1 − iη), are [x; ix]).
+    ``vectors``: also the eigenvectors x (rank-local rows, complex, one column per eigenvalue)."""
     Ki = par.loss_stiffness(point)
     if Ki is None:
         K, C = par.matrices(point)
@@ -108,6 +109,7 @@ def full_modes(par: ParametricOperators, point: Mapping[str, float], nev: int, t
     cm = solve_complex_modes(K, M, C, n_ask, target_hz, band_hz=band_hz, options=options, prefix=prefix,
                              progress=progress)
     lam = cm.eigenvalues
+    X = [xr.array_r + 1j * xi.array_r for xr, xi in zip(cm.vectors_re, cm.vectors_im)] if vectors else None
     if Ki is not None:
         comm = K.getComm().tompi4py()
         n = K.getLocalSize()[0] // 2
@@ -119,8 +121,12 @@ def full_modes(par: ParametricOperators, point: Mapping[str, float], nev: int, t
                                      op=MPI.SUM)
             keep.append(q < qbar)
         lam = lam[np.array(keep, bool)]
+        if vectors:
+            X = [x[:n] for x, k in zip(X, keep) if k]
         M.destroy()
     for A in (K, C, *cm.vectors_re, *cm.vectors_im):
         if A is not None:
             A.destroy()
-    return lam
+    if not vectors:
+        return lam
+    return lam, (np.column_stack(X) if X else np.zeros((par.ops.K.getLocalSize()[0], 0), complex))

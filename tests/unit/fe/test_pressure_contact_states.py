@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from mpi4py import MPI
-from support.contact_blocks import COMM, MU, SCALES, TILT, closed, model, outside, spec
+from support.contact_blocks import COMM, MU, REPORTS, SCALES, TILT, closed, model, outside, spec
 
 
 def test_the_tilt_changes_the_contact_set_with_the_pressure():
@@ -73,6 +73,8 @@ def test_the_basis_holds_the_modes_of_each_state(scale):
     These states open or close 30 % of the closed points or more: their modes are solved."""
     _, lin, pre, states, _, basis, _ = model()
     assert np.max(outside(lin, pre, states[scale], basis)) <= 1.001e-3
+    row, = (r for r in REPORTS[False, tuple(SCALES)].states if r["pressure"] == scale)
+    assert row["entered_as"] == "modes" and row["changed_share"] >= 0.3
     # and they are not the scene's modes: the state's own enrich the basis
     assert basis.counts["sampled_modes"] > 0
 
@@ -89,6 +91,8 @@ def test_a_small_contact_change_enters_as_static_derivatives_of_the_modes():
     from fem_squeal.fe.projection.adaptive import RESOLVE_SHARE
 
     _, lin, pre, states, _, basis, _ = model(False, NEAR)
+    assert [(r["pressure"], r["entered_as"]) for r in REPORTS[False, NEAR].states] == [
+        (0.9, "static derivatives"), (1.1, "static derivatives")]
     for s in NEAR:
         moved = COMM.allreduce(int(np.sum(states[s].active["pad"] != pre.active["pad"])))
         assert 0 < moved <= RESOLVE_SHARE * closed(pre.active)

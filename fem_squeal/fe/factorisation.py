@@ -111,4 +111,3 @@ def refactorise(ksp: PETSc.KSP) -> None:
     with the kept ordering).  Once a KSP has been set up, KSPSetUp leaves the new factorisation to the
     next solve; PCSetUp sees the operator's new state and performs it here, so that it can be timed."""
     ksp.getPC().setUp()
-

@@ -452,9 +452,10 @@ _PRESSURE_CONTACTS = (
     "matrices are those of its own closed points (from its continued preload), formed on the basis from the "
     "interfaces' rows (contact_states: {changed} points differ from the scene's at most); with the linear "
     "penalty the other operators are the scene's{terms}, so the pressure acts through the contact "
-    "state{and_terms} and μ(p, T, Ω); the basis holds the static derivatives of its modes to second order in "
-    "each state's contact change; the checks, at the corners and at the pressure between them whose set "
-    "changed most, solve the full operators linearised about each pressure's own state")
+    "state{and_terms} and μ(p, T, Ω); the basis holds the modes about each state (solved where more than "
+    "10 % of the closed points changed, else as their static derivatives to second order in the contact "
+    "change: results.json reduced.contact_states); the checks, at the corners and at the pressure between "
+    "them whose set changed most, solve the full operators linearised about each pressure's own state")
 
 
 def pressure_model(model) -> str:

@@ -10,8 +10,10 @@ the scale of ``loads.pressure``: the preload stage continues the scene's preload
 (:mod:`fem_squeal.app.analyses.pressure_continuation`); they are evaluated on the one reduced model.  A
 pressure that opens or closes contact points (e.g. a pad's taper, ``interfaces.<c>.initial_gap``) is
 evaluated with its own contact state: the model's ``contact_states``, its basis enriched with the modes
-about each such state (:func:`fem_squeal.fe.projection.adaptive_reduce`), its corner checks solved on the
-full operators linearised about that state.  With the contact set of the scene the stress stiffening and
+about each such state, solved or as static derivatives where the change is small
+(:func:`fem_squeal.fe.projection.adaptive_reduce`), its checks solved on the full operators linearised
+about that state, at the corners and at the inner pressure whose set changed most
+(:func:`checked_conditions`).  With the contact set of the scene the stress stiffening and
 the contacts' friction damping make the pressure the model's parameter ``pressure`` (K_σ(u(s)) = K_σ(u(1))
 + (s − 1) K_σ(du/ds), C_d(p(s)) = C_d(p(1)) + (s − 1) C_d(dp/ds), exact for the fixed contact set and the
 linear penalty: :mod:`fem_squeal.fe.pressure_terms`); with a changing set the model holds each pressure's
@@ -22,7 +24,8 @@ Parts with a loss-factor table
 (fixed point; ``loss_factor_fixed_point`` in results.json: iterations, modes not converged).  ``verify``:
 full CEAs at the corner conditions, compared as analyses.reduced compares its check points; with a table
 in f, the full nonlinear eigenproblem T(λ) with η at each answer's own frequency, from the unstable and
-least stable reduced eigenvalues.
+least stable reduced eigenvalues (``analyses.reduced.nominal_snapshot`` adds the full eigenvectors at the
+nominal point to the basis, which brings the fixed point to the full NEP).
 Every unstable mode carries its coupling (the participation of the basis's real modes, as the μ sweep's).
 Files: operating_matrix_conditions.csv, operating_matrix_modes.csv (with the coupling pair),
 operating_matrix_bands.csv, operating_matrix.png (+ its .csv)."""

@@ -17,6 +17,7 @@ from fem_squeal.fe.preload import changed_points
 from fem_squeal.fe.projection.basis import Basis, m_extend
 from fem_squeal.fe.projection.parametric import ParametricOperators, lifted_residuals_at
 from fem_squeal.fe.projection.reductor import build_basis, contact_states, pressure_tables, reduce
+from fem_squeal.fe.projection.sensitivity import full_modes
 from fem_squeal.fe.projection.shifted import ShiftedSolver, modes_below
 from fem_squeal.reduced.affine import PRESSURE
 from fem_squeal.reduced.eigensolve import in_band
@@ -301,8 +302,6 @@ def snapshot_step(ops: Operators, par: ParametricOperators, model: ReducedModel,
     of ``points`` (as many modes as the reduced model has there, + 2) join the basis, and
     ``project_model(basis)`` projects the model on it.  Returns (model, basis, a row per point: the point,
     the vectors taken, the seconds)."""
-    from fem_squeal.fe.projection.sensitivity import full_modes
-
     comm = ops.K.getComm().tompi4py()
     cols, rows = [], []
     target = float(np.sqrt(0.5 * (band_hz[0] ** 2 + band_hz[1] ** 2)))

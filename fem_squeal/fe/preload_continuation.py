@@ -130,14 +130,17 @@ def continue_preload(ops: Operators, scales: Sequence[float], *, start: tuple[fl
     out: dict[int, PressureState] = {}
     rates: list[PETSc.Vec] = []               # du/ds of the states continued from (destroyed at the end)
 
-    def with_rate(scale: float, u: PETSc.Vec) -> tuple[float, PETSc.Vec, PETSc.Vec | None]:
-        rate = factor.load_rate(ops) if factor is not None else None
-        if rate is not None:
-            rates.append(rate)
-        return scale, u, rate
+    def rate() -> PETSc.Vec | None:
+        """du/ds with the Jacobian the factor holds (None without a factor)."""
+        r = factor.load_rate(ops) if factor is not None else None
+        if r is not None:
+            rates.append(r)
+        return r
 
-    # the state the next scale continues from: (scale, u, du/ds); the factor holds the start's Jacobian
-    first = None if start is None else with_rate(*start)
+    # the state the next scale continues from: (scale, u, du/ds).  The start's rate is taken now, while the
+    # factor holds its Jacobian (the branch below the start comes back to it); a solved state's when the
+    # next scale continues from it, the factor holding its Jacobian still (none after the last scale)
+    first = None if start is None else (*start, rate())
     prev = first
     try:
         for i in continuation_order(s, None if start is None else start[0]):
@@ -153,8 +156,9 @@ def continue_preload(ops: Operators, scales: Sequence[float], *, start: tuple[fl
             cached = u0 is not None
             if u0 is None and prev is not None:
                 u0 = prev[1].copy()
-                if prev[2] is not None:       # the tangent predictor u + (s − s') du/ds
-                    u0.axpy(scale - prev[0], prev[2])
+                du = prev[2] if prev is first else rate()
+                if du is not None:            # the tangent predictor u + (s − s') du/ds
+                    u0.axpy(scale - prev[0], du)
                 else:                         # no Jacobian kept: the scaled state
                     u0.scale(scale / prev[0])
             res = solve_preload(ops, scale=scale, start=u0, factor=factor,
@@ -166,7 +170,7 @@ def continue_preload(ops: Operators, scales: Sequence[float], *, start: tuple[fl
                 cache.store(scale, res.u)
             seconds = comm.allreduce(time.perf_counter() - t, op=MPI.MAX)
             out[i] = PressureState(scale, res, seconds, cached)
-            prev = with_rate(scale, res.u)
+            prev = (scale, res.u)
     finally:
         for r in rates:
             r.destroy()

@@ -63,6 +63,12 @@ def quadratic_eigs(K: np.ndarray, C: np.ndarray | None = None, vectors: bool = F
 RIGID_SHARE = 1e-3
 
 
+def band_centre_hz(band_hz) -> float:
+    """The root mean square of the band's ends, √((f₀² + f₁²)/2) [Hz]: the target that a shift-and-invert
+    eigensolve of the band centres on (ω² halfway between the ends')."""
+    return float(np.sqrt(0.5 * (band_hz[0] ** 2 + band_hz[1] ** 2)))
+
+
 def in_band(lam: np.ndarray, band_hz) -> np.ndarray:
     """The mask of eigenvalues with f = Im λ/2π in ``band_hz``, above :data:`RIGID_SHARE` of its top."""
     f = np.asarray(lam).imag / TWO_PI

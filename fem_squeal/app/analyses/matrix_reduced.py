@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from fem_squeal.app.analyses.matrices import model_of
 from fem_squeal.app.fields import REAL, Field, at_least, band, one_of, positive
 from fem_squeal.app.stage import Context
-from fem_squeal.reduced.eigensolve import TWO_PI, unstable
+from fem_squeal.reduced.eigensolve import TWO_PI, band_centre_hz, unstable
 from fem_squeal.reduced.matrix_reduction import ReducedMatrixModel, reduce_matrix_model
 from fem_squeal.reduced.sweep import solve_points
 from fem_squeal.util.errors import ModelError, SceneError
@@ -177,9 +177,8 @@ def full_cea(ctx: Context, point: Mapping[str, float], band_hz, n: int, prefix: 
 
     ops = operators(ctx.products["matrices"]["model"], ctx.products["matrices"]["rows"], ctx.comm, dict(point),
                     bs=ctx.scene.matrices.block_size)
-    target = float(np.sqrt(0.5 * (band_hz[0] ** 2 + band_hz[1] ** 2)))
-    cm = solve_complex_modes(ops["K"], ops["M"], ops.get("C"), max(n, 4), target, band_hz=tuple(band_hz),
-                             options=ctx.scene.solver.petsc_options, prefix=prefix)
+    cm = solve_complex_modes(ops["K"], ops["M"], ops.get("C"), max(n, 4), band_centre_hz(band_hz),
+                             band_hz=tuple(band_hz), options=ctx.scene.solver.petsc_options, prefix=prefix)
     for x in (*cm.vectors_re, *cm.vectors_im, *ops.values()):
         x.destroy()
     return np.asarray(cm.eigenvalues)

@@ -57,7 +57,7 @@ from fem_squeal.app.html import num as _num
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 from fem_squeal.reduced.affine import PRESSURE
-from fem_squeal.reduced.eigensolve import in_band, unstable
+from fem_squeal.reduced.eigensolve import band_centre_hz, in_band, unstable
 from fem_squeal.reduced.laws.friction import ConstantFriction, StribeckFriction, TableFriction
 from fem_squeal.reduced.laws.loss_factor import loss_table
 from fem_squeal.reduced.operating_matrix import (
@@ -297,8 +297,7 @@ def _full_cea(par, point: dict, reverse: bool, band, nev: int, options) -> tuple
     Kt, Ct = par.terms(point)
     Ct = [(A, -c if A is G else c) for A, c in Ct]
     K, C = combination(Kt), combination(Ct)
-    target = np.sqrt(0.5 * (band[0] ** 2 + band[1] ** 2))
-    cm = solve_complex_modes(K, par.ops.M, C, nev, target, band_hz=tuple(band), options=options,
+    cm = solve_complex_modes(K, par.ops.M, C, nev, band_centre_hz(band), band_hz=tuple(band), options=options,
                              prefix="verify_", progress=True)
     lam = cm.eigenvalues
     for A in (K, C, *cm.vectors_re, *cm.vectors_im):

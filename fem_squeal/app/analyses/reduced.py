@@ -21,7 +21,7 @@ from fem_squeal.app.html import num as _num
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
 from fem_squeal.fe.model import common_mu
-from fem_squeal.reduced.eigensolve import TWO_PI, in_band, unstable
+from fem_squeal.reduced.eigensolve import TWO_PI, band_centre_hz, in_band, unstable
 from fem_squeal.reduced.model import MU, PRESSURE, SPEED, e_param, format_point
 from fem_squeal.reduced.operating_matrix import LossFactors, condition_fixed_point
 from fem_squeal.reduced.sweep import solve_points
@@ -172,8 +172,7 @@ def full_cea(par, point: dict, band, nev: int, options) -> tuple[np.ndarray, flo
     from fem_squeal.fe.projection import full_modes  # heavy: FE stack
 
     t = time.perf_counter()
-    target = np.sqrt(0.5 * (band[0] ** 2 + band[1] ** 2))
-    lam = full_modes(par, point, nev, target, band_hz=tuple(band), options=options, prefix="verify_",
+    lam = full_modes(par, point, nev, band_centre_hz(band), band_hz=tuple(band), options=options, prefix="verify_",
                      progress=True)
     return lam, time.perf_counter() - t
 

@@ -20,7 +20,7 @@ from fem_squeal.fe.projection.reductor import build_basis, contact_states, press
 from fem_squeal.fe.projection.sensitivity import full_modes
 from fem_squeal.fe.projection.shifted import ShiftedSolver, modes_below
 from fem_squeal.reduced.affine import PRESSURE
-from fem_squeal.reduced.eigensolve import in_band
+from fem_squeal.reduced.eigensolve import band_centre_hz, in_band
 from fem_squeal.reduced.model import (
     ReducedModel,
 )
@@ -190,7 +190,7 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
                for s in cstates if 0 < share[s] <= RESOLVE_SHARE]
     moved = [s for s in cstates if share[s] > 0]
     state_modes: dict[float, tuple] = {}
-    state_dirs: list[np.ndarray] = []
+    state_dirs: list[np.ndarray] | None = None
     checks = [*check_points, *({**p, PRESSURE: s} for s in moved for p in check_points)]
 
     def project_model(basis: Basis) -> ReducedModel:
@@ -215,26 +215,26 @@ def adaptive_reduce(ops: Operators, par: ParametricOperators, band_hz: tuple[flo
                 w2, V = modes_below(ops.K, ops.M, want, n_start=max(n_start, 128), options=options,
                                     prefix="basis_", solver=solver)
                 n_start = V.shape[1] + 2
-                modes, solved_cut, dirs = (w2, V), want, None
+                modes, solved_cut, dirs, state_dirs = (w2, V), want, None, None
                 for s, o in state_ops.items():      # the frictionless modes about each state changed most
                     state_modes[s] = modes_below(o.K, ops.M, want, n_start=n_start, options=options,
                                                  prefix="basis_state_")
-                state_dirs = _modal_derivatives_of(changes, solver, V)
                 row["modes_seconds"] = wall(t0)
             keep = np.sqrt(np.abs(modes[0])) / TWO_PI <= cut
             if e_parts and dirs is None:
                 t0 = MPI.Wtime()
                 dirs = _modal_derivatives(par, solver, modes[1], e_parts)
-                row["directions_seconds"] = wall(t0)
-            directions = None
-            if dirs is not None:  # the derivatives of the modes of this round, every order
-                directions = np.hstack([d[:, keep] for d in dirs])
-            if state_modes:       # and the modes about the states changed most, to this round's cut
-                at = [V_s[:, np.sqrt(np.abs(w2_s)) / TWO_PI <= cut] for w2_s, V_s in state_modes.values()]
-                directions = np.hstack(([directions] if directions is not None else []) + at)
-            if state_dirs:        # and the static derivatives of the modes about the other states
-                directions = np.hstack(([directions] if directions is not None else []) +
-                                       [d[:, keep] for d in state_dirs])
+                row["directions_seconds"] += wall(t0)
+            if changes and state_dirs is None:
+                t0 = MPI.Wtime()
+                state_dirs = _modal_derivatives_of(changes, solver, modes[1])
+                row["directions_seconds"] += wall(t0)
+            # this round's: the derivatives of the modes in E (every order), the modes about the states
+            # changed most (to its cut), the static derivatives of the modes about the other states
+            parts = [d[:, keep] for d in dirs or ()]
+            parts += [V_s[:, np.sqrt(np.abs(w2_s)) / TWO_PI <= cut] for w2_s, V_s in state_modes.values()]
+            parts += [d[:, keep] for d in state_dirs or ()]
+            directions = np.hstack(parts) if parts else None
             t0 = MPI.Wtime()
             basis = build_basis(ops, par, cut, samples=other_samples, static=static, sigma_hz=sigma_hz,
                                 options=options, n_start=n_start, enrich_rtol=enrich_rtol, extra=extra,
@@ -304,11 +304,10 @@ def snapshot_step(ops: Operators, par: ParametricOperators, model: ReducedModel,
     the vectors taken, the seconds)."""
     comm = ops.K.getComm().tompi4py()
     cols, rows = [], []
-    target = float(np.sqrt(0.5 * (band_hz[0] ** 2 + band_hz[1] ** 2)))
     for p in points:
         t = MPI.Wtime()
         n_ask = _in_band(solve_points(model, {k: np.array([v]) for k, v in p.items()})[0], band_hz).size + 2
-        lam, X = full_modes(par, p, n_ask, target, band_hz=tuple(band_hz), options=options,
+        lam, X = full_modes(par, p, n_ask, band_centre_hz(band_hz), band_hz=tuple(band_hz), options=options,
                             prefix="basis_snapshot_", vectors=True)
         sel = in_band(lam, band_hz)
         cols += [X[:, sel].real, X[:, sel].imag]

@@ -327,8 +327,8 @@ class GapProfile:
             raise ModelError("initial_gap: offset, gradient = [gx, gy, gz] and at = [x, y, z] must be finite "
                              f"numbers (got offset {self.offset!r}, gradient {self.gradient!r}, at {self.at!r})")
 
-    def values(self, x: np.ndarray, centroid: np.ndarray) -> np.ndarray:
-        """The added gap at the points ``x`` (n, 3), ``centroid`` the slave face's (used when ``at`` is None)."""
+    def values(self, x: np.ndarray, centroid: np.ndarray | None) -> np.ndarray:
+        """The added gap at the points ``x`` (n, 3), ``centroid`` the slave face's (needed when ``at`` is None)."""
         at = np.asarray(centroid if self.at is None else self.at, float)
         return self.offset + (np.asarray(x, float) - at) @ np.asarray(self.gradient, float)
 

@@ -109,7 +109,7 @@ def changed_states(ctx) -> dict:
     if not ctx.products.get("pressure_states"):
         return {}
     same = {r["scale"]: r["same_contact_set"] for r in summary(ctx)["pressures"]}
-    return {s: st for s, st in ctx.products.get("pressure_states", {}).items() if not same.get(s, True)}
+    return {s: st for s, st in ctx.products["pressure_states"].items() if not same.get(s, True)}
 
 
 def pressure_terms(ctx):

@@ -144,8 +144,8 @@ def _gap_profile(v: dict) -> str | None:
     if "offset" in v and not (isinstance(v["offset"], (int, float)) and not isinstance(v["offset"], bool)):
         return f"offset: must be a number [m] (got {v['offset']!r})"
     for k in ("gradient", "at"):
-        if k in v and _numbers((3,))(v[k]):
-            return f"{k}: {_numbers((3,))(v[k])}"
+        if k in v and (why := _numbers((3,))(v[k])):
+            return f"{k}: {why}"
     return None
 
 

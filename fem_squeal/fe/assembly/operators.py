@@ -80,9 +80,12 @@ def build_interface(V, mesh_data, spec: ModelSpec, it: Interface) -> itf.Interfa
                                 mesh_data.faces[it.master], sliding=float(it.sliding), axis=spec.axis,
                                 quadrature_degree=spec.interface_quadrature_degree, name=it.name)
     if it.initial_gap is not None:
-        comm = V.mesh.comm
-        area = comm.allreduce(float(np.sum(op.weight)), op=MPI.SUM)
-        centroid = np.array(comm.allreduce(op.weight @ op.x if len(op.weight) else np.zeros(3), op=MPI.SUM)) / area
+        centroid = None
+        if it.initial_gap.at is None:              # the slave face's area centroid (collective)
+            comm = V.mesh.comm
+            area = comm.allreduce(float(np.sum(op.weight)), op=MPI.SUM)
+            centroid = np.array(comm.allreduce(op.weight @ op.x if len(op.weight) else np.zeros(3),
+                                               op=MPI.SUM)) / area
         op = op._replace(gap0=op.gap0 + it.initial_gap.values(op.x, centroid))
     return op
 

@@ -25,9 +25,11 @@ blr (ICNTL(35) = 2, CNTL(7) = 1e-8, one refinement step: frequencies within 1e-1
 its full-rank workspace), so it uses the exact fit.
 The fits were measured with SLEPc's Krylov–Schur in the CEA.  Its block Arnoldi (the default for
 the undamped CEA since 2026-11-27) keeps up to 6·nev vectors and runs only where they take at most
-5 % of a machine's memory per rank (``fem_squeal.fe.eigen.ARNOLDI_MEMORY_SHARE``; the brake's 60 modes
-converged with 176 vectors against Krylov–Schur's 120), so a prediction stays within that margin;
-larger models (the 1.32M-DOF run) keep Krylov–Schur.
+half of the memory still available once the CEA's factorisation is held, shared by the ranks on the
+machine (``fem_squeal.fe.eigen.ARNOLDI_MEMORY_SHARE``, read from MemAvailable when the vectors are
+allocated): the prediction here does not count them, and they never take memory the factor needs.
+The brake at 348k DOFs on 2 ranks (120 modes, 2 × 1.0 GB) runs it; 1.32M DOFs on one machine keeps
+Krylov–Schur.
 The DOFs come from the cell estimate of ``geometry.estimate`` and :func:`dofs_per_cell` (P2: fewer
 DOFs per tetrahedron as the mesh grows and its surface share falls; fitted on the brake at 0.0056
 and 0.003 m, 5.17 and 4.66, and 8 % high at 0.016 m, where it is 5.89).

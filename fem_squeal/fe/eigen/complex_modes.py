@@ -12,7 +12,7 @@ from fem_squeal.fe import kernels
 from fem_squeal.fe.dense import block_solve, product_of
 from fem_squeal.fe.eigen.block_krylov import _block_arnoldi, _block_columns
 from fem_squeal.fe.eigen.options import PEP_OPTIONS, _progress, _shift_invert_eps, _zero_like, eps_defaults
-from fem_squeal.fe.eigen.results import TWO_PI, ComplexModes, _check, _m_normalise, _sort_key, quadratic_residual
+from fem_squeal.fe.eigen.results import TWO_PI, ComplexModes, _check, _sort_key, normalised_residuals
 from fem_squeal.fe.factorisation import LU, scoped_options, user_option
 from fem_squeal.util.errors import ModelError
 from fem_squeal.util.progress import ProgressBar
@@ -106,10 +106,7 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
             xrs[j].destroy()
             xis[j].destroy()
         lams, xrs, xis = lams[keep], [xrs[i] for i in keep], [xis[i] for i in keep]
-    res = np.empty(len(lams))
-    for j, (lam, xr, xi) in enumerate(zip(lams, xrs, xis)):
-        _m_normalise(M, xr, xi)
-        res[j] = quadratic_residual(K, C, M, lam, xr, xi)
+    res = normalised_residuals(K, C, M, lams, xrs, xis)
     order = _sort_key(lams)
     lams, res = lams[order], res[order]
     xrs, xis = [xrs[i] for i in order], [xis[i] for i in order]

@@ -6,8 +6,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
+from fem_squeal.fe.dense import apply
 from fem_squeal.util.errors import EigenSolveError
 
 TWO_PI = 2.0 * np.pi
@@ -120,6 +122,54 @@ def _m_normalise(M: PETSc.Mat, xr: PETSc.Vec, xi: PETSc.Vec) -> None:
     xi.axpy(scale.imag, r)
     for w in (Mxr, Mxi, r, i):
         w.destroy()
+
+
+def _squares(Z: np.ndarray) -> np.ndarray:
+    """Σ_i |Z_ij|² per column (this rank's rows)."""
+    return np.einsum("ij,ij->j", Z.real, Z.real) + np.einsum("ij,ij->j", Z.imag, Z.imag)
+
+
+#: pairs per block of :func:`normalised_residuals` (the block and its products: 5 arrays of 2 columns per pair)
+RESIDUAL_BLOCK = 32
+
+
+def normalised_residuals(K: PETSc.Mat, C: PETSc.Mat | None, M: PETSc.Mat, lams: np.ndarray,
+                         xrs: list[PETSc.Vec], xis: list[PETSc.Vec]) -> np.ndarray:
+    """Every pair (λ_j, x_j = xr_j + i xi_j) M-normalised in place as :func:`_m_normalise` does, and its
+    residual ‖(λ²M + λC + K)x‖₂ / (‖K‖_∞ ‖x‖₂) as :func:`quadratic_residual` gives it, on blocks of
+    :data:`RESIDUAL_BLOCK` pairs: one block product with K, M (and C) and one sum over the ranks per
+    block, instead of six products, ten reductions and ‖K‖_∞ per pair (brake corner, 348k DOFs, 2 ranks,
+    91 pairs: 7.4 s before).  The x_j agree with the pairwise functions' to round-off."""
+    comm = M.getComm().tompi4py()
+    k_inf = _norm_inf(K)
+    res = np.empty(len(lams))
+    for a in range(0, len(lams), RESIDUAL_BLOCK):
+        js = range(a, min(a + RESIDUAL_BLOCK, len(lams)))
+        X = np.empty((M.getLocalSize()[0], 2 * len(js)), order="F")
+        for c, j in enumerate(js):
+            X[:, 2 * c], X[:, 2 * c + 1] = xrs[j].array_r, xis[j].array_r
+        MX = apply(M, X)
+        xr, xi, mr, mi = X[:, 0::2], X[:, 1::2], MX[:, 0::2], MX[:, 1::2]
+        dots = comm.allreduce(np.stack([np.einsum("ij,ij->j", xr, mr), np.einsum("ij,ij->j", xi, mi),
+                                        np.einsum("ij,ij->j", xr, mi)]), op=MPI.SUM)
+        mass = dots[0] + dots[1]
+        q = (dots[0] - dots[1]) + 2j * dots[2]               # xᵀMx (no conjugate): its phase is removed
+        phase = np.where(np.abs(q) > 1e-14 * mass, np.exp(-0.5j * np.angle(q)), 1.0)
+        s = phase / np.sqrt(mass)
+        Xc = (xr + 1j * xi) * s                               # x ← s x; M x, K x follow linearly
+        MXc = (mr + 1j * mi) * s
+        for c, j in enumerate(js):
+            xrs[j].array[:], xis[j].array[:] = Xc[:, c].real, Xc[:, c].imag
+        X[:, 0::2], X[:, 1::2] = Xc.real, Xc.imag
+        KX = apply(K, X)
+        lam = np.asarray(lams[a:a + len(js)], dtype=complex)
+        R = KX[:, 0::2] + 1j * KX[:, 1::2] + lam ** 2 * MXc
+        if C is not None:
+            CX = apply(C, X)
+            R += lam * (CX[:, 0::2] + 1j * CX[:, 1::2])
+        sums = comm.allreduce(np.stack([_squares(R), _squares(Xc)]), op=MPI.SUM)
+        res[a:a + len(js)] = np.sqrt(sums[0]) / (k_inf * np.sqrt(sums[1]))
+    return res
 
 
 def _check(nconv: int, nev: int, res: np.ndarray, max_residual: float, what: str, freqs) -> None:

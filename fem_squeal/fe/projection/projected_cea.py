@@ -26,8 +26,8 @@ from scipy.linalg import solve_triangular
 
 from fem_squeal.fe.assembly import OperatingTerms, Operators
 from fem_squeal.fe.dense import apply, apply_transpose, gram, matmul_f
-from fem_squeal.fe.eigen import TWO_PI, ComplexModes, drop_zeros, quadratic_residual
-from fem_squeal.fe.eigen.results import _check, _m_normalise, _sort_key
+from fem_squeal.fe.eigen import TWO_PI, ComplexModes, drop_zeros
+from fem_squeal.fe.eigen.results import _check, _sort_key, normalised_residuals
 from fem_squeal.fe.projection.basis import _new_block, _orthonormality, _stack, project
 from fem_squeal.fe.projection.reductor import build_basis
 from fem_squeal.fe.projection.shifted import ShiftedSolver, count_below, modes_below
@@ -251,14 +251,13 @@ def projected_complex_modes(ops: Operators, K: PETSc.Mat, C: PETSc.Mat | None, b
     t0 = MPI.Wtime()
     lam, XX, Y = lam[inside], XX[:, np.concatenate([inside, inside])], Y[:, inside]
     k = lam.size
-    xrs, xis, res = [], [], np.empty(k)
+    xrs, xis = [], []
     for j in range(k):
         xr, xi = K.createVecRight(), K.createVecRight()
         xr.array[:], xi.array[:] = XX[:, j], XX[:, k + j]
-        _m_normalise(M, xr, xi)
-        res[j] = quadratic_residual(K, C, M, lam[j], xr, xi)
         xrs.append(xr)
         xis.append(xi)
+    res = normalised_residuals(K, C, M, lam, xrs, xis)
     order = _sort_key(lam)
     lam, res = lam[order], res[order]
     xrs, xis = [xrs[i] for i in order], [xis[i] for i in order]

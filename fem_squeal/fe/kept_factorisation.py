@@ -18,12 +18,25 @@ they are computed in blocks (one multiple right-hand-side solve of the factor ea
 checked by its residual ‖J_k x − r‖ (J_f x by a product with the kept matrix, A D Bᵀ x by products
 with the point matrices), so a poorly conditioned update is caught and refactorised instead.
 
-When to refactorise is decided by measured cost: the new columns a step needs times the measured
-seconds per column, against the seconds of the last factorisation; the columns must also fit the
-memory budget.  ``max_factorisations`` bounds the factorisations of one solve (the first included).
+A step whose new points would cost many columns is solved instead by GMRES on J_k (J_f x + A D Bᵀ x,
+the same products as the residual check) preconditioned by the kept factorisation alone: J_f⁻¹J_k − I
+has the rank of the change, and its spectrum clusters where the penalty of a point dominates its
+surroundings, so few iterations reach round-off.  Measured on the brake corner (163,506 DOFs, 2 ranks,
+the Jacobians of the exact Newton path, GMRES to 1e-11): 21–25 iterations from the factorisation of the
+first step (922 points changed by the last), 15–17 from the second's (268–377 changed).
+
+Which route a step takes is decided by measured cost: the new columns times the measured seconds per
+column, the GMRES iterations last taken (:data:`KRYLOV_GUESS` before any) times the seconds per
+iteration (a solve with the factor, measured), and the seconds of the last factorisation (while
+``max_factorisations``, the first included, allows one); the columns must also fit the memory budget.
+Columns and factorisations serve the later steps too, a GMRES step only itself: GMRES counts
+:data:`KRYLOV_STEPS_AHEAD` times (:data:`KRYLOV_STEPS_AHEAD_KEPT` where the factorisation serves the next
+pressures of a continuation).  Where GMRES does not converge (a cubic penalty, far from the
+state), the step takes the columns and GMRES is not tried again on that factorisation.
 """
 from __future__ import annotations
 
+import math
 import os
 import time
 from dataclasses import dataclass
@@ -39,6 +52,29 @@ PROBE_COLUMNS = 16
 BLOCK_COLUMNS = 64
 #: Relative residual ‖J_k x − r‖/‖r‖ above which an updated solve is refused (and refactorised).
 UPDATE_RESIDUAL = 1e-8
+#: GMRES iterations of a step preconditioned by the kept factorisation, until one is measured (the brake
+#: corner's 21–25 from its first factorisation; module docstring).
+KRYLOV_GUESS = 25
+#: GMRES of a step: relative residual ‖J_k x − r‖/‖r‖ reached (the exact routes' round-off is ~1e-12 on the
+#: brake; the converged state is then the same to the preload's tolerance) within this many iterations,
+#: without restart (the vectors cost n_local·8 bytes each); else the step takes the columns, or
+#: refactorises, and GMRES is not tried again on this factorisation.  The linear penalty converged in
+#: 15–25; a cubic penalty, whose stiffness changes at every closed point, climbed past 100 (brake, 163k)
+KRYLOV_RTOL = 1e-11
+KRYLOV_MAX_IT = KRYLOV_RESTART = 60
+#: A GMRES step serves only itself; a column or a refactorisation serves this step and the ones after it
+#: (the Newton path converging, the next pressures of a continuation): GMRES is compared at this many steps.
+#: Brake corner, 2 ranks: 348k DOFs, a cold preload, GMRES after the first factorisation (7.5 s a step
+#: against 67 s of columns or a 23 s refactorisation); 163k, the second factorisation and the columns
+#: (2.3 s a step against 5.2 s; the continuation's 173 new points 3.3 s): measured cheapest either way.
+KRYLOV_STEPS_AHEAD = 3
+#: ... and where the factorisation is kept for the next pressures of a continuation (fe.preload_continuation:
+#: 10 pressures took 25 Newton steps on the tapered brake, 163k DOFs; at 3 the continuation took 44 s
+#: against 30 s with the columns, GMRES leaving nothing for the next pressures to reuse)
+KRYLOV_STEPS_AHEAD_KEPT = 10
+#: A column of a block solve against one solve with the factor, before the columns' cost is measured
+#: (brake corner, 163k DOFs, 2 ranks: 19 ms per column in blocks of 64 against 92 ms per solve)
+COLUMN_SHARE = 0.2
 
 
 @dataclass(frozen=True)
@@ -70,7 +106,8 @@ class KeptFactorisation:
     :meth:`solve` applies it (or returns False when its residual check fails)."""
 
     def __init__(self, ksp: PETSc.KSP, J: PETSc.Mat, bc_rows: np.ndarray, families: list[RankOneFamily], *,
-                 max_factorisations: int = 2, memory_bytes: float | None = None):
+                 max_factorisations: int = 2, memory_bytes: float | None = None,
+                 steps_ahead: int = KRYLOV_STEPS_AHEAD):
         self.ksp, self.J = ksp, J
         self.comm = J.getComm().tompi4py()
         self.families = {f.key: f for f in families}
@@ -78,12 +115,20 @@ class KeptFactorisation:
         self.n_local = hi - lo
         self.bc_local = np.asarray(bc_rows, dtype=np.int64) - lo
         self.max_factorisations = max_factorisations
+        self.steps_ahead = steps_ahead                # GMRES's cost counted this many times (a column's once)
         self.memory_bytes = default_memory_budget(self.comm) if memory_bytes is None else memory_bytes
         self.factorisations = 0
         self.factor_seconds = 0.0
         self.column_seconds: float | None = None
         self.columns_computed = 0
         self.columns_before = 0        # columns_computed when the current solve began (new_solve)
+        self.solve_seconds: float | None = None    # one solve with the factor (note_solve)
+        self.iteration_seconds: float | None = None  # one GMRES iteration of a Krylov step, measured
+        self.krylov_guess = KRYLOV_GUESS            # the iterations of the last Krylov step
+        self.krylov_iterations = 0                  # GMRES iterations of the Krylov steps, all solves
+        self.krylov_before = 0                      # krylov_iterations when the current solve began
+        self.route = ""                             # how the last step was solved: "update" or "krylov"
+        self.krylov_failed = False                  # GMRES did not converge on this factorisation
         self._reference: dict[str, np.ndarray] = {}
         self._clear()
 
@@ -100,6 +145,7 @@ class KeptFactorisation:
         self.factorisations += 1
         self.factor_seconds = seconds
         self._reference = {k: np.array(v, dtype=float) for k, v in values.items()}
+        self.krylov_failed = False
         self._clear()
 
     def new_solve(self) -> None:
@@ -107,6 +153,11 @@ class KeptFactorisation:
         counts as the solve's first for ``max_factorisations``; the kept columns stay valid (same J_f)."""
         self.factorisations = 1
         self.columns_before = self.columns_computed
+        self.krylov_before = self.krylov_iterations
+
+    def note_solve(self, seconds: float) -> None:
+        """A solve with the factor took ``seconds`` (the cost of a GMRES iteration, before one is measured)."""
+        self.solve_seconds = seconds
 
     @property
     def has_update(self) -> bool:
@@ -129,28 +180,43 @@ class KeptFactorisation:
             out.append((key, np.concatenate(rows).astype(np.int64), np.concatenate(ds)))
         return out
 
+    def _krylov_seconds(self) -> float | None:
+        """The expected seconds of a Krylov step (None before any solve with the factor was measured)."""
+        per = self.iteration_seconds or self.solve_seconds
+        return None if per is None or self.krylov_failed else self.krylov_guess * per
+
     def prepare(self, values: dict[str, np.ndarray]) -> bool:
-        """Set up the update J_k − J_f for the families' ``values`` at this step: True when the step
-        can use it, False when a refactorisation is cheaper (measured cost, as long as
-        ``max_factorisations`` allows one) or the new columns would exceed the memory budget."""
+        """Set up the step J_k − J_f for the families' ``values``: True when the step can be solved
+        without a refactorisation (by Woodbury on the points' columns, or by GMRES preconditioned by
+        the factor, whichever the measured costs say is cheaper), False when a refactorisation is
+        cheaper than both (as long as ``max_factorisations`` allows one)."""
         changes = self._changes(values)
         new = [(key, int(r)) for key, rows, _ in changes for r in rows if (key, int(r)) not in self._index]
+        d = np.concatenate([ds for _, _, ds in changes]) if changes else np.zeros(0)
         total = len(self._index) + len(new)
-        if new and self.comm.allreduce(8.0 * self.n_local * (total + 2 * BLOCK_COLUMNS), op=MPI.MAX) > \
-                self.memory_bytes:
-            return False            # the columns would not fit: refactorise, whatever the limit
+        fits = not new or self.comm.allreduce(8.0 * self.n_local * (total + 2 * BLOCK_COLUMNS), op=MPI.MAX) <= \
+            self.memory_bytes
+        krylov = self._krylov_seconds()
         while new:
-            cheaper = (self.column_seconds is not None
-                       and len(new) * self.column_seconds > self.factor_seconds)
-            if cheaper and self.may_refactorise():
-                return False
+            per_column = self.column_seconds if self.column_seconds is not None else \
+                (None if self.solve_seconds is None else COLUMN_SHARE * self.solve_seconds)
+            costs = {"krylov": None if krylov is None else self.steps_ahead * krylov,
+                     "refactorise": self.factor_seconds if self.may_refactorise() else None,
+                     "columns": (None if per_column is None else len(new) * per_column) if fits else math.inf}
+            known = {k: c for k, c in costs.items() if c is not None}
+            # the columns' cost unknown (nothing measured yet): a probe block measures it
+            best = min(known, key=known.get) if costs["columns"] is not None else "columns"
+            if best == "krylov":
+                self._step = ("krylov", changes, d, values)
+                return True
+            if best == "refactorise" or not fits:
+                return False        # refactorise (cheaper; or the columns do not fit, whatever the limit)
             m = PROBE_COLUMNS if self.column_seconds is None else BLOCK_COLUMNS
             block, new = new[:m], new[m:]
             t = time.perf_counter()
             self._compute_columns(block)
             self.column_seconds = self.comm.allreduce(time.perf_counter() - t, op=MPI.MAX) / len(block)
         order = np.array([self._index[(key, int(r))] for key, rows, _ in changes for r in rows], dtype=np.int64)
-        d = np.concatenate([ds for _, _, ds in changes]) if changes else np.zeros(0)
         r = len(order)
         S = np.zeros((r, r))
         i0 = 0
@@ -161,7 +227,7 @@ class KeptFactorisation:
             i0 += len(rows)
         S = self.comm.allreduce(S, op=MPI.SUM)
         S[np.diag_indices(r)] += 1.0 / d
-        self._step = (changes, order, d, S)
+        self._step = ("update", changes, d, order, S)
         return True
 
     def _compute_columns(self, block: list[tuple[str, int]]) -> None:
@@ -217,9 +283,15 @@ class KeptFactorisation:
 
     # ------------------------------------------------------------------ the solve
     def solve(self, b: PETSc.Vec, x: PETSc.Vec) -> bool:
-        """x = J_k⁻¹ b with the prepared update (Woodbury); False when its residual exceeds
-        UPDATE_RESIDUAL ‖b‖ (x is then not to be used)."""
-        changes, order, d, S = self._step
+        """x = J_k⁻¹ b for the prepared step (Woodbury, or GMRES preconditioned by the factor); False when
+        its residual exceeds UPDATE_RESIDUAL ‖b‖ or GMRES does not converge (x is then not to be used)."""
+        self.route = self._step[0]
+        if self.route == "krylov":
+            if self._krylov_solve(b, x):
+                return True
+            self.krylov_failed = True          # the columns then, unless a refactorisation is cheaper
+            return self.prepare(self._step[3]) and self.solve(b, x)
+        _, changes, d, order, S = self._step
         self.ksp.solve(b, x)
         if len(order):
             t = np.zeros(len(order))
@@ -239,16 +311,47 @@ class KeptFactorisation:
             except np.linalg.LinAlgError:
                 return False
             x.array[:] -= self._Z[:, order] @ s
-        return self._residual(changes, x, b) <= UPDATE_RESIDUAL
+        return self._residual(changes, d, x, b) <= UPDATE_RESIDUAL
 
-    def _residual(self, changes, x: PETSc.Vec, b: PETSc.Vec) -> float:
-        """‖J_f x + A D Bᵀ x − b‖ / ‖b‖, A D Bᵀ x by products with the point matrices."""
-        r = b.duplicate()
-        self.J.mult(x, r)
-        acc = b.duplicate()
+    def _krylov_solve(self, b: PETSc.Vec, x: PETSc.Vec) -> bool:
+        """GMRES on J_k (:meth:`apply`) right-preconditioned by the kept factor, to KRYLOV_RTOL in the
+        true residual; options under ``<factor prefix>krylov_`` (e.g. ``-preload_krylov_ksp_rtol``)."""
+        _, changes, d, _ = self._step
+        op = PETSc.Mat().createPython(self.J.getSizes(), _UpdatedJacobian(self, changes, d), comm=self.comm)
+        op.setUp()
+        ksp = PETSc.KSP().create(self.comm)
+        ksp.setOptionsPrefix((self.ksp.getOptionsPrefix() or "") + "krylov_")
+        ksp.setOperators(op)
+        ksp.setType(PETSc.KSP.Type.GMRES)
+        ksp.setGMRESRestart(KRYLOV_RESTART)
+        ksp.setPCSide(PETSc.PC.Side.RIGHT)
+        ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+        ksp.setTolerances(rtol=KRYLOV_RTOL, atol=0.0, max_it=KRYLOV_MAX_IT)
+        pc = ksp.getPC()
+        pc.setType(PETSc.PC.Type.PYTHON)
+        pc.setPythonContext(_KeptPreconditioner(self.ksp))
+        ksp.setFromOptions()
+        try:
+            t = time.perf_counter()
+            ksp.solve(b, x)
+            its = ksp.getIterationNumber()
+            self.krylov_iterations += its
+            if its:
+                self.iteration_seconds = self.comm.allreduce(time.perf_counter() - t, op=MPI.MAX) / its
+                self.krylov_guess = its
+            ok = ksp.getConvergedReason() > 0
+        finally:
+            ksp.destroy()
+            op.destroy()
+        return ok and self._residual(changes, d, x, b) <= UPDATE_RESIDUAL
+
+    def apply(self, changes, d: np.ndarray, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """y = J_k x = J_f x + A D Bᵀ x, A D Bᵀ x by products with the point matrices (J_f's clamped
+        rows are identity rows: the update has none)."""
+        self.J.mult(x, y)
+        acc = y.duplicate()
         acc.set(0.0)
         i0 = 0
-        d = self._step[2]
         for key, rows, _ in changes:
             f = self.families[key]
             lo, hi = f.right.getOwnershipRange()
@@ -263,16 +366,41 @@ class KeptFactorisation:
             v.destroy()
             i0 += len(rows)
         acc.array[self.bc_local] = 0.0
-        r.axpy(1.0, acc)
+        y.axpy(1.0, acc)
+        acc.destroy()
+
+    def _residual(self, changes, d: np.ndarray, x: PETSc.Vec, b: PETSc.Vec) -> float:
+        """‖J_k x − b‖ / ‖b‖ (:meth:`apply`)."""
+        r = b.duplicate()
+        self.apply(changes, d, x, r)
         r.axpy(-1.0, b)
         bn = b.norm()
         rel = r.norm() / bn if bn > 0 else r.norm()
         r.destroy()
-        acc.destroy()
         return rel
 
     def destroy(self) -> None:
         self._clear()
+
+
+class _UpdatedJacobian:
+    """The PETSc python-matrix context of J_k (:meth:`KeptFactorisation.apply`)."""
+
+    def __init__(self, kept: KeptFactorisation, changes, d: np.ndarray):
+        self.kept, self.changes, self.d = kept, changes, d
+
+    def mult(self, _mat, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        self.kept.apply(self.changes, self.d, x, y)
+
+
+class _KeptPreconditioner:
+    """The PETSc python-preconditioner context applying the kept factor J_f⁻¹."""
+
+    def __init__(self, ksp: PETSc.KSP):
+        self.ksp = ksp
+
+    def apply(self, _pc, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        self.ksp.solve(x, y)
 
 
 def _grown(a: np.ndarray, columns: int) -> np.ndarray:

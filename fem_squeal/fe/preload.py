@@ -43,7 +43,12 @@ from fem_squeal.fe.assembly import (
 )
 from fem_squeal.fe.assembly import static_displacement as assembly_static_displacement
 from fem_squeal.fe.factorisation import refactorise
-from fem_squeal.fe.kept_factorisation import KeptFactorisation, RankOneFamily
+from fem_squeal.fe.kept_factorisation import (
+    KRYLOV_STEPS_AHEAD,
+    KRYLOV_STEPS_AHEAD_KEPT,
+    KeptFactorisation,
+    RankOneFamily,
+)
 from fem_squeal.fe.model import ModelSpec, sliding_speed, speed_friction
 from fem_squeal.reduced.laws.contact import UnilateralLaw
 from fem_squeal.util.errors import ModelError, PreloadError
@@ -61,6 +66,7 @@ class PreloadResult(NamedTuple):
     history: list[tuple[int, float]]  # (closed points, ‖R‖/‖f‖) per iteration
     factorisations: int = 0           # LU factorisations of the Jacobian (the first included)
     update_columns: int = 0           # columns J_f⁻¹ a_q of the low-rank updates (fe.kept_factorisation)
+    krylov_iterations: int = 0        # GMRES iterations of the steps preconditioned by the kept factorisation
 
 
 def changed_points(a: PreloadResult, b: PreloadResult, comm) -> int:
@@ -134,10 +140,11 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     in ``max_iterations``.
 
     ``jacobian``: "refactorise" factorises J at every Newton step; "update" keeps a factorisation
-    and solves the later steps by low-rank updates of it (the points whose stiffness changed;
-    :mod:`fem_squeal.fe.kept_factorisation`), refactorising when the measured cost says it is cheaper,
-    at most ``max_factorisations`` times (unless an update fails its residual check or its memory
-    budget).  Both are exact Newton: the same iterates to round-off.  ``progress`` (if given) receives
+    and solves the later steps by low-rank updates of it (the points whose stiffness changed) or by
+    GMRES preconditioned by it (:mod:`fem_squeal.fe.kept_factorisation`), refactorising when the
+    measured cost says it is cheaper, at most ``max_factorisations`` times (unless an update fails its
+    residual check).  Both are Newton with exact steps: the same iterates, to round-off (Woodbury) or
+    to GMRES's 1e-11 relative residual.  ``progress`` (if given) receives
     one line per Newton iteration: closed points, ‖R‖/‖f‖, how the step was solved and its seconds."""
     if jacobian not in ("update", "refactorise"):
         raise ModelError(f"preload.jacobian: must be 'update' or 'refactorise' (got {jacobian!r})")
@@ -226,7 +233,8 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         t_step = time.perf_counter()
         if kept is not None and kept.prepare(values) and kept.solve(R, du):
             u.axpy(1.0, du)
-            how = f"update ({kept.columns_computed} columns)"
+            how = f"update ({kept.columns_computed} columns)" if kept.route == "update" else \
+                f"GMRES on the kept factorisation ({kept.krylov_guess} iterations)"
             continue
         # Jacobian and Newton step.  The contact matrices keep their sparsity whatever the closed
         # points (open ones carry explicit zeros), so J is built once and refilled: the LU then
@@ -251,15 +259,21 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         if jacobian == "update":
             if kept is None:
                 kept = KeptFactorisation(ksp, J, bc_rows, _families(ops, friction),
-                                         max_factorisations=max_factorisations)
+                                         max_factorisations=max_factorisations,
+                                         steps_ahead=KRYLOV_STEPS_AHEAD_KEPT if factor is not None else
+                                         KRYLOV_STEPS_AHEAD)
             kept.reset(values, comm.allreduce(time.perf_counter() - t0, op=MPI.MAX))
+        t0 = time.perf_counter()
         ksp.solve(R, du)
+        if kept is not None:         # the cost of a GMRES iteration, until one is measured
+            kept.note_solve(comm.allreduce(time.perf_counter() - t0, op=MPI.MAX))
         how = f"factorisation {factorisations}"
         if ksp.getConvergedReason() < 0:
             raise PreloadError(f"preload: linear solve failed (reason {ksp.getConvergedReason()}) "
                                f"at Newton iteration {k}")
         u.axpy(1.0, du)
     columns = kept.columns_computed - kept.columns_before if kept is not None else 0
+    krylov = kept.krylov_iterations - kept.krylov_before if kept is not None else 0
     if factor is not None:
         factor.J, factor.ksp, factor.kept = J, ksp, kept
     for obj in ((R, du, t) if factor is not None else (kept, R, du, t, ksp, J)):
@@ -280,7 +294,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         area[it.name] = comm.allreduce(float(op.weight @ (gaps[it.name] < 0)), op=MPI.SUM)
     active = {n: g < 0.0 for n, g in gaps.items()}
     return PreloadResult(u, active, gaps, pressure, normal, fric, area, len(history) - 1, history,
-                         factorisations, columns)
+                         factorisations, columns, krylov)
 
 
 def _families(ops: Operators, friction: bool) -> list[RankOneFamily]:

@@ -133,13 +133,14 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
                 timings["preload_continuation"] = time.perf_counter() - t
             out["preload"] = {"mode": "nonlinear", "iterations": pre.iterations, "history": pre.history,
                               "jacobian": pl["jacobian"], "factorisations": pre.factorisations,
-                              "update_columns": pre.update_columns,
+                              "update_columns": pre.update_columns, "krylov_iterations": pre.krylov_iterations,
                               "interfaces": _preload_outputs(ctx.comm, work, ops, pre,
                                                              ctx.scene.title, ctx.keep_files)}
             if other:
                 out["preload"]["pressure_continuation"] = more
             ctx.say(f"[fem_squeal] preload: {pre.iterations} Newton iterations "
-                    f"({pre.factorisations} factorisations, {pre.update_columns} update columns), "
+                    f"({pre.factorisations} factorisations, {pre.update_columns} update columns, "
+                    f"{pre.krylov_iterations} GMRES iterations), "
                     + ", ".join(f"{k} N = {v['normal_force']:.4g} N, closed {100 * v['closed_share']:.1f} %"
                                 for k, v in out["preload"]["interfaces"].items())
                     + f"; {timings['preload']:.2f} s")

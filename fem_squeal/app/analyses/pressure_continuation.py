@@ -87,7 +87,8 @@ def run(ctx, ops, pre, factor, work: Path, settings: dict) -> dict[str, Any]:
         ref = d.norm()
         d.axpy(-1.0, r.u)
         rows.append({"scale": st.scale, "iterations": r.iterations, "factorisations": r.factorisations,
-                     "update_columns": r.update_columns, "seconds": st.seconds, "cached": st.cached,
+                     "update_columns": r.update_columns,
+                     "krylov_iterations": r.krylov_iterations, "seconds": st.seconds, "cached": st.cached,
                      "normal_force": r.normal_force, "contact_area": r.contact_area, "closed_points": closed,
                      "changed_points": changed, "same_contact_set": changed == 0,
                      "nonlinearity": d.norm() / ref if ref > 0 else 0.0})

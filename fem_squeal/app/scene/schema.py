@@ -221,11 +221,14 @@ SECTIONS = {
         "max_iterations": Field(int, 25, positive),
         "jacobian": Field(str, "update", one_of("update", "refactorise"),
                           "Newton's linear solves: 'update' keeps a factorisation and solves later steps by "
-                          "low-rank (Woodbury) updates for the points that opened or closed, refactorising "
-                          "when the measured cost says so (fem_squeal.fe.kept_factorisation); 'refactorise' "
-                          "factorises every step.  Both exact Newton: the same state to round-off"),
+                          "low-rank (Woodbury) updates for the points that opened or closed, or by GMRES "
+                          "preconditioned by the kept factorisation (PETSc options under preload_krylov_), "
+                          "refactorising when the measured cost says so (fem_squeal.fe.kept_factorisation); "
+                          "'refactorise' factorises every step.  Both exact Newton steps: the same state to "
+                          "round-off (GMRES: to its 1e-11 relative residual)"),
         "max_factorisations": Field(int, 2, positive, "at most this many factorisations with 'update' "
-                                    "(more only when an update fails its residual check or memory budget)"),
+                                    "(more only when an update fails its residual check or GMRES does not "
+                                    "converge)"),
         "geometric_stiffness": Field(bool, False, None, "stress stiffening K_σ(σ₀) of the static stress in the "
                                      "CEA (preload, and the centrifugal prestress with operating.gyroscopic)"),
     },

@@ -1,7 +1,8 @@
 """The kept factorisation with low-rank updates (fem_squeal.fe.kept_factorisation) against a direct
 solve of the updated matrix J_k = J_f + Σ (G_n + μ G_t₁)ᵀ diag(d) G_n, assembled explicitly, by both
-routes (Woodbury on the points' columns; GMRES preconditioned by the factor); serial and on 2 ranks.  The preload's use of it (the same Newton iterates as refactorising every step) is
-checked on the brake corner in tests/integration/test_brake.py."""
+routes (Woodbury on the points' columns; GMRES preconditioned by the factor); serial and on 2 ranks.
+The preload's use of it (the same Newton iterates as refactorising every step) is checked on the brake
+corner in tests/integration/test_brake.py."""
 from __future__ import annotations
 
 import numpy as np
@@ -83,7 +84,10 @@ def signature() -> dict:
     b = np.sin(np.arange(N) + 1.0)
     b[list(BC)] = 0.0
     out = {"errors": [], "columns": []}
-    for v in steps:
+
+    def solved(v) -> tuple[float, bool]:
+        """The step with stiffness values ``v``: the updated solve's error against the direct solve of
+        the assembled J_k, and whether its own check passed."""
         Jk = Jf + _with_bc((Gn + mu[:, None] * Gt).T @ np.diag(w * (v - ref)) @ Gn)
         x_ref = np.linalg.solve(Jk, b)
         assert kept.prepare({"c/normal": (w * v)[lo:hi]})
@@ -91,24 +95,22 @@ def signature() -> dict:
         bv.array[:] = b[rlo:rhi]
         ok = kept.solve(bv, xv)
         x = np.concatenate(comm.allgather(xv.array_r.copy()))
-        out["errors"].append(float(np.linalg.norm(x - x_ref) / np.linalg.norm(x_ref)))
+        return float(np.linalg.norm(x - x_ref) / np.linalg.norm(x_ref)), bool(ok)
+
+    for v in steps:
+        err, ok = solved(v)
+        out["errors"].append(err)
         out["columns"].append(kept.columns_computed)
-        out.setdefault("ok", []).append(bool(ok))
+        out.setdefault("ok", []).append(ok)
         out.setdefault("changed", []).append(int(np.count_nonzero(v != ref)))
     # GMRES preconditioned by the factor, where it is the cheaper route (columns made dear): no column
     kept.reset({"c/normal": (w * ref)[lo:hi]}, 1.0)
     kept.note_solve(1e-6)
     kept.column_seconds = 1.0
     for v in steps:
-        Jk = Jf + _with_bc((Gn + mu[:, None] * Gt).T @ np.diag(w * (v - ref)) @ Gn)
-        x_ref = np.linalg.solve(Jk, b)
-        assert kept.prepare({"c/normal": (w * v)[lo:hi]})
-        bv, xv = Jp.createVecLeft(), Jp.createVecRight()
-        bv.array[:] = b[rlo:rhi]
-        ok = kept.solve(bv, xv)
-        x = np.concatenate(comm.allgather(xv.array_r.copy()))
-        out.setdefault("krylov_errors", []).append(float(np.linalg.norm(x - x_ref) / np.linalg.norm(x_ref)))
-        out.setdefault("krylov_ok", []).append(bool(ok) and kept.route == "krylov")
+        err, ok = solved(v)
+        out.setdefault("krylov_errors", []).append(err)
+        out.setdefault("krylov_ok", []).append(ok and kept.route == "krylov")
     out["krylov_columns"] = kept.columns_computed - out["columns"][-1]
     out["krylov_iterations"] = kept.krylov_iterations
     # a budget that holds no column: GMRES where its cost is known, else refactorise (whatever

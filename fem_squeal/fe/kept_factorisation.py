@@ -45,6 +45,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fem_squeal.fe.factorisation import scoped_options
+
 #: Columns of the first block of a factor (their time is the first measurement of a column's cost).
 PROBE_COLUMNS = 16
 #: Columns per multiple right-hand-side solve afterwards (MUMPS's BLAS-3 solve; 16-256 measured on
@@ -107,7 +109,7 @@ class KeptFactorisation:
 
     def __init__(self, ksp: PETSc.KSP, J: PETSc.Mat, bc_rows: np.ndarray, families: list[RankOneFamily], *,
                  max_factorisations: int = 2, memory_bytes: float | None = None,
-                 steps_ahead: int = KRYLOV_STEPS_AHEAD):
+                 steps_ahead: int = KRYLOV_STEPS_AHEAD, options=None):
         self.ksp, self.J = ksp, J
         self.comm = J.getComm().tompi4py()
         self.families = {f.key: f for f in families}
@@ -116,6 +118,7 @@ class KeptFactorisation:
         self.bc_local = np.asarray(bc_rows, dtype=np.int64) - lo
         self.max_factorisations = max_factorisations
         self.steps_ahead = steps_ahead                # GMRES's cost counted this many times (a column's once)
+        self.options = options                        # the scene's PETSc options (GMRES's, under <prefix>krylov_)
         self.memory_bytes = default_memory_budget(self.comm) if memory_bytes is None else memory_bytes
         self.factorisations = 0
         self.factor_seconds = 0.0
@@ -315,7 +318,8 @@ class KeptFactorisation:
 
     def _krylov_solve(self, b: PETSc.Vec, x: PETSc.Vec) -> bool:
         """GMRES on J_k (:meth:`apply`) right-preconditioned by the kept factor, to KRYLOV_RTOL in the
-        true residual; options under ``<factor prefix>krylov_`` (e.g. ``-preload_krylov_ksp_rtol``)."""
+        true residual; the user's options under ``<factor prefix>krylov_`` win (the scene's
+        ``solver.petsc_options`` or the command line, e.g. ``preload_krylov_ksp_max_it``)."""
         _, changes, d, _ = self._step
         op = PETSc.Mat().createPython(self.J.getSizes(), _UpdatedJacobian(self, changes, d), comm=self.comm)
         op.setUp()
@@ -330,7 +334,8 @@ class KeptFactorisation:
         pc = ksp.getPC()
         pc.setType(PETSc.PC.Type.PYTHON)
         pc.setPythonContext(_KeptPreconditioner(self.ksp))
-        ksp.setFromOptions()
+        with scoped_options({}, self.options):
+            ksp.setFromOptions()
         try:
             t = time.perf_counter()
             ksp.solve(b, x)

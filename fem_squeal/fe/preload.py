@@ -261,7 +261,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
                 kept = KeptFactorisation(ksp, J, bc_rows, _families(ops, friction),
                                          max_factorisations=max_factorisations,
                                          steps_ahead=KRYLOV_STEPS_AHEAD_KEPT if factor is not None else
-                                         KRYLOV_STEPS_AHEAD)
+                                         KRYLOV_STEPS_AHEAD, options=options)
             kept.reset(values, comm.allreduce(time.perf_counter() - t0, op=MPI.MAX))
         t0 = time.perf_counter()
         ksp.solve(R, du)

@@ -113,6 +113,12 @@ def signature() -> dict:
         out.setdefault("krylov_ok", []).append(ok and kept.route == "krylov")
     out["krylov_columns"] = kept.columns_computed - out["columns"][-1]
     out["krylov_iterations"] = kept.krylov_iterations
+    # the user's GMRES options (the scene's, under the factor's prefix) apply: one iteration does not
+    # converge, and the step falls back to the columns, still exact; GMRES is not tried again
+    kept.reset({"c/normal": (w * ref)[lo:hi]}, 1.0)
+    kept.options = {"kept_test_krylov_ksp_max_it": 1}
+    err, ok = solved(steps[0])
+    out["fallback"] = [err, ok, kept.route, kept.krylov_failed, kept.krylov_iterations - out["krylov_iterations"]]
     # a budget that holds no column: GMRES where its cost is known, else refactorise (whatever
     # max_factorisations says)
     out["union"] = int(np.count_nonzero((steps[0] != ref) | (steps[1] != ref)))
@@ -144,6 +150,8 @@ def check(sig: dict) -> None:
     assert max(sig["krylov_errors"]) <= 1e-8, sig["krylov_errors"]
     assert all(sig["krylov_ok"]) and sig["krylov_columns"] == 0
     assert 0 < sig["krylov_iterations"] <= 2 * (sig["changed"][0] + sig["changed"][1] + 2)
+    err, ok, route, failed, its = sig["fallback"]
+    assert err <= 1e-11 and ok and route == "update" and failed and its == 1
 
 
 def test_updated_solves_equal_direct_solves():

@@ -31,7 +31,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fem_squeal.fe import forms
+from fem_squeal.fe import forms, kernels
 from fem_squeal.fe import interface as itf
 from fem_squeal.fe.assembly import (
     Operators,
@@ -235,6 +235,8 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
             u.axpy(1.0, du)
             how = f"update ({kept.columns_computed} columns)" if kept.route == "update" else \
                 f"GMRES on the kept factorisation ({kept.krylov_guess} iterations)"
+            kernels.note("newton_step", "kept factorisation, Woodbury columns" if kept.route == "update" else
+                         "kept factorisation, GMRES")
             continue
         # Jacobian and Newton step.  The contact matrices keep their sparsity whatever the closed
         # points (open ones carry explicit zeros), so J is built once and refilled: the LU then
@@ -268,6 +270,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         if kept is not None:         # the cost of a GMRES iteration, until one is measured
             kept.note_solve(comm.allreduce(time.perf_counter() - t0, op=MPI.MAX))
         how = f"factorisation {factorisations}"
+        kernels.note("newton_step", "factorisation")
         if ksp.getConvergedReason() < 0:
             raise PreloadError(f"preload: linear solve failed (reason {ksp.getConvergedReason()}) "
                                f"at Newton iteration {k}")

@@ -147,8 +147,12 @@ def test_preload_newton_reuses_the_lu_ordering_and_its_updates_reach_the_same_st
     PETSc.Log.begin()
     sym, num = (PETSc.Log.Event(n) for n in ("MatLUFactorSym", "MatLUFactorNum"))
     s0, n0 = sym.getPerfInfo()["count"], num.getPerfInfo()["count"]
+    from fem_squeal.fe import kernels
+
+    kernels.tally(reset=True)
     pre = solve_preload(ops, friction=True, jacobian="refactorise")
     assert pre.iterations >= 3                             # the closed set changes on this model
+    assert kernels.tally()["newton_step"] == {"factorisation": pre.iterations}   # results.json solver.paths
     assert sym.getPerfInfo()["count"] - s0 == 1
     assert num.getPerfInfo()["count"] - n0 == pre.iterations == pre.factorisations
     (n1, r1), (n2, r2) = pre.history[-2:]

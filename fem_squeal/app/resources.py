@@ -180,6 +180,20 @@ def machines_needed(dofs: float, machine: float, ranks_per_machine: int = 1, kin
     return max(1, math.ceil((one / (REFUSE_SHARE * machine)) ** (1.0 / (1.0 - RANK_EXPONENT)) * (1 - 1e-12)))
 
 
+def _what_fits(est: Estimate, ranks: int, nodes: int, kind: str) -> str:
+    """Where a model refused on ``ranks`` ranks over ``nodes`` machines would fit: fewer ranks on these
+    machines (each rank adds its share of memory, r^γ), or more machines with as many ranks each."""
+    usable = REFUSE_SHARE * est.available_gib * GIB
+    fewer = [r for r in range(ranks - 1, 0, -1) if solve_memory(est.dofs, r, kind) <= usable]
+    per = -(-ranks // nodes)
+    more = f"it needs {machines_needed(est.dofs, est.available_gib * GIB / nodes, per, kind)} such machines " \
+        f"with {per} rank(s) each under MPI"
+    if not fewer:
+        return more
+    r = fewer[0]
+    return f"on {r} rank(s) it needs {solve_memory(est.dofs, r, kind) / GIB:.3g} GiB, which fits; or {more}"
+
+
 def check_resources(scene: dict, comm) -> tuple[Estimate | None, list[str]]:
     """:func:`estimate` on the machines of ``comm``; raises :class:`ResourceError` naming the mesh size
     when the largest solve cannot fit, returns warnings when it is close."""
@@ -203,8 +217,8 @@ def check_resources(scene: dict, comm) -> tuple[Estimate | None, list[str]]:
                             f"{est.available_gib:.3g} GiB of the {nodes} machine(s) of this run; lower it")
     if need > REFUSE_SHARE * est.available_gib:
         raise ResourceError(f"{what}, more than {100 * REFUSE_SHARE:.0f} % of the {est.available_gib:.3g} GiB of "
-                            f"the {nodes} machine(s) of this run: it needs {est.machines} such machines under "
-                            "MPI; use a larger mesh_size")
+                            f"the {nodes} machine(s) of this run: {_what_fits(est, comm.size, nodes, kind)}; "
+                            "or use a larger mesh_size")
     if need > WARN_SHARE * est.available_gib:
         return est, [f"{what}: close to the {est.available_gib:.3g} GiB of this run's machine(s)"]
     return est, []

@@ -158,3 +158,23 @@ def test_geometry_errors_become_the_applications():
                 raise error
         assert info.value.exit_code == code
 
+
+
+def test_a_refused_size_says_what_would_fit():
+    """The refusal on N ranks names what fits: fewer ranks on this machine where the model fits there (every
+    rank adds its share of memory, so 757k DOFs fit one 24 GiB machine on 1 rank, 18.5 GiB, but not on 2,
+    22.4 GiB: the message said "it needs 1 such machines" while refusing on 1), else the machines with as
+    many ranks each, which must hold the model where one machine fewer does not."""
+    from fem_squeal.app.resources import REFUSE_SHARE, Estimate, _what_fits
+
+    def est(dofs):
+        return Estimate(0.0, dofs, solve_memory(dofs) / GIB, 24.0, machines_needed(dofs, 24 * GIB))
+
+    assert solve_memory(757e3, 2) > REFUSE_SHARE * 24 * GIB >= solve_memory(757e3, 1)
+    said = _what_fits(est(757e3), 2, 1, "exact")
+    assert said.startswith("on 1 rank(s) it needs 18.") and "which fits" in said
+    said = _what_fits(est(3e6), 2, 1, "exact")
+    m = int(said.split("it needs ")[1].split(" such")[0])
+    assert solve_memory(3e6, 2 * m) <= REFUSE_SHARE * m * 24 * GIB
+    assert solve_memory(3e6, 2 * (m - 1)) > REFUSE_SHARE * (m - 1) * 24 * GIB
+    assert "with 2 rank(s) each" in said and "which fits" not in said

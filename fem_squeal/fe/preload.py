@@ -233,10 +233,10 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         t_step = time.perf_counter()
         if kept is not None and kept.prepare(values) and kept.solve(R, du):
             u.axpy(1.0, du)
-            how = f"update ({kept.columns_computed} columns)" if kept.route == "update" else \
+            woodbury = kept.route == "update"
+            how = f"update ({kept.columns_computed} columns)" if woodbury else \
                 f"GMRES on the kept factorisation ({kept.krylov_guess} iterations)"
-            kernels.note("newton_step", "kept factorisation, Woodbury columns" if kept.route == "update" else
-                         "kept factorisation, GMRES")
+            kernels.note("newton_step", f"kept factorisation, {'Woodbury columns' if woodbury else 'GMRES'}")
             continue
         # Jacobian and Newton step.  The contact matrices keep their sparsity whatever the closed
         # points (open ones carry explicit zeros), so J is built once and refilled: the LU then

@@ -104,26 +104,6 @@ def quadratic_residual(K, C, M, lam: complex, xr: PETSc.Vec, xi: PETSc.Vec) -> f
     return float(num / den)
 
 
-def _m_normalise(M: PETSc.Mat, xr: PETSc.Vec, xi: PETSc.Vec) -> None:
-    """Scale x = xr + i xi to x^H M x = 1 with the phase making Σ x_j² real (a fixed, mesh-
-    independent phase convention: for a standing mode the vector becomes real)."""
-    Mxr, Mxi = xr.duplicate(), xi.duplicate()
-    M.mult(xr, Mxr)
-    M.mult(xi, Mxi)
-    mass = xr.dot(Mxr) + xi.dot(Mxi)
-    # x^T M x (no conjugate) = (xr·Mxr − xi·Mxi) + 2i xr·Mxi ; rotate so that it is real and ≥ 0
-    q = complex(xr.dot(Mxr) - xi.dot(Mxi), 2 * xr.dot(Mxi))
-    phase = np.exp(-0.5j * np.angle(q)) if abs(q) > 1e-14 * mass else 1.0
-    scale = phase / np.sqrt(mass)
-    r, i = xr.copy(), xi.copy()
-    xr.scale(scale.real)
-    xr.axpy(-scale.imag, i)
-    xi.scale(scale.real)
-    xi.axpy(scale.imag, r)
-    for w in (Mxr, Mxi, r, i):
-        w.destroy()
-
-
 def _squares(Z: np.ndarray) -> np.ndarray:
     """Σ_i |Z_ij|² per column (this rank's rows)."""
     return np.einsum("ij,ij->j", Z.real, Z.real) + np.einsum("ij,ij->j", Z.imag, Z.imag)
@@ -135,11 +115,12 @@ RESIDUAL_BLOCK = 32
 
 def normalised_residuals(K: PETSc.Mat, C: PETSc.Mat | None, M: PETSc.Mat, lams: np.ndarray,
                          xrs: list[PETSc.Vec], xis: list[PETSc.Vec]) -> np.ndarray:
-    """Every pair (λ_j, x_j = xr_j + i xi_j) M-normalised in place as :func:`_m_normalise` does, and its
+    """Every pair (λ_j, x_j = xr_j + i xi_j) M-normalised in place, x^H M x = 1 with the phase making
+    xᵀMx real and ≥ 0 (a fixed, mesh-independent convention: a standing mode becomes real), and its
     residual ‖(λ²M + λC + K)x‖₂ / (‖K‖_∞ ‖x‖₂) as :func:`quadratic_residual` gives it, on blocks of
     :data:`RESIDUAL_BLOCK` pairs: one block product with K, M (and C) and one sum over the ranks per
     block, instead of six products, ten reductions and ‖K‖_∞ per pair (brake corner, 348k DOFs, 2 ranks,
-    91 pairs: 7.4 s before).  The x_j agree with the pairwise functions' to round-off."""
+    91 pairs: 7.4 s before)."""
     comm = M.getComm().tompi4py()
     k_inf = _norm_inf(K)
     res = np.empty(len(lams))

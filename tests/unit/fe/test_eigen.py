@@ -186,6 +186,26 @@ def test_a_bad_substructure_switch_is_a_named_error():
     assert _substructure("real_") is True
 
 
+def _m_normalise(M, xr, xi) -> None:
+    """The pairwise reference of results.normalised_residuals' normalisation (the product's before it was
+    batched): x = xr + i xi scaled to x^H M x = 1 with the phase making xᵀMx real, by PETSc vector operations."""
+    Mxr, Mxi = xr.duplicate(), xi.duplicate()
+    M.mult(xr, Mxr)
+    M.mult(xi, Mxi)
+    mass = xr.dot(Mxr) + xi.dot(Mxi)
+    # x^T M x (no conjugate) = (xr·Mxr − xi·Mxi) + 2i xr·Mxi ; rotate so that it is real and ≥ 0
+    q = complex(xr.dot(Mxr) - xi.dot(Mxi), 2 * xr.dot(Mxi))
+    phase = np.exp(-0.5j * np.angle(q)) if abs(q) > 1e-14 * mass else 1.0
+    scale = phase / np.sqrt(mass)
+    r, i = xr.copy(), xi.copy()
+    xr.scale(scale.real)
+    xr.axpy(-scale.imag, i)
+    xi.scale(scale.real)
+    xi.axpy(scale.imag, r)
+    for w in (Mxr, Mxi, r, i):
+        w.destroy()
+
+
 def test_batched_normalisation_and_residuals_equal_the_pairwise_ones(linear, ring_operators, monkeypatch):
     """normalised_residuals (blocks of pairs, one product per block) gives the vectors and residuals of
     _m_normalise and quadratic_residual pair by pair: on the ring's modes scaled by arbitrary complex
@@ -217,7 +237,7 @@ def test_batched_normalisation_and_residuals_equal_the_pairwise_ones(linear, rin
     batched = results.normalised_residuals(K, C, M, lams, [p[0] for p in pairs], [p[1] for p in pairs])
     assert len(lams) > 3 and len(lams) % 3
     for lam, r, (br, bi, pr, pi) in zip(lams, batched, pairs):
-        results._m_normalise(M, pr, pi)
+        _m_normalise(M, pr, pi)
         one = results.quadratic_residual(K, C, M, lam, pr, pi)
         assert abs(r - one) <= 1e-14 < 1e-5 * one
         xb, xp = br.array + 1j * bi.array, pr.array + 1j * pi.array

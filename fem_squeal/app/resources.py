@@ -26,7 +26,7 @@ its full-rank workspace), so it uses the exact fit.
 The fits were measured with SLEPc's Krylov–Schur in the CEA.  Its block Arnoldi (the default for
 the undamped CEA since 2026-11-27) keeps up to 6·nev vectors and runs only where they take at most
 half of the memory still available once the CEA's factorisation is held, shared by the ranks on the
-machine (``fem_squeal.fe.eigen.ARNOLDI_MEMORY_SHARE``, read from MemAvailable when the vectors are
+machine (``fem_squeal.fe.eigen.VECTOR_MEMORY_SHARE``, read from MemAvailable when the vectors are
 allocated): the prediction here does not count them, and they never take memory the factor needs.
 The brake at 348k DOFs on 2 ranks (120 modes, 2 × 1.0 GB) runs it; 1.32M DOFs on one machine keeps
 Krylov–Schur.

@@ -16,7 +16,7 @@ One concept per module, imports downward: :mod:`.results` (the result types and 
 :mod:`.options` (solver settings with a prefix, the shift-and-invert EPS) ← :mod:`.block_krylov`
 (block Lanczos and Arnoldi on block solves) ← :mod:`.real_modes` ← :mod:`.complex_modes` ←
 :mod:`.left_vectors`.  The public names are re-exported here (the import paths of the former module);
-the block methods' memory budgets (``BLOCK_MEMORY``, ``ARNOLDI_MEMORY_SHARE``) are read in
+the block methods' memory budgets (``BLOCK_MEMORY``, ``VECTOR_MEMORY_SHARE``) are read in
 :mod:`.block_krylov`.
 """
 from __future__ import annotations
@@ -25,6 +25,7 @@ from fem_squeal.fe.eigen.block_krylov import (  # noqa: F401
     ARNOLDI_MEMORY_SHARE,
     BEYOND,
     BLOCK_MEMORY,
+    VECTOR_MEMORY_SHARE,
     block_size,
 )
 from fem_squeal.fe.eigen.complex_modes import (  # noqa: F401

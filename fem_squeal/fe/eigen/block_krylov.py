@@ -17,7 +17,11 @@ from fem_squeal.fe.dense import m_cholesky_qr, project_out
 # fraction of single solves per column (clamped disc, 85k DOFs: CHOLMOD 35 → 7 ms, MUMPS on 2 ranks
 # 43 → 11 ms with 16 columns), which more than pays for the larger Krylov space a block method
 # needs.  ``<prefix>block_size`` 0 turns it off (SLEPc's Krylov–Schur on the same factorisation).
-BLOCK_MEMORY = 4.0e9   # bytes per rank for the Lanczos vectors (V and MV); beyond it, Krylov–Schur
+#: Bytes per rank the block methods' vectors may take at most (:func:`_vector_memory`: within it, half the
+#: memory available once the factor is held).  4e9 until 2026-11-29: at 711k DOFs on one rank the coupling's
+#: block Lanczos (125 modes ≤ 20 kHz) needs 400 vectors, 4.55 GB, and fell back to Krylov–Schur (two
+#: solves, 410 s against 110 s; docs/validation.md, "Real modes at 711k DOFs").
+BLOCK_MEMORY = 16.0e9
 BEYOND = 2             # converged pairs beyond a threshold λ_max that show none below it is missing
 
 
@@ -82,8 +86,8 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     product, with full reorthogonalisation.  ``solve``: B ↦ (K − σM)⁻¹B and ``mass``: W ↦ MW, both
     on the rank-local rows ``rows`` (r0, r1) of column-major blocks; ``n``: the global size.
     Returns (λ, local rows of the M-orthonormal vectors) or None (not converged within the vector
-    budget: max(6 nev, nev + 16 b, 256) vectors, at most :data:`BLOCK_MEMORY` bytes per rank; a
-    cluster of nearly equal eigenvalues, such as the clamped ring's 12 lowest within 0.1 %, needs ~150).
+    budget: max(6 nev, nev + 16 b, 256) vectors, V and MV at most :func:`_vector_memory` bytes per rank;
+    a cluster of nearly equal eigenvalues, such as the clamped ring's 12 lowest within 0.1 %, needs ~150).
 
     With V = [Q₀ … Q_j] M-orthonormal and W = (K − σM)⁻¹ M Q_j, T = Vᵀ M (K − σM)⁻¹ M V is
     symmetric; its eigenpairs (θ, y) give λ = σ + 1/θ, x = V y, and the residual of the shift-inverted
@@ -95,21 +99,31 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
 
     ``lam_max``: every pair with λ ≤ ``lam_max`` and the next :data:`BEYOND` in |θ| order instead of
     ``nev`` (σ below the middle of [0, ``lam_max``]: those are the leading |θ|); ``nev`` is then a
-    guess that sizes the block and the first budget, which grows (×1.5, the vectors copied) up to
-    what :data:`BLOCK_MEMORY` holds.  This is how :func:`fem_squeal.fe.projection.modes_below` asks
-    for the modes below a cut without counting them first (an inertia count cost one more
-    factorisation).  ``radius``: likewise every pair with |λ − σ| ≤ ``radius`` (|θ| ≥ 1/radius: they
-    lead in |θ| whatever σ) and the next :data:`BEYOND`: one slice of spectrum slicing
+    guess that sizes the block and the first budget (at most what :func:`_vector_memory` holds), which
+    grows (×1.5, the vectors copied: old and new held for the copy) up to that.  This is how
+    :func:`fem_squeal.fe.projection.modes_below` asks for the modes below a cut without counting them
+    first (an inertia count cost one more factorisation).  ``radius``: likewise every pair with
+    |λ − σ| ≤ ``radius`` (|θ| ≥ 1/radius: they lead in |θ| whatever σ) and the next :data:`BEYOND`:
+    one slice of spectrum slicing
     (:mod:`fem_squeal.fe.eigen.slicing`)."""
     r0, r1 = rows
     dim = _krylov_dim(nev, b, n)
     open_count = lam_max is not None or radius is not None
-    # with a threshold the budget grows (×1.5, the vectors copied) up to what BLOCK_MEMORY holds:
-    # allocating that at once cost 1.4 s of zeroed pages for the 50k-DOF brake's 89 modes
-    limit = dim if not open_count else \
-        min(n - b, int(BLOCK_MEMORY // (2 * 8 * max(comm.allreduce(r1 - r0, op=MPI.MAX), 1)))) // b * b
-    if (dim < nev and not open_count) or comm.allreduce(2 * 8 * (r1 - r0) * dim, op=MPI.MAX) > BLOCK_MEMORY:
+    # the vectors V and MV the memory rule allows (the smallest over the ranks: all must agree)
+    room = comm.allreduce(int(_vector_memory(comm) // (2 * 8 * max(r1 - r0, 1))), op=MPI.MIN)
+    if open_count:
+        # with a threshold the budget starts at what the guess needs (allocating the whole room at once
+        # cost 1.4 s of zeroed pages for the 50k-DOF brake's 89 modes) and grows up to the room; the
+        # guess beyond the room no longer sends the solve to Krylov–Schur (711k DOFs on one rank:
+        # 6·91 vectors were 6.2 GB against 4 GB, and 400 sufficed)
+        limit = min(n - b, room) // b * b
+        dim = min(dim, limit)
+        if dim < 2 * b:
+            return None
+    elif dim < nev or dim > room:
         return None
+    else:
+        limit = dim
     V = np.zeros((r1 - r0, dim), order="F")
     MV = np.zeros(V.shape, order="F")    # calloc: pages are touched only as columns are filled
     start = _m_orthonormal(comm, mass, _start_block(np.arange(r0, r1), b))
@@ -150,9 +164,10 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
         k += b
 
 
-#: Share of the memory still available when the CEA's factorisation is done (MemAvailable, over the ranks
-#: on the machine) the block Arnoldi vectors may take; beyond it, Krylov–Schur (2·nev vectors).
-ARNOLDI_MEMORY_SHARE = 0.5
+#: Share of the memory still available when the factorisation is done (MemAvailable, over the ranks on
+#: the machine) the block Lanczos and Arnoldi vectors may take; beyond it, Krylov–Schur (2·nev vectors).
+VECTOR_MEMORY_SHARE = 0.5
+ARNOLDI_MEMORY_SHARE = VECTOR_MEMORY_SHARE     # its name until the Lanczos vectors followed the same rule
 
 
 def available_memory() -> float:
@@ -168,20 +183,22 @@ def available_memory() -> float:
     return 0.05 * os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
 
 
-def _arnoldi_memory(comm) -> float:
-    """Bytes per rank the block Arnoldi vectors may take: :data:`BLOCK_MEMORY`, and at most
-    :data:`ARNOLDI_MEMORY_SHARE` of the memory available now (after the factorisation, which is
+def _vector_memory(comm) -> float:
+    """Bytes per rank the block Lanczos and Arnoldi vectors may take: :data:`BLOCK_MEMORY`, and at most
+    :data:`VECTOR_MEMORY_SHARE` of the memory available now (after the factorisation, which is
     held) over the ranks on this machine, which allocate at once.  The CEA's memory model
     (``app/resources.py``) is a prediction made before the run; this is what is free when the
     vectors are allocated, so the block path never takes memory the factor needs.  Brake corner,
     0–16 kHz, 120 modes: 348k DOFs on 2 ranks need 2 × 1.0 GB for the 720-vector budget with about
-    10 GB free (block Arnoldi runs); 1.32M on one 24 GiB machine would need 7.6 GB (Krylov–Schur)."""
+    10 GB free (block Arnoldi runs); 1.32M on one 24 GiB machine would need 7.6 GB (Krylov–Schur).
+    Real modes ≤ 20 kHz (the coupling's), 711k DOFs on one rank: block Lanczos's 400 vectors take 4.55 GB
+    with about 15 GB free."""
     node = comm.Split_type(MPI.COMM_TYPE_SHARED)
     try:
         ranks = node.Get_size()
     finally:
         node.Free()
-    return min(BLOCK_MEMORY, ARNOLDI_MEMORY_SHARE * available_memory() / ranks)
+    return min(BLOCK_MEMORY, VECTOR_MEMORY_SHARE * available_memory() / ranks)
 
 
 def _block_arnoldi(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np.ndarray], np.ndarray],
@@ -203,11 +220,11 @@ def _block_arnoldi(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     would split a complex-conjugate pair, the pair is kept whole (nev + 1).  Not the other pairs that
     happen to have converged too (SLEPc returns those): which they are depends on round-off, and the
     set returned must not (a scene run on two meshes numbered differently, or on 1 and 2 ranks, must
-    give the same modes).  The vectors are at most :func:`_arnoldi_memory` bytes per rank.
+    give the same modes).  The vectors are at most :func:`_vector_memory` bytes per rank.
     ``progress``: called with (converged wanted pairs, vectors) after each step."""
     r0, r1 = rows
     dim = _krylov_dim(nev, b, n)
-    if dim < nev + 1 or comm.allreduce(8 * (r1 - r0) * dim > _arnoldi_memory(comm), op=MPI.LOR):
+    if dim < nev + 1 or comm.allreduce(8 * (r1 - r0) * dim > _vector_memory(comm), op=MPI.LOR):
         return None
 
     def unit(x):        # the Euclidean inner product (a copy: _m_orthonormal transforms both in place)

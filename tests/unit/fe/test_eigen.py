@@ -165,7 +165,7 @@ def test_block_arnoldi_equals_krylov_schur(monkeypatch, ring_operators):
     # ‖Q(λ)x‖/(‖K‖‖x‖): the solver's own bound is 1e-8; pairs converged to 1e-10 on the shift-inverted
     # operator sit at round-off (measured 7.5e-17), so 1e-12 fails only a pair that did not converge
     assert np.all(block.residuals < 1e-12)
-    monkeypatch.setattr(eigen.block_krylov, "ARNOLDI_MEMORY_SHARE", 0.0)   # where block Arnoldi reads it
+    monkeypatch.setattr(eigen.block_krylov, "VECTOR_MEMORY_SHARE", 0.0)   # where block Arnoldi reads it
     low = solve_complex_modes(K, ops.M, None, 16, TARGET, band_hz=BAND, method="linear", prefix="bm_")
     assert low.algorithm == "Krylov-Schur"
     assert np.max(np.abs(low.eigenvalues / ks.eigenvalues - 1)) < 1e-9
@@ -265,6 +265,40 @@ def test_block_arnoldi_takes_half_the_memory_available_over_the_ranks(monkeypatc
     ranks = node.Get_size()
     node.Free()
     monkeypatch.setattr(block_krylov, "available_memory", lambda: 10e9)
-    assert block_krylov._arnoldi_memory(MPI.COMM_WORLD) == min(block_krylov.BLOCK_MEMORY, 5e9 / ranks)
+    assert block_krylov._vector_memory(MPI.COMM_WORLD) == min(block_krylov.BLOCK_MEMORY, 5e9 / ranks)
     monkeypatch.setattr(block_krylov, "available_memory", lambda: 1e9)
-    assert block_krylov._arnoldi_memory(MPI.COMM_WORLD) == 0.5e9 / ranks
+    assert block_krylov._vector_memory(MPI.COMM_WORLD) == 0.5e9 / ranks
+
+
+def test_block_lanczos_with_a_threshold_runs_within_the_memory_room(monkeypatch):
+    """Every pair below a threshold (``lam_max``, how modes_below asks) when the guess's first budget
+    (6·nev vectors) exceeds the room the memory rule leaves: the space starts at the room instead of
+    falling back to Krylov–Schur (711k DOFs on one rank: 6·91 vectors, 6.2 GB, against 4 GB, where 400
+    vectors sufficed).  A diagonal pencil λ_i = (i + 1)², so the pairs are known exactly."""
+    from mpi4py import MPI
+
+    from fem_squeal.fe.eigen import block_krylov
+
+    n, b, sigma = 3000, 16, -1.0
+    lam = (np.arange(n) + 1.0) ** 2
+    room = 320                                   # vectors V and MV, 16 bytes per row each
+    monkeypatch.setattr(block_krylov, "BLOCK_MEMORY", room * 2 * 8 * n)
+    monkeypatch.setattr(block_krylov, "available_memory", lambda: 1e12)
+    assert block_krylov._krylov_dim(200, b, n) > room
+    columns = []
+
+    def solve(B):
+        columns.append(B.shape[1])
+        return B / (lam - sigma)[:, None]
+
+    def lanczos():
+        return block_krylov._block_lanczos(solve, lambda W: np.array(W, order="F"), MPI.COMM_SELF, (0, n), n,
+                                           200, sigma, 1e-10, b, lam_max=60.5 ** 2)
+
+    got = lanczos()
+    assert got is not None and b <= sum(columns) <= room
+    # the 60 pairs ≤ 60.5² and BEYOND more, each to the tolerance's order (θ-relative 1e-10)
+    assert np.allclose(np.sort(got[0]), lam[:60 + block_krylov.BEYOND], rtol=1e-8)
+    # the room is the smaller of BLOCK_MEMORY and half the memory available: room for one block only
+    monkeypatch.setattr(block_krylov, "available_memory", lambda: b * 2 * 8 * n / block_krylov.VECTOR_MEMORY_SHARE)
+    assert lanczos() is None

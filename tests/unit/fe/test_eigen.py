@@ -302,3 +302,34 @@ def test_block_lanczos_with_a_threshold_runs_within_the_memory_room(monkeypatch)
     # the room is the smaller of BLOCK_MEMORY and half the memory available: room for one block only
     monkeypatch.setattr(block_krylov, "available_memory", lambda: b * 2 * 8 * n / block_krylov.VECTOR_MEMORY_SHARE)
     assert lanczos() is None
+
+
+def test_block_arnoldi_runs_in_a_room_smaller_than_its_budget(monkeypatch):
+    """Block Arnoldi within the room the memory rule leaves where that is below its budget (6·nev) but
+    holds ARNOLDI_MIN_SPACE·nev vectors (the brake's 120 pairs used 3.25·nev; at 711k DOFs on one rank the
+    whole budget was refused): the pairs nearest σ, exactly; with less room, None (Krylov–Schur)."""
+    from mpi4py import MPI
+
+    from fem_squeal.fe.eigen import block_krylov
+
+    n, b, nev, sigma = 2000, 8, 20, 510.0
+    lam = (np.arange(n) + 1.0) ** 2
+    columns = []
+
+    def solve(B):
+        columns.append(B.shape[1])
+        return B / (lam - sigma)[:, None]
+
+    def arnoldi(room):
+        monkeypatch.setattr(block_krylov, "BLOCK_MEMORY", room * 8 * n)
+        columns.clear()
+        return block_krylov._block_arnoldi(solve, lambda W: np.array(W, order="F"), MPI.COMM_SELF, (0, n), n, nev,
+                                           sigma, 1e-10, b)
+
+    room = 128                       # this pencil's 20 pairs need 112 vectors (blocks of 8) to 1e-10
+    assert block_krylov._krylov_dim(nev, b, n) > room >= block_krylov.ARNOLDI_MIN_SPACE * nev
+    got = arnoldi(room)
+    assert got is not None and sum(columns) <= room
+    nearest = np.sort(lam[np.argsort(np.abs(lam - sigma))[:nev]])
+    assert np.allclose(np.sort(got[0].real), nearest, rtol=1e-10) and np.all(got[0].imag == 0)
+    assert arnoldi(block_krylov.ARNOLDI_MIN_SPACE * nev - b) is None

@@ -9,12 +9,16 @@ modes below its cut (cut_factor × 16 kHz) by each method asked:
   near 0 and block Lanczos with a threshold; N ranks: the shared band-centre factorisation first);
 - ``sliceN``: :func:`fem_squeal.fe.eigen.slicing.sliced_modes` with N slices (MUMPS LDLᵀ per slice,
   inertia-checked);
+- ``ks``: ``single`` with ``cea_projection_block_size = 0`` (Krylov–Schur on the same factorisation, its
+  count grown until a mode lies above the cut: the path block Lanczos falls back to where its vectors
+  do not fit the memory rule);
 - ``slepcN``: SLEPc's Krylov–Schur with ``EPSSetInterval(0, λ_cut)`` (spectrum slicing) on MUMPS
   LDLᵀ with ICNTL(13) = 1 for its inertia, ``EPSKrylovSchurSetDimensions(N, 2N, N)``.
 
 Reports seconds, modes and the largest relative difference of the eigenvalues from the first method's.
 
     .venv/bin/python benchmarks/real_mode_slicing.py --mesh-size 0.012 --methods single slice3 slepc40
+    .venv/bin/python benchmarks/real_mode_slicing.py --mesh-size 0.00415 --methods single ks --n-start 91
     mpirun -n 2 .venv/bin/python benchmarks/real_mode_slicing.py --mesh-size 0.012 --methods single slice3
 
 Writes benchmarks/out/real_mode_slicing_<ranks>ranks.md and .json.
@@ -97,6 +101,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--mesh-size", default="0.012", help="geometry.mesh_size [m] (0.012: 78k DOFs, 0.008: 163k)")
     ap.add_argument("--methods", nargs="+", default=["single", "slice3"])
+    ap.add_argument("--n-start", type=int, default=128, help="modes_below's first count (its guess)")
     a = ap.parse_args()
     import numpy as np
     from mpi4py import MPI
@@ -113,11 +118,12 @@ def main() -> None:
     rows, ref = [], None
     for m in a.methods:
         shared = None
-        if m == "single" and comm.size > 1:     # the projection's shared band-centre factorisation (not timed)
+        if m in ("single", "ks") and comm.size > 1:     # the shared band-centre factorisation (not timed)
             shared = shifted.ShiftedSolver(K, M, -(2 * np.pi * 8000.0) ** 2, None, "cea_projection_static_")
         t0 = MPI.Wtime()
-        if m == "single":
-            w2, _ = shifted.modes_below(K, M, cut, n_start=128, prefix="cea_projection_", solver=shared, slices=0)
+        if m in ("single", "ks"):
+            w2, _ = shifted.modes_below(K, M, cut, n_start=a.n_start, prefix="cea_projection_", solver=shared,
+                                        slices=0, options={"cea_projection_block_size": 0} if m == "ks" else None)
         elif m.startswith("slice"):
             rm, _ = sliced_modes(K, M, cut, int(m[5:]), tol=shifted.BASIS_MODE_TOL,
                                  max_residual=shifted.BASIS_MODE_RESIDUAL,

@@ -11,7 +11,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 from scipy.linalg import blas
 
-from fem_squeal.fe.dense import m_cholesky_qr, project_out
+from fem_squeal.fe.dense import gram, m_cholesky_qr, project_out
 
 # Block Lanczos (issue 23): the factor's multiple-right-hand-side solve (MatMatSolve) costs a
 # fraction of single solves per column (clamped disc, 85k DOFs: CHOLMOD 35 → 7 ms, MUMPS on 2 ranks
@@ -86,8 +86,9 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     product, with full reorthogonalisation.  ``solve``: B ↦ (K − σM)⁻¹B and ``mass``: W ↦ MW, both
     on the rank-local rows ``rows`` (r0, r1) of column-major blocks; ``n``: the global size.
     Returns (λ, local rows of the M-orthonormal vectors) or None (not converged within the vector
-    budget: max(6 nev, nev + 16 b, 256) vectors, V and MV at most :func:`_vector_memory` bytes per rank;
-    a cluster of nearly equal eigenvalues, such as the clamped ring's 12 lowest within 0.1 %, needs ~150).
+    budget: max(6 nev, nev + 16 b, 256) vectors, at most :func:`_vector_memory` bytes per rank; a
+    cluster of nearly equal eigenvalues, such as the clamped ring's 12 lowest within 0.1 %, needs ~150).
+    MV is kept beside V while that room holds both, then dropped (one more mass product per block).
 
     With V = [Q₀ … Q_j] M-orthonormal and W = (K − σM)⁻¹ M Q_j, T = Vᵀ M (K − σM)⁻¹ M V is
     symmetric; its eigenpairs (θ, y) give λ = σ + 1/θ, x = V y, and the residual of the shift-inverted
@@ -109,8 +110,8 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     r0, r1 = rows
     dim = _krylov_dim(nev, b, n)
     open_count = lam_max is not None or radius is not None
-    # the vectors V and MV the memory rule allows (the smallest over the ranks: all must agree)
-    room = comm.allreduce(int(_vector_memory(comm) // (2 * 8 * max(r1 - r0, 1))), op=MPI.MIN)
+    # the vectors the memory rule allows, 8 bytes a row (the smallest over the ranks: all must agree)
+    room = comm.allreduce(int(_vector_memory(comm) // (8 * max(r1 - r0, 1))), op=MPI.MIN)
     if open_count:
         # with a threshold the budget starts at what the guess needs (allocating the whole room at once
         # cost 1.4 s of zeroed pages for the 50k-DOF brake's 89 modes) and grows up to the room; the
@@ -125,19 +126,31 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     else:
         limit = dim
     V = np.zeros((r1 - r0, dim), order="F")
+    # M V, kept while the room holds its filled columns too: the full reorthogonalisation's (MV)ᵀW then
+    # needs no mass product; without it, Vᵀ(MW), one more product per block (711k DOFs on one rank, the
+    # coupling's 400 vectors: 4.55 GB with MV, more than the room the run's products left, and
+    # Krylov–Schur took 270 s)
     MV = np.zeros(V.shape, order="F")    # calloc: pages are touched only as columns are filled
+    MR = np.zeros((r1 - r0, 2 * b), order="F")     # M times the last two blocks (the recurrence)
     start = _m_orthonormal(comm, mass, _start_block(np.arange(r0, r1), b))
     if start is None:
         return None
-    V[:, :b], MV[:, :b] = start[0], start[1]
+    V[:, :b], MR[:, b:] = start[0], start[1]
+    if MV is not None:
+        MV[:, :b] = start[1]
     T = np.zeros((dim, dim))
     k = b
     while True:
-        W = np.asfortranarray(solve(MV[:, k - b:k]))
+        W = np.asfortranarray(solve(MR[:, b:]))
         lo = max(0, k - 2 * b)
         C = np.zeros((k, b))
-        C[lo:], W = project_out(comm, V[:, lo:k], MV[:, lo:k], W)   # the recurrence: the last two blocks
-        C2, W = project_out(comm, V[:, :k], MV[:, :k], W)            # full reorthogonalisation
+        C[lo:], W = project_out(comm, V[:, lo:k], MR[:, 2 * b - (k - lo):], W)   # the last two blocks
+        if MV is not None:                                             # full reorthogonalisation
+            C2, W = project_out(comm, V[:, :k], MV[:, :k], W)
+        else:
+            C2 = gram(comm, V[:, :k], np.asfortranarray(mass(W)))
+            if W.size:
+                W = blas.dgemm(-1.0, V[:, :k], C2, beta=1.0, c=W, overwrite_c=1)
         C += C2
         T[:k, k - b:k] = C
         T[k - b:k, :k] = C.T
@@ -152,13 +165,19 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
         res = np.zeros(want.size) if nxt is None else np.linalg.norm(nxt[2] @ Y[k - b:k, want], axis=0)
         if k >= count and np.all(res <= tol * np.abs(theta[want])):
             return sigma + 1.0 / theta[want], blas.dgemm(1.0, V[:, :k], Y[:, want])
+        if MV is not None and 2 * (k + b) > room:
+            MV = None                                      # the room holds V only from here on
         if nxt is not None and k + b > dim and dim < limit:
             dim = min(limit, (3 * dim // 2) // b * b)
-            V, MV = (_grown(A, (A.shape[0], dim), "F") for A in (V, MV))
+            V, MV = (None if A is None else _grown(A, (A.shape[0], dim), "F") for A in (V, MV))
             T = _grown(T, (dim, dim), "C")
         if nxt is None or k + b > dim:
             return None                       # fewer than nev pairs exist, or the budget is spent
-        V[:, k:k + b], MV[:, k:k + b] = nxt[0], nxt[1]
+        V[:, k:k + b] = nxt[0]
+        MR[:, :b] = MR[:, b:]
+        MR[:, b:] = nxt[1]
+        if MV is not None:
+            MV[:, k:k + b] = nxt[1]
         T[k:k + b, k - b:k] = nxt[2]
         T[k - b:k, k:k + b] = nxt[2].T
         k += b

@@ -274,34 +274,45 @@ def test_block_lanczos_with_a_threshold_runs_within_the_memory_room(monkeypatch)
     """Every pair below a threshold (``lam_max``, how modes_below asks) when the guess's first budget
     (6·nev vectors) exceeds the room the memory rule leaves: the space starts at the room instead of
     falling back to Krylov–Schur (711k DOFs on one rank: 6·91 vectors, 6.2 GB, against 4 GB, where 400
-    vectors sufficed).  A diagonal pencil λ_i = (i + 1)², so the pairs are known exactly."""
+    vectors sufficed), and M V is dropped where the room holds V only (one more mass product per block;
+    the coupling at 711k after the CEA).  A diagonal pencil λ_i = (i + 1)², so the pairs are known."""
     from mpi4py import MPI
 
     from fem_squeal.fe.eigen import block_krylov
 
     n, b, sigma = 3000, 16, -1.0
     lam = (np.arange(n) + 1.0) ** 2
-    room = 320                                   # vectors V and MV, 16 bytes per row each
-    monkeypatch.setattr(block_krylov, "BLOCK_MEMORY", room * 2 * 8 * n)
     monkeypatch.setattr(block_krylov, "available_memory", lambda: 1e12)
-    assert block_krylov._krylov_dim(200, b, n) > room
-    columns = []
+    columns, products = [], []
 
     def solve(B):
         columns.append(B.shape[1])
         return B / (lam - sigma)[:, None]
 
-    def lanczos():
-        return block_krylov._block_lanczos(solve, lambda W: np.array(W, order="F"), MPI.COMM_SELF, (0, n), n,
-                                           200, sigma, 1e-10, b, lam_max=60.5 ** 2)
+    def mass(W):
+        products.append(W.shape[1])
+        return np.array(W, order="F")
 
-    got = lanczos()
-    assert got is not None and b <= sum(columns) <= room
-    # the 60 pairs ≤ 60.5² and BEYOND more, each to the tolerance's order (θ-relative 1e-10)
-    assert np.allclose(np.sort(got[0]), lam[:60 + block_krylov.BEYOND], rtol=1e-8)
+    def lanczos(room):                               # room: vectors of 8 bytes a row
+        monkeypatch.setattr(block_krylov, "BLOCK_MEMORY", room * 8 * n)
+        columns.clear()
+        products.clear()
+        return block_krylov._block_lanczos(solve, mass, MPI.COMM_SELF, (0, n), n, 200, sigma, 1e-10, b,
+                                           lam_max=60.5 ** 2)
+
+    want = lam[:60 + block_krylov.BEYOND]     # the 60 pairs ≤ 60.5² and BEYOND more
+    assert block_krylov._krylov_dim(200, b, n) == 1200
+    for room, keeps_mv in ((2400, True), (640, True), (320, False)):    # 272 vectors needed
+        got = lanczos(room)
+        assert got is not None and b <= sum(columns) <= room
+        steps = len(columns)
+        # a mass product for the start block and one per block, and one more per block once MV is dropped
+        assert len(products) == 1 + steps if keeps_mv else 1 + steps < len(products) <= 1 + 2 * steps
+        # each pair to the tolerance's order (θ-relative 1e-10)
+        assert np.allclose(np.sort(got[0]), want, rtol=1e-8)
     # the room is the smaller of BLOCK_MEMORY and half the memory available: room for one block only
-    monkeypatch.setattr(block_krylov, "available_memory", lambda: b * 2 * 8 * n / block_krylov.VECTOR_MEMORY_SHARE)
-    assert lanczos() is None
+    monkeypatch.setattr(block_krylov, "available_memory", lambda: b * 8 * n / block_krylov.VECTOR_MEMORY_SHARE)
+    assert lanczos(2400) is None
 
 
 def test_block_arnoldi_runs_in_a_room_smaller_than_its_budget(monkeypatch):

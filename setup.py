@@ -27,6 +27,7 @@ ext_modules = [
     kernel("csr_block", ["csr_block.c"]),
     kernel("cell_assembly", ["cell_assembly.c"], "-O2"),
     kernel("supernodal_solve", ["supernodal_solve.c"], depends=[f"{KERNELS}/supernodal_kernel.h"]),
+    kernel("substructure", ["substructure.c"]),
 ]
 if SUITESPARSE:
     ext_modules.append(kernel("cholmod_shim", ["cholmod_shim.c"], "-O2", include_dirs=SUITESPARSE[:1],

@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 from support.ranks import two_rank_signature
 
+from fem_squeal.fe import kernels
+
 SIGMA = -(2 * np.pi * 200.0) ** 2     # K − σM positive definite (the ring has a free rotation)
 
 
@@ -18,22 +20,36 @@ def signature() -> dict:
     from petsc4py import PETSc
     from support.ring import ring_operators
 
+    import fem_squeal.fe.substructured as ss
     from fem_squeal.fe.csr import local_rows
+    from fem_squeal.fe.dense import apply
     from fem_squeal.fe.eigen import solve_real_modes
-    from fem_squeal.fe.substructured import SubstructuredCholesky
 
     comm = MPI.COMM_WORLD
     ops = ring_operators(kn=1e10)
     out = {}
 
-    from fem_squeal.fe.dense import apply
-
     lo, hi = ops.K.getOwnershipRange()
     A = (local_rows(ops.K) - SIGMA * local_rows(ops.M)).tocsr()
     B = np.sin(np.outer(np.arange(ops.K.getSize()[0]) + 1.0, np.arange(1, 10)))[lo:hi]
-    with SubstructuredCholesky(A, ops.K.getOwnershipRanges(), ops.K.getBlockSize(), comm) as f:
-        X = f.solve(np.asfortranarray(B))
-        out["interface_rows"] = f.interface_rows
+    split, same = ss._split, []
+
+    def both(*args):             # the local matrix by the path that runs, and by NumPy: the same arrays
+        got, ref = split(*args), ss._split_numpy(*args)
+        same.append(all(np.array_equal(x, y) for x, y in zip((*got[:5], *got[5]), (*ref[:5], *ref[5])))
+                    and got[6] == ref[6])
+        return got
+
+    ss._split = both
+    kernels.tally(reset=True)
+    try:
+        with ss.SubstructuredCholesky(A, ops.K.getOwnershipRanges(), ops.K.getBlockSize(), comm) as f:
+            X = f.solve(np.asfortranarray(B))
+            out["interface_rows"] = f.interface_rows
+    finally:
+        ss._split = split
+    out["split_same"] = comm.allreduce(same == [True], op=MPI.LAND)
+    out["split_path"] = kernels.tally().get("interface")
     Ap = ops.K.copy()
     Ap.axpy(-SIGMA, ops.M)
     R = apply(Ap, X) - B
@@ -62,6 +78,10 @@ def test_substructured_solves_and_modes_equal_one_ranks(mpirun, tmp_path):
     two = two_rank_signature(mpirun, "test_substructured", tmp_path / "sig.json")
     one = signature()
     assert one["interface_rows"] == 0 and two["interface_rows"] > 0
+    # the local matrix by the compiled kernel where it is built, equal to NumPy's entry for entry
+    path = "compiled" if kernels.library("substructure") is not None else "numpy"
+    assert one["split_path"] == two["split_path"] == {path: 1}
+    assert one["split_same"] and two["split_same"]
     assert one["backward_error"] <= 1e-14 and two["backward_error"] <= 1e-14
     assert one["definite"]["solver"] == "cholmod"
     assert two["definite"]["solver"] == "cholmod-substructured"

@@ -14,6 +14,9 @@ library                what it does                                             
 ``cholmod_shim``       CHOLMOD's factorisation and solve behind plain functions  PETSc's CHOLMOD or
                        (:mod:`fem_squeal.fe.cholmod`), compiled against the      MUMPS
                        cholmod.h of the CHOLMOD it links
+``substructure``       the local matrix of the substructured factorisation       NumPy
+                       from a rank's rows, in one pass
+                       (:mod:`fem_squeal.fe.substructured`)
 =====================  ========================================================  =======================
 
 :func:`library` gives a loaded kernel or None; :func:`status` says which were built.  Each place
@@ -30,7 +33,7 @@ from importlib.machinery import EXTENSION_SUFFIXES
 from pathlib import Path
 
 FOLDER = Path(__file__).resolve().parent
-NAMES = ("csr_block", "cell_assembly", "supernodal_solve", "cholmod_shim")
+NAMES = ("csr_block", "cell_assembly", "supernodal_solve", "cholmod_shim", "substructure")
 _TALLY: Counter[tuple[str, str]] = Counter()     # (operation, path) -> times chosen in this process
 
 

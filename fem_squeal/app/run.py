@@ -143,6 +143,7 @@ from fem_squeal.app.stage import Context
 from fem_squeal.util.atomic import jsonable, write_json_atomic
 from fem_squeal.util.blas import limit_threads_for
 from fem_squeal.util.errors import FemSquealError
+from fem_squeal.util.memory import release_freed_memory
 from fem_squeal.util.parallel import on_root
 from fem_squeal.util.storage import STORAGE_ERRNOS, free_bytes, storage_error, storage_errors
 
@@ -280,6 +281,7 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
                                     "paths": _tally(reset=True)})
                     entry = idx
                     timings.update(stage_t)
+            release_freed_memory()         # what the stage's factorisations left in the heap (util.memory)
             results.update(entry["results"])
             results["stages"].append({"stage": item.stage, "key": item.key, "status": item.status,
                                       "seconds": entry["seconds"]})

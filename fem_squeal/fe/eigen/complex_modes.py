@@ -15,6 +15,7 @@ from fem_squeal.fe.eigen.options import PEP_OPTIONS, _progress, _shift_invert_ep
 from fem_squeal.fe.eigen.results import TWO_PI, ComplexModes, _check, _sort_key, normalised_residuals
 from fem_squeal.fe.factorisation import LU, scoped_options, user_option
 from fem_squeal.util.errors import ModelError
+from fem_squeal.util.memory import release_freed_memory
 from fem_squeal.util.progress import ProgressBar
 
 
@@ -97,6 +98,7 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
                 xis.append(xi)
         finally:
             solver.destroy()
+            release_freed_memory()      # the factorisation's heap blocks (fem_squeal.util.memory)
     lams = np.array(lams, dtype=complex)
     n_found = len(lams)
     if band_hz is not None:

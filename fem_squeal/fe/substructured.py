@@ -114,36 +114,59 @@ def _lower_gram(L: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(G[::-1, ::-1])
 
 
-def _split(A_rows: sp.csr_matrix, r0: int, r1: int, local: np.ndarray, gamma: np.ndarray, n_i: int,
-           interior: np.ndarray, own_gamma: np.ndarray):
-    """This rank's part of the local matrix: its interior rows [A_II A_IΓ] in the local numbering
-    (``local``: each owned row's; other ranks' columns through Γ, ``gamma``; -1 where neither) as CSR
-    (top_ptr, top_idx, top_val), their A_II pattern (inner_ptr, inner_idx: the fill-reducing order's
-    graph), the A_ΓΓ triplets of its interface rows, and whether an interior row couples to another
-    rank's interior.  The compiled kernel ``substructure`` in one pass (87k-DOF disc, 2 ranks: NumPy
-    took 0.12 s warm and 0.3–0.5 s in a fresh process), else NumPy; the same arrays either way."""
-    lib = _split_lib()
+def _local_matrix(A_rows: sp.csr_matrix, r0: int, r1: int, local: np.ndarray, gamma: np.ndarray, n_i: int,
+                  interior: np.ndarray, own_gamma: np.ndarray, comm: MPI.Comm, compiled: bool = True):
+    """This rank's local matrix [A_II A_IΓ; · A_ΓΓ] as CSR (indptr, indices: int32, data; CHOLMOD reads the
+    upper triangle, rows need not be sorted), the A_II pattern (inner_ptr, inner_idx: the fill-reducing
+    order's graph) and A_ΓΓ dense (symmetric, from the ranks' interface rows).  ``local``: each owned
+    row's local number (interior 0 … n_i − 1, Γ n_i …); other ranks' columns through Γ (``gamma``, sorted
+    global rows).  The compiled kernel ``substructure`` writes the interior rows straight into the arrays
+    CHOLMOD reads (255k-DOF disc, 2 ranks, in a fresh process: NumPy's pieces and their concatenation took
+    0.5–0.7 s of the set-up); NumPy where it is not built, or ``compiled=False`` (the reference of its
+    test): the same arrays.  Collective."""
+    lib = _split_lib() if compiled else None
+    if compiled:                      # the reference call of the test is not a path that ran
+        kernels.note("interface", "numpy" if lib is None else "compiled")
+    s = len(gamma)
     if lib is None:
-        kernels.note("interface", "numpy")
-        return _split_numpy(A_rows, r0, r1, local, gamma, n_i, interior, own_gamma)
-    kernels.note("interface", "compiled")
-    indptr = np.ascontiguousarray(A_rows.indptr, dtype=np.int64)
-    indices = np.ascontiguousarray(A_rows.indices, dtype=np.int32)
-    data = np.ascontiguousarray(A_rows.data, dtype=np.float64)
-    local, gamma, interior, own_gamma = (np.ascontiguousarray(a, dtype=np.int64)
-                                         for a in (local, gamma, interior, own_gamma))
-    counts = np.diff(indptr)
-    n_top, n_gg = int(counts[interior].sum()), int(counts[own_gamma].sum())
-    top_ptr, inner_ptr = np.empty(n_i + 1, np.int64), np.empty(n_i + 1, np.int64)
-    top_idx, top_val, inner_idx = np.empty(n_top, np.int64), np.empty(n_top), np.empty(n_top, np.int64)
-    gg_row, gg_col, gg_val = np.empty(n_gg, np.int64), np.empty(n_gg, np.int64), np.empty(n_gg)
-    got = np.zeros(2, np.int64)
-    bad = lib.substructure_split(r0, r1, *(address(a) for a in (indptr, indices, data, local, gamma)), len(gamma),
-                                 n_i, address(interior), address(own_gamma), len(own_gamma),
-                                 *(address(a) for a in (top_ptr, top_idx, top_val, inner_ptr, inner_idx,
-                                                        gg_row, gg_col, gg_val, got)))
-    q, g = int(got[0]), int(got[1])
-    return top_ptr, top_idx, top_val, inner_ptr, inner_idx[:q], (gg_row[:g], gg_col[:g], gg_val[:g]), bool(bad)
+        top_ptr, top_idx, top_val, inner_ptr, inner_idx, trip, bad = _split_numpy(
+            A_rows, r0, r1, local, gamma, n_i, interior, own_gamma)
+    else:
+        indptr64 = np.ascontiguousarray(A_rows.indptr, dtype=np.int64)
+        cols = np.ascontiguousarray(A_rows.indices, dtype=np.int32)
+        vals = np.ascontiguousarray(A_rows.data, dtype=np.float64)
+        local, gamma, interior, own_gamma = (np.ascontiguousarray(a, dtype=np.int64)
+                                             for a in (local, gamma, interior, own_gamma))
+        common = (*(address(a) for a in (indptr64, cols, vals, local, gamma)), s, n_i)
+        counts = np.diff(indptr64)
+        n_gg = int(counts[own_gamma].sum())
+        trip = (np.empty(n_gg, np.int64), np.empty(n_gg, np.int64), np.empty(n_gg))
+        g = lib.substructure_gamma(r0, r1, *common, address(own_gamma), len(own_gamma), *map(address, trip))
+        trip = tuple(a[:g] for a in trip)
+    allr, allc, allv = (np.concatenate(x) for x in zip(*comm.allgather(trip)))
+    upper = allc >= allr                                   # A_ΓΓ from its upper triangle, symmetric
+    gg = sp.csr_matrix((allv[upper], (allr[upper], allc[upper])), shape=(s, s))
+    A_gg = gg.toarray()
+    A_gg = A_gg + np.triu(A_gg, 1).T
+    if lib is None:
+        if comm.allreduce(bad, op=MPI.LOR):
+            raise RuntimeError("substructured Cholesky: an interior row couples to another rank's interior")
+        indptr = np.concatenate([top_ptr, top_ptr[-1] + gg.indptr[1:]]).astype(np.int32)
+        indices = np.concatenate([top_idx, n_i + gg.indices]).astype(np.int32)
+        data = np.concatenate([top_val, gg.data])
+        return indptr, indices, data, inner_ptr, inner_idx, A_gg
+    n_top = int(counts[interior].sum())
+    indptr = np.empty(n_i + s + 1, np.int32)
+    indices, data = np.empty(n_top + gg.nnz, np.int32), np.empty(n_top + gg.nnz)
+    inner_ptr, inner_idx, got = np.empty(n_i + 1, np.int64), np.empty(n_top, np.int64), np.zeros(1, np.int64)
+    bad = lib.substructure_interior(r0, r1, *common, address(interior), address(indptr), address(indices),
+                                    address(data), address(inner_ptr), address(inner_idx), address(got))
+    if comm.allreduce(bool(bad), op=MPI.LOR):
+        raise RuntimeError("substructured Cholesky: an interior row couples to another rank's interior")
+    indptr[n_i + 1:] = n_top + gg.indptr[1:]
+    indices[n_top:] = n_i + gg.indices
+    data[n_top:] = gg.data
+    return indptr, indices, data, inner_ptr, inner_idx[:int(got[0])], A_gg
 
 
 @lru_cache(maxsize=1)
@@ -153,14 +176,19 @@ def _split_lib() -> ctypes.CDLL | None:
     if lib is None:
         return None
     i64, p = ctypes.c_int64, ctypes.c_void_p
-    lib.substructure_split.argtypes = [i64, i64, p, p, p, p, p, i64, i64, p, p, i64, p, p, p, p, p, p, p, p, p]
-    lib.substructure_split.restype = ctypes.c_int
+    common = [i64, i64, p, p, p, p, p, i64, i64]
+    lib.substructure_gamma.argtypes = common + [p, i64, p, p, p]
+    lib.substructure_gamma.restype = ctypes.c_int64
+    lib.substructure_interior.argtypes = common + [p, p, p, p, p, p, p]
+    lib.substructure_interior.restype = ctypes.c_int
     return lib
 
 
 def _split_numpy(A_rows: sp.csr_matrix, r0: int, r1: int, local: np.ndarray, gamma: np.ndarray, n_i: int,
                  interior: np.ndarray, own_gamma: np.ndarray):
-    """:func:`_split` in NumPy (where the kernel is not built; the reference of its test)."""
+    """The pieces of :func:`_local_matrix` in NumPy: the interior rows' CSR in the local numbering
+    (top_ptr, top_idx, top_val), their A_II pattern, the A_ΓΓ triplets of the interface rows, and
+    whether an interior row couples to another rank's interior."""
     n_own = A_rows.shape[0]
     cols = A_rows.indices.astype(np.int64)
     owned = (cols >= r0) & (cols < r1)
@@ -221,19 +249,8 @@ class SubstructuredCholesky:
         local = np.full(n_own, -1, np.int64)
         local[interior] = np.arange(n_i)
         local[own_gamma] = n_i + self._gamma_pos
-        top_ptr, top_idx, top_val, inner_ptr, inner_idx, trip, bad = _split(
-            A_rows, ranges[r], ranges[r + 1], local, gamma, n_i, interior, own_gamma)
-        if comm.allreduce(bad, op=MPI.LOR):             # not a separator: a defect here
-            raise RuntimeError("substructured Cholesky: an interior row couples to another rank's interior")
-        allr, allc, allv = (np.concatenate(x) for x in zip(*comm.allgather(trip)))
-        upper = allc >= allr                                   # A_ΓΓ from its upper triangle, symmetric
-        gg = sp.csr_matrix((allv[upper], (allr[upper], allc[upper])), shape=(s, s))
-        A_gg = gg.toarray()
-        A_gg = A_gg + np.triu(A_gg, 1).T
-        # the local matrix [A_II A_IΓ; · A_ΓΓ] (CHOLMOD reads the upper triangle; rows need not be sorted)
-        indptr = np.concatenate([top_ptr, top_ptr[-1] + gg.indptr[1:]])
-        indices = np.concatenate([top_idx, n_i + gg.indices])
-        data = np.concatenate([top_val, gg.data])
+        indptr, indices, data, inner_ptr, inner_idx, A_gg = _local_matrix(
+            A_rows, ranges[r], ranges[r + 1], local, gamma, n_i, interior, own_gamma, comm)
         t1 = time.perf_counter()
         perm_i = node_order(node_graph(None, bs, (inner_ptr, inner_idx)), bs) if n_i else None
         if perm_i is None:

@@ -20,7 +20,7 @@ from fem_squeal.fe.dense import gram, m_cholesky_qr, project_out
 #: Bytes per rank the block methods' vectors may take at most (:func:`_vector_memory`: within it, half the
 #: memory available once the factor is held).  4e9 until 2026-11-29: at 711k DOFs on one rank the coupling's
 #: block Lanczos (125 modes ≤ 20 kHz) needs 400 vectors, 4.55 GB, and fell back to Krylov–Schur (two
-#: solves, 410 s against 110 s; docs/validation.md, "Real modes at 711k DOFs").
+#: solves, 410 s against 110 s; docs/validation.md, "The brake at 711k DOFs on one rank").
 BLOCK_MEMORY = 16.0e9
 BEYOND = 2             # converged pairs beyond a threshold λ_max that show none below it is missing
 

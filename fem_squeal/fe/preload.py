@@ -52,7 +52,6 @@ from fem_squeal.fe.kept_factorisation import (
 from fem_squeal.fe.model import ModelSpec, sliding_speed, speed_friction
 from fem_squeal.reduced.laws.contact import UnilateralLaw
 from fem_squeal.util.errors import ModelError, PreloadError
-from fem_squeal.util.memory import release_freed_memory
 
 
 class PreloadResult(NamedTuple):
@@ -122,7 +121,6 @@ class NewtonFactor:
             if obj is not None:
                 obj.destroy()
         self.J = self.ksp = self.kept = None
-        release_freed_memory()
 
 
 def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol: float = 1e-9,
@@ -284,8 +282,6 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     for obj in ((R, du, t) if factor is not None else (kept, R, du, t, ksp, J)):
         if obj is not None:
             obj.destroy()
-    if factor is None:
-        release_freed_memory()      # the factorisations' heap blocks (fem_squeal.util.memory)
     if f is not ops.f:
         f.destroy()
     pressure, normal, fric, area = {}, {}, {}, {}

@@ -149,24 +149,23 @@ def _local_matrix(A_rows: sp.csr_matrix, r0: int, r1: int, local: np.ndarray, ga
     A_gg = gg.toarray()
     A_gg = A_gg + np.triu(A_gg, 1).T
     if lib is None:
-        if comm.allreduce(bad, op=MPI.LOR):
-            raise RuntimeError("substructured Cholesky: an interior row couples to another rank's interior")
         indptr = np.concatenate([top_ptr, top_ptr[-1] + gg.indptr[1:]]).astype(np.int32)
         indices = np.concatenate([top_idx, n_i + gg.indices]).astype(np.int32)
         data = np.concatenate([top_val, gg.data])
-        return indptr, indices, data, inner_ptr, inner_idx, A_gg
-    n_top = int(counts[interior].sum())
-    indptr = np.empty(n_i + s + 1, np.int32)
-    indices, data = np.empty(n_top + gg.nnz, np.int32), np.empty(n_top + gg.nnz)
-    inner_ptr, inner_idx, got = np.empty(n_i + 1, np.int64), np.empty(n_top, np.int64), np.zeros(1, np.int64)
-    bad = lib.substructure_interior(r0, r1, *common, address(interior), address(indptr), address(indices),
-                                    address(data), address(inner_ptr), address(inner_idx), address(got))
-    if comm.allreduce(bool(bad), op=MPI.LOR):
+    else:
+        n_top = int(counts[interior].sum())
+        indptr = np.empty(n_i + s + 1, np.int32)
+        indices, data = np.empty(n_top + gg.nnz, np.int32), np.empty(n_top + gg.nnz)
+        inner_ptr, inner_idx, got = np.empty(n_i + 1, np.int64), np.empty(n_top, np.int64), np.zeros(1, np.int64)
+        bad = lib.substructure_interior(r0, r1, *common, address(interior), address(indptr), address(indices),
+                                        address(data), address(inner_ptr), address(inner_idx), address(got))
+        inner_idx = inner_idx[:int(got[0])]
+        indptr[n_i + 1:] = n_top + gg.indptr[1:]
+        indices[n_top:] = n_i + gg.indices
+        data[n_top:] = gg.data
+    if comm.allreduce(bool(bad), op=MPI.LOR):        # not a separator: a defect here
         raise RuntimeError("substructured Cholesky: an interior row couples to another rank's interior")
-    indptr[n_i + 1:] = n_top + gg.indptr[1:]
-    indices[n_top:] = n_i + gg.indices
-    data[n_top:] = gg.data
-    return indptr, indices, data, inner_ptr, inner_idx[:int(got[0])], A_gg
+    return indptr, indices, data, inner_ptr, inner_idx, A_gg
 
 
 @lru_cache(maxsize=1)

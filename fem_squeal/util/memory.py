@@ -7,8 +7,9 @@ process (RSS) and outside the system's MemAvailable.  Measured on the brake corn
 factorisations left 3.0 GB in the heap at 163k DOFs (RSS 3.85 GB, 0.80 GB after ``malloc_trim``), and at
 711k DOFs the heap the preload and the CEA left was why the coupling's block Lanczos found no room for its
 vectors (``fem_squeal.fe.eigen.block_krylov``) and the run peaked at 24.2 GB on a 24 GiB machine.
-:func:`release_freed_memory` returns the heap's free pages (glibc ``malloc_trim(0)``) once a
-factorisation is destroyed.
+:func:`release_freed_memory` returns the heap's free pages (glibc ``malloc_trim(0)``): the runner calls it
+after every stage (``app/run.py``), and the CEA after its solver is destroyed, before the coupling's real
+modes in the same stage.
 """
 from __future__ import annotations
 

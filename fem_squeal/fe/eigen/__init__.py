@@ -22,7 +22,6 @@ the block methods' memory budgets (``BLOCK_MEMORY``, ``VECTOR_MEMORY_SHARE``) ar
 from __future__ import annotations
 
 from fem_squeal.fe.eigen.block_krylov import (  # noqa: F401
-    ARNOLDI_MEMORY_SHARE,
     BEYOND,
     BLOCK_MEMORY,
     VECTOR_MEMORY_SHARE,

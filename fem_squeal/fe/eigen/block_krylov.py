@@ -135,9 +135,7 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     start = _m_orthonormal(comm, mass, _start_block(np.arange(r0, r1), b))
     if start is None:
         return None
-    V[:, :b], MR[:, b:] = start[0], start[1]
-    if MV is not None:
-        MV[:, :b] = start[1]
+    V[:, :b], MV[:, :b], MR[:, b:] = start[0], start[1], start[1]
     T = np.zeros((dim, dim))
     k = b
     while True:
@@ -186,7 +184,6 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
 #: Share of the memory still available when the factorisation is done (MemAvailable, over the ranks on
 #: the machine) the block Lanczos and Arnoldi vectors may take; beyond it, Krylov–Schur (2·nev vectors).
 VECTOR_MEMORY_SHARE = 0.5
-ARNOLDI_MEMORY_SHARE = VECTOR_MEMORY_SHARE     # its name until the Lanczos vectors followed the same rule
 #: The fewest vectors per wanted pair block Arnoldi starts with where the memory rule leaves less than its
 #: budget (max(6 nev, nev + 16 b, 256)); below, Krylov–Schur (2·nev vectors).  The brake corner's 120 pairs
 #: converged with 3.25·nev (390 vectors at 348k DOFs).
@@ -251,8 +248,9 @@ def _block_arnoldi(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     # ARNOLDI_MIN_SPACE·nev (the pages are touched only as vectors are added: the brake at 348k used 390
     # of the 720 for 120 pairs, and at 711k on one rank the 720 (4.1 GB) were refused, 342 s of Krylov–Schur)
     room = comm.allreduce(int(_vector_memory(comm) // (8 * max(r1 - r0, 1))), op=MPI.MIN) // b * b
-    dim = min(_krylov_dim(nev, b, n), room)
-    if dim < nev + 1 or dim < min(_krylov_dim(nev, b, n), ARNOLDI_MIN_SPACE * nev):
+    budget = _krylov_dim(nev, b, n)
+    dim = min(budget, room)
+    if dim < nev + 1 or dim < min(budget, ARNOLDI_MIN_SPACE * nev):
         return None
 
     def unit(x):        # the Euclidean inner product (a copy: _m_orthonormal transforms both in place)

@@ -249,7 +249,7 @@ def test_batched_normalisation_and_residuals_equal_the_pairwise_ones(linear, rin
 
 
 def test_block_arnoldi_takes_half_the_memory_available_over_the_ranks(monkeypatch):
-    """The block Arnoldi vectors may take ARNOLDI_MEMORY_SHARE (a half) of the memory available when the
+    """The block Arnoldi vectors may take VECTOR_MEMORY_SHARE (a half) of the memory available when the
     CEA's factorisation is held, shared by the ranks on the machine, and never more than BLOCK_MEMORY:
     at 348k DOFs on 2 ranks (2 × 1.0 GB with ~10 GB free) they now run where the former rule (5 % of the
     physical memory per rank, 0.6 GB) sent the CEA to Krylov–Schur."""

@@ -12,10 +12,13 @@ array: the same additions in the same order as dolfinx's, so the matrix is the s
 bit (K at 255k DOFs: 0.7 s against 1.3 s).  :func:`kronecker` writes M_s ⊗ W the same way (the
 vector masses from the scalar one).
 
-What :func:`assemble_matrix` covers: one rank, a form whose integrals are all cell integrals
-without coefficients (constants are fine: the material values), the same space for the test and
-trial functions, and an element without DOF transformations (Lagrange).  Anything else, or a
-machine where the C loops cannot be built, gives None and the caller assembles with dolfinx.
+What :func:`assemble_matrix` covers: a form whose integrals are all cell integrals without
+coefficients (constants are fine: the material values), the same space for the test and trial
+functions, and an element without DOF transformations (Lagrange).  Anything else, or a machine where
+the C loops cannot be built, gives None and the caller assembles with dolfinx.  On N ranks the same
+loop fills each rank's local rows (owned and ghost nodes) in a NumPy array, and every node row goes
+whole to ``MatSetValuesBlockedLocal`` of dolfinx's parallel matrix: one call per node instead of one
+search per entry of every element matrix; :func:`kronecker_rows` expands a parallel scalar matrix.
 
 The C loops (``fem_squeal/fe/kernels/cell_assembly.c``) are built with the package
 (:mod:`fem_squeal.fe.kernels`) and called through ctypes, with PETSc's ``MatSetValues`` and the FFCx
@@ -23,6 +26,7 @@ kernel passed in by address.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 from functools import lru_cache
 
@@ -30,11 +34,12 @@ import cffi
 import numpy as np
 import scipy.sparse as sp
 from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
 from dolfinx.fem.assemble import pack_constants
 from petsc4py import PETSc
 
 from fem_squeal.fe import kernels
-from fem_squeal.fe.csr import csr_values, csr_view, find_sorted, petsc_library
+from fem_squeal.fe.csr import csr_values, csr_view, petsc_library
 from fem_squeal.util.native import address
 
 
@@ -50,10 +55,14 @@ def _library() -> ctypes.CDLL | None:
     lib.assemble_cells.restype = ctypes.c_int
     lib.fill_pattern.argtypes = [p, p, i32, i32, p, p, p, p]
     lib.fill_pattern.restype = ctypes.c_int
-    lib.kronecker_rows.argtypes = [i32, i32, p, p, p, p, p]
+    lib.add_node_rows.argtypes = [p, p, i32, i32, p, p, p, p]
+    lib.add_node_rows.restype = ctypes.c_int
+    lib.kronecker_rows.argtypes = [i32, i32, i32, p, p, p, p, p]
     lib.kronecker_rows.restype = None
     lib.fill_kronecker.argtypes = [p, p, i32, i32, p, p, p, p, p, p, p]
     lib.fill_kronecker.restype = ctypes.c_int
+    lib.kronecker_csr.argtypes = [i32, i32, i32, p, p, p, p, p, p, p, p]
+    lib.kronecker_csr.restype = None
     return lib
 
 
@@ -63,9 +72,10 @@ def _ffi() -> cffi.FFI:
     return cffi.FFI()
 
 
-def _set_values() -> ctypes.c_void_p:
-    """The address of PETSc's ``MatSetValues`` in the library petsc4py links."""
-    return ctypes.cast(petsc_library().MatSetValues, ctypes.c_void_p)
+def _set_values(name: str = "MatSetValues") -> ctypes.c_void_p:
+    """The address of PETSc's ``MatSetValues`` (or another function of its signature, ``name``) in
+    the library petsc4py links."""
+    return ctypes.cast(getattr(petsc_library(), name), ctypes.c_void_p)
 
 
 def node_pattern(dofmap: np.ndarray, n_nodes: int) -> sp.csr_matrix:
@@ -79,9 +89,9 @@ def node_pattern(dofmap: np.ndarray, n_nodes: int) -> sp.csr_matrix:
     return G
 
 
-def _native(comm) -> ctypes.CDLL | None:
-    """The compiled loops where they apply: one rank, 32-bit PETSc indices, PETSc's library at hand."""
-    if comm.size > 1 or np.dtype(PETSc.IntType) != np.int32 or petsc_library() is None:
+def _native() -> ctypes.CDLL | None:
+    """The compiled loops where they apply: 32-bit PETSc indices, PETSc's library at hand."""
+    if np.dtype(PETSc.IntType) != np.int32 or petsc_library() is None:
         return None
     return _library()
 
@@ -90,7 +100,7 @@ def _applies(form: fem.FormMetaClass) -> bool:
     V0, V1 = form.function_spaces
     types = set(form.integral_types)
     return (V0 is V1 and types <= {fem.IntegralType.cell} and form.ufcx_form.num_coefficients == 0
-            and not V0.element.needs_dof_transformations and _native(V0.mesh.comm) is not None)
+            and not V0.element.needs_dof_transformations and _native() is not None)
 
 
 def _write_rows(M: PETSc.Mat, fill) -> None:
@@ -106,11 +116,14 @@ def _write_rows(M: PETSc.Mat, fill) -> None:
 
 
 def assemble_matrix(form: fem.FormMetaClass, bc_dofs: np.ndarray, diagonal: float) -> PETSc.Mat | None:
-    """The matrix of the bilinear ``form`` as a serial PETSc AIJ matrix, with the rows and columns of
-    the unrolled DOFs ``bc_dofs`` zero and ``diagonal`` on their diagonal: the matrix dolfinx's
-    ``create_matrix`` + ``assemble_matrix(A, form, bcs, diagonal)`` gives, bit for bit, with its
-    block size and local-to-global map.  None where this path does not apply (see the module
-    docstring)."""
+    """The matrix of the bilinear ``form`` as a PETSc AIJ matrix, with the rows and columns of the
+    unrolled DOFs ``bc_dofs`` (local: owned and ghost) zero and ``diagonal`` on their diagonal: the
+    matrix dolfinx's ``create_matrix`` + ``assemble_matrix(A, form, bcs, diagonal)`` gives, with its
+    block size and local-to-global map.  On one rank bit for bit; on N ranks each rank adds its
+    cells into its local rows (owned and ghost nodes) and hands every node row whole to
+    ``MatSetValuesBlockedLocal`` (the ghost rows summed by their owner at the assembly, so a row
+    shared by ranks sums in another order than dolfinx's, within a few ε).  None where this path
+    does not apply (see the module docstring)."""
     if not _applies(form):
         return None
     V = form.function_spaces[0]
@@ -132,23 +145,28 @@ def assemble_matrix(form: fem.FormMetaClass, bc_dofs: np.ndarray, diagonal: floa
     np.cumsum(length, out=row_ptr[1:])
     node_ptr = G.indptr.astype(np.int64)
     node_col = G.indices.astype(np.int32)
-    # the diagonal entry of Dirichlet row r = b·k + i: node k's own column, component i
+    # the diagonal entry of Dirichlet row r = b·k + i: node k's own column, component i (owned rows:
+    # a ghost row's owner sets it; a ghost node of ghost cells only has no local row at all)
     rows_bc = np.unique(np.asarray(bc_dofs, dtype=np.int64))
     own = np.full(n_nodes, -1, dtype=np.int64)
     at = np.flatnonzero(G.indices == np.repeat(np.arange(n_nodes), np.diff(G.indptr)))
     own[G.indices[at]] = at - G.indptr[G.indices[at]]
-    if np.any(own[rows_bc // b] < 0):
+    owned = rows_bc < b * imap.size_local
+    if np.any(own[rows_bc[owned] // b] < 0):
         return None               # a Dirichlet DOF outside the form's cells: dolfinx's error, not ours
+    rows_bc = rows_bc[owned]
     diagonal_at = row_ptr[rows_bc] + b * own[rows_bc // b] + rows_bc % b
     lib = _library()
-    M = PETSc.Mat().createAIJ((b * imap.size_local, b * imap.size_global), bsize=b, comm=mesh.comm,
-                              nnz=length.astype(PETSc.IntType))
-    longest = int(length.max(initial=0))
-    cols, zeros = np.empty(longest, dtype=np.int32), np.zeros(longest)
-    _write_rows(M, lambda set_values, mat: lib.fill_pattern(set_values, mat, n_nodes, b, address(node_ptr),
-                                                            address(node_col), address(cols), address(zeros)))
+    serial = mesh.comm.size == 1
+    if serial:
+        M = PETSc.Mat().createAIJ((b * imap.size_local, b * imap.size_global), bsize=b, comm=mesh.comm,
+                                  nnz=length.astype(PETSc.IntType))
+        longest = int(length.max(initial=0))
+        cols, zeros = np.empty(longest, dtype=np.int32), np.zeros(longest)
+        _write_rows(M, lambda set_values, mat: lib.fill_pattern(
+            set_values, mat, n_nodes, b, address(node_ptr), address(node_col), address(cols), address(zeros)))
     bc = np.zeros(b * n_nodes, dtype=np.int8)
-    bc[rows_bc] = 1
+    bc[np.asarray(bc_dofs, dtype=np.int64)] = 1
     geo = mesh.geometry
     x = np.ascontiguousarray(geo.x, dtype=np.float64)
     xdofs = geo.dofmap.array.reshape(len(geo.dofmap.offsets) - 1, -1).astype(np.int32)
@@ -158,7 +176,7 @@ def assemble_matrix(form: fem.FormMetaClass, bc_dofs: np.ndarray, diagonal: floa
     A = np.empty((n * b) ** 2)
     coords = np.empty(3 * nx)
     pos = np.empty(n, dtype=np.int64)
-    with csr_values(M) as val:
+    with csr_values(M) if serial else contextlib.nullcontext(np.zeros(int(row_ptr[-1]))) as val:
         for i, cells in enumerate(domains):
             kernel = ctypes.c_void_p(int(_ffi().cast("uintptr_t", uf.integrals(0)[i].tabulate_tensor_float64)))
             rc = lib.assemble_cells(kernel, len(cells), address(cells), address(dofs32), n, b, address(x),
@@ -168,6 +186,14 @@ def assemble_matrix(form: fem.FormMetaClass, bc_dofs: np.ndarray, diagonal: floa
             if rc != 0:
                 raise RuntimeError("cell_assembly: a node pair of a cell is missing from the pattern")
         val[diagonal_at] = diagonal
+        if not serial:
+            M = fem_petsc.create_matrix(form)      # dolfinx's pattern: the rows of other ranks' cells too
+            rc = lib.add_node_rows(_set_values("MatSetValuesBlockedLocal"), ctypes.c_void_p(M.handle), n_nodes,
+                                   b, address(node_ptr), address(node_col), address(row_ptr), address(val))
+            if rc != 0:
+                raise RuntimeError(f"cell_assembly: MatSetValuesBlockedLocal returned {rc}")
+            M.assemble()
+            return M
     lg = PETSc.LGMap().create(imap.local_to_global(np.arange(n_nodes, dtype=np.int32)).astype(PETSc.IntType),
                               bsize=b, comm=mesh.comm)
     M.setLGMap(lg, lg)
@@ -182,9 +208,9 @@ def kronecker(A: PETSc.Mat, W: np.ndarray, drop: np.ndarray, like: PETSc.Mat) ->
     b·j + d (A: the serial scalar matrix; W: b × b).  Each row is written once, in order, through
     MatSetValues on exactly preallocated rows (255k DOFs, P2 mass: 6.4M entries in 0.05 s, against
     0.35 s for NumPy index arrays and PETSc's copy of them).  None where the compiled loop or
-    PETSc's library cannot be had."""
-    lib = _native(A.getComm())
-    if lib is None:
+    PETSc's library cannot be had, or on more than one rank (:func:`kronecker_rows`)."""
+    lib = _native()
+    if lib is None or A.getComm().getSize() > 1:
         return None
     b = W.shape[0]
     Wc = np.ascontiguousarray(W, dtype=np.float64)
@@ -193,7 +219,7 @@ def kronecker(A: PETSc.Mat, W: np.ndarray, drop: np.ndarray, like: PETSc.Mat) ->
         n = len(ai) - 1
         ai, aj, av = (np.ascontiguousarray(a) for a in (ai, aj, av))
         count = np.empty(b * n, dtype=np.int32)
-        lib.kronecker_rows(n, b, address(ai), address(aj), address(Wc), address(flag), address(count))
+        lib.kronecker_rows(n, b, 0, address(ai), address(aj), address(Wc), address(flag), address(count))
         M = PETSc.Mat().createAIJ(like.getSizes(), bsize=b, comm=like.getComm(), nnz=count)
         longest = int(count.max(initial=0))
         cols, vals = np.empty(longest, dtype=np.int32), np.empty(longest)
@@ -205,40 +231,32 @@ def kronecker(A: PETSc.Mat, W: np.ndarray, drop: np.ndarray, like: PETSc.Mat) ->
     return M
 
 
-def kronecker_rows(A: PETSc.Mat, W: np.ndarray, drop: np.ndarray, like: PETSc.Mat) -> PETSc.Mat:
+def kronecker_rows(A: PETSc.Mat, W: np.ndarray, drop: np.ndarray, like: PETSc.Mat) -> PETSc.Mat | None:
     """:func:`kronecker` on any number of ranks, from each rank's own rows of the parallel scalar
     matrix ``A`` (``MatGetRow``: global columns, sorted): row b·i + c of A ⊗ W holds W(c, d) A(i, j)
     at column b·j + d, j in A's order, d inner, so every row comes out sorted and no rank needs
     another's rows.  ``drop``: the global numbers of the DOFs (every rank's, sorted) whose rows and
     columns are left out (an owned row couples to nodes of other ranks' cells, which this rank
-    does not hold).  One MatCreateMPIAIJWithArrays with ``like``'s sizes, block size and
-    local-to-global map."""
+    does not hold).  The rows are written by the compiled loop straight into CSR arrays, then one
+    MatCreateMPIAIJWithArrays with ``like``'s sizes, block size and local-to-global map.  None
+    where the compiled loop or PETSc's library cannot be had."""
+    lib = _native()
+    if lib is None:
+        return None
     b = W.shape[0]
-    ip, ind, av = A.getValuesCSR()
+    Wc = np.ascontiguousarray(W, dtype=np.float64)
+    ip, ind, av = (np.ascontiguousarray(a) for a in A.getValuesCSR())
     n, start = len(ip) - 1, A.getOwnershipRange()[0]
-    ind = ind.astype(np.int64)
-
-    e_row = np.repeat(np.arange(n), np.diff(ip))
-    per_c, counts = [], np.zeros(b * n, np.int64)
-    for c in range(b):
-        ds = np.flatnonzero(W[c])
-        keep = ~find_sorted(drop, b * ind[:, None] + ds)[1]                    # (nnz, nd)
-        keep &= ~find_sorted(drop, b * (start + e_row) + c)[1][:, None]
-        rows = np.broadcast_to(e_row[:, None], keep.shape)[keep]
-        cols = (b * ind[:, None] + ds)[keep]
-        vals = (av[:, None] * W[c, ds])[keep]
-        counts[b * np.arange(n) + c] = np.bincount(rows, minlength=n)
-        per_c.append((rows, cols, vals))
-    indptr = np.zeros(b * n + 1, np.int64)
-    np.cumsum(counts, out=indptr[1:])
-    indices, data = np.empty(indptr[-1], np.int64), np.empty(indptr[-1])
-    for c, (rows, cols, vals) in enumerate(per_c):
-        first = np.zeros(n + 1, np.int64)                                     # row i's first entry here
-        np.cumsum(counts[b * np.arange(n) + c], out=first[1:])
-        dest = indptr[b * rows + c] + np.arange(len(rows)) - first[rows]
-        indices[dest], data[dest] = cols, vals
-    M = PETSc.Mat().createAIJ(like.getSizes(), bsize=b, comm=like.getComm(),
-                              csr=(indptr.astype(PETSc.IntType), indices.astype(PETSc.IntType), data))
+    flag = np.zeros(b * A.getSize()[0], dtype=np.int8)       # by global DOF
+    flag[np.asarray(drop, dtype=np.int64)] = 1
+    count = np.empty(b * n, dtype=np.int32)
+    lib.kronecker_rows(n, b, start, address(ip), address(ind), address(Wc), address(flag), address(count))
+    indptr = np.zeros(b * n + 1, dtype=np.int32)
+    np.cumsum(count, out=indptr[1:])
+    indices, data = np.empty(indptr[-1], dtype=np.int32), np.empty(indptr[-1])
+    lib.kronecker_csr(n, b, start, address(ip), address(ind), address(av), address(Wc), address(flag),
+                      address(indptr), address(indices), address(data))
+    M = PETSc.Mat().createAIJ(like.getSizes(), bsize=b, comm=like.getComm(), csr=(indptr, indices, data))
     M.assemble()
     M.setLGMap(*like.getLGMap())
     M.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)

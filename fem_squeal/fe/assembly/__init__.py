@@ -28,6 +28,7 @@ from fem_squeal.fe.assembly.compiled import (  # noqa: F401
     _compile,
     _LiftFloats,
     _owned_global_rows,
+    assemble_form,
 )
 from fem_squeal.fe.assembly.contact import (  # noqa: F401
     contact_change,

@@ -56,19 +56,48 @@ def _compile(a, quadrature_degree):
 def _assemble(form, pattern: fem.FormMetaClass, bcs, diagonal: float, bc_dofs: np.ndarray | None = None
               ) -> PETSc.Mat:
     """The matrix of ``form`` on the sparsity of ``pattern``, Dirichlet rows and columns of ``bcs``
-    zero with ``diagonal`` on them.  On one rank, a cell-integral form on its own pattern goes
-    through :mod:`fem_squeal.fe.cell_assembly` (the same matrix, bit for bit, without PETSc's
-    per-entry insertion); it needs the unrolled DOFs of ``bcs`` as ``bc_dofs``."""
+    zero with ``diagonal`` on them.  A cell-integral form on its own pattern goes through
+    :mod:`fem_squeal.fe.cell_assembly` (on one rank the same matrix, bit for bit, without PETSc's
+    per-entry insertion; on N ranks each rank's rows whole); it needs the unrolled DOFs of ``bcs``
+    as ``bc_dofs``."""
     if pattern is form and (not bcs or bc_dofs is not None):
         A = cell_assembly.assemble_matrix(form, bc_dofs if bcs else np.zeros(0, dtype=np.int32), diagonal)
         if A is not None:
-            kernels.note("assembly", "compiled")
+            kernels.note("assembly", "compiled" if A.getComm().getSize() == 1 else "compiled, rank-local rows")
             return A
     kernels.note("assembly", "dolfinx")
     A = fem_petsc.create_matrix(pattern)
     fem_petsc.assemble_matrix(A, form, bcs=bcs, diagonal=diagonal)
     A.assemble()
     return A
+
+
+def assemble_form(a: ufl.Form, quadrature_degree, bcs, diagonal: float, bc_dofs: np.ndarray) -> PETSc.Mat:
+    """The matrix of the UFL form ``a`` on its own pattern (Dirichlet rows and columns of ``bcs``,
+    unrolled DOFs ``bc_dofs``, zero with ``diagonal`` on them), its cell integrals by the compiled
+    path (:func:`_assemble`) and its exterior-facet integrals (springs, plates) then added by dolfinx
+    into that matrix, where their cells are among the cell integrals' (so their entries are in the
+    pattern): dolfinx's own order, cells then facets, so on one rank the matrix is dolfinx's bit for
+    bit.  Anything else (interior facets, a cell-only or facet-only form) is :func:`_assemble` of
+    the whole form."""
+    cells = [itg for itg in a.integrals() if itg.integral_type() == "cell"]
+    rest = [itg for itg in a.integrals() if itg.integral_type() != "cell"]
+    if cells and rest and all(itg.integral_type() == "exterior_facet" for itg in rest):
+        fc = _compile(ufl.Form(cells), quadrature_degree)
+        A = _assemble(fc, fc, bcs, diagonal, bc_dofs)
+        fr = _compile(ufl.Form(rest), quadrature_degree)
+        cell_t, facet_t = fem.IntegralType.cell, fem.IntegralType.exterior_facet
+        covered = np.concatenate([fc.domains(cell_t, i) for i in fc.integral_ids(cell_t)])
+        facet_cells = [np.asarray(fr.domains(facet_t, i)).reshape(-1, 2)[:, 0] for i in fr.integral_ids(facet_t)]
+        inside = all(np.isin(c, covered).all() for c in facet_cells)
+        if A.getComm().tompi4py().allreduce(bool(inside), op=MPI.LAND):
+            # the Dirichlet rows are zero in the facet element matrices; their diagonal is inserted again
+            fem_petsc.assemble_matrix(A, fr, bcs=bcs, diagonal=diagonal)
+            A.assemble()
+            return A
+        A.destroy()
+    f = _compile(a, quadrature_degree)
+    return _assemble(f, f, bcs, diagonal, bc_dofs)
 
 
 def _owned_global_rows(A: PETSc.Mat, V, local_dofs: np.ndarray) -> np.ndarray:
@@ -95,10 +124,10 @@ def _block_masses(V, a_scalar, quadrature_degree, weights: list[np.ndarray], bc_
     expansion (:func:`fem_squeal.fe.cell_assembly.kronecker`) takes 0.05 s.
 
     On more than one rank the expansion is made from each rank's own rows of the parallel M_s
-    (:func:`fem_squeal.fe.cell_assembly.kronecker_rows`, NumPy): the 255k-DOF disc's two vector
-    masses on 2 ranks took 2.1 s through dolfinx's assembly (scratch profile, 2026-11-28).  None
-    when the scalar space does not number its nodes as V numbers its blocks, or where the compiled
-    expansion cannot be had (one rank)."""
+    (:func:`fem_squeal.fe.cell_assembly.kronecker_rows`): the 255k-DOF disc's two vector masses on
+    2 ranks took 2.1 s through dolfinx's assembly (scratch profile, 2026-11-28).  None when the
+    scalar space does not number its nodes as V numbers its blocks, or where the compiled expansion
+    cannot be had."""
     S = fem.FunctionSpace(V.mesh, V.ufl_element().sub_elements()[0])
     bs = V.dofmap.index_map_bs
     im_s, im_v = S.dofmap.index_map, V.dofmap.index_map

@@ -18,7 +18,14 @@ from petsc4py import PETSc
 from fem_squeal.fe import c3d8r as c8r
 from fem_squeal.fe import forms, hexahedra
 from fem_squeal.fe import interface as itf
-from fem_squeal.fe.assembly.compiled import _add, _assemble, _block_masses, _compile, _owned_global_rows
+from fem_squeal.fe.assembly.compiled import (
+    _add,
+    _assemble,
+    _block_masses,
+    _compile,
+    _owned_global_rows,
+    assemble_form,
+)
 from fem_squeal.fe.model import Interface, ModelSpec, RigidPlate, sliding_speed, speed_friction
 from fem_squeal.util.errors import ModelError, UnknownNameError
 
@@ -275,8 +282,8 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
         a_K, a_M, a_Mz = (hexahedra.with_cell_rule(a, c8r.ONE_POINT) for a in (a_K, a_M, a_Mz))
         if a_C is not None:
             a_C = hexahedra.with_cell_rule(a_C, c8r.ONE_POINT)
-    fK = _compile(a_K, qd)
-    K = _assemble(fK, fK, bcs, 1.0, bc_dofs)
+    K = assemble_form(a_K, qd, bcs, 1.0, bc_dofs)
+    fK = functools.cache(lambda: _compile(a_K, qd))     # K's form: the pattern of the matrices below
 
     def scalar_mass(us, vs):
         terms = [forms.mass_form(us, vs, m.rho, dx(mesh_data.volumes[p])) for p, m in spec.materials.items()]
@@ -287,10 +294,10 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
     if masses is not None:
         M, Mz = masses
     else:
-        M = _assemble(_compile(a_M, qd), fK, bcs, 0.0)
-        Mz = _assemble(_compile(a_Mz, qd), fK, bcs, 0.0)
-    C = _assemble(_compile(a_C, qd), fK, bcs, 0.0) if a_C is not None else None
-    Kf = _assemble(_compile(a_f, qd), fK, bcs, 0.0) if a_f is not None else None
+        M = _assemble(_compile(a_M, qd), fK(), bcs, 0.0)
+        Mz = _assemble(_compile(a_Mz, qd), fK(), bcs, 0.0)
+    C = _assemble(_compile(a_C, qd), fK(), bcs, 0.0) if a_C is not None else None
+    Kf = _assemble(_compile(a_f, qd), fK(), bcs, 0.0) if a_f is not None else None
     c3 = _c3d8r_corrections(V, mesh_data, spec) if spec.c3d8r else {}
     for part, (cells, dK, dM) in c3.items():
         mat = spec.materials[part]
@@ -319,6 +326,7 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
     t1 = time.perf_counter()
     contacts = []
     bc_rows = _owned_global_rows(K, V, bc_dofs)
+    springs = None     # the springs' sum, added to K once (each addition of another pattern copies K)
     for it in spec.interfaces:
         op = build_interface(V, mesh_data, spec, it)
         if it.kind == "contact":
@@ -326,10 +334,16 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
             continue
         kt = it.kn if it.kind == "bonded" else it.kt
         S = itf.spring_stiffness(op, it.kn, kt)
-        S.zeroRowsColumns(bc_rows, diag=0.0)
-        _add(K, S)
-        S.destroy()
         op.destroy()
+        if springs is None:
+            springs = S
+        else:
+            _add(springs, S)
+            S.destroy()
+    if springs is not None:
+        springs.zeroRowsColumns(bc_rows, diag=0.0)
+        _add(K, springs)
+        springs.destroy()
 
     t2 = time.perf_counter()
     K_parts = M_parts = plate_parts = None

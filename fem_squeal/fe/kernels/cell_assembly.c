@@ -82,16 +82,36 @@ int fill_pattern(setvalues_t set, void *mat, int32_t n_nodes, int32_t b, const i
     return 0;
 }
 
-/* A ⊗ W without the rows and columns flagged in `drop` (A: n × n CSR ai, aj, av with sorted columns;
-   W: b × b row-major): row b*i + c holds W[c][d] * A[i][j] at column b*j + d for W[c][d] != 0 and
-   neither b*i + c nor b*j + d dropped, j before d.  kronecker_rows: the entries per row. */
-void kronecker_rows(int32_t n, int32_t b, const int32_t *ai, const int32_t *aj, const double *W,
-                    const int8_t *drop, int32_t *count)
+/* Node row k of the DOF matrix in `val` (the layout of assemble_cells: b rows of b entries per node
+   column, row-major) added into a parallel matrix through PETSc's MatSetValuesBlockedLocal (`set`,
+   local node numbers mapped by the matrix's block local-to-global map; a ghost node's row goes to
+   its owner at the assembly), for every node k with node_ptr[k] < node_ptr[k + 1]. */
+int add_node_rows(setvalues_t set, void *mat, int32_t n_nodes, int32_t b, const int64_t *node_ptr,
+                  const int32_t *node_col, const int64_t *row_ptr, const double *val)
+{
+    for (int32_t k = 0; k < n_nodes; ++k) {
+        const int32_t len = (int32_t)(node_ptr[k + 1] - node_ptr[k]);
+        if (len == 0)
+            continue;
+        const int rc = set(mat, 1, &k, len, node_col + node_ptr[k], val + row_ptr[(int64_t)b * k],
+                           2 /* ADD_VALUES */);
+        if (rc)
+            return rc;
+    }
+    return 0;
+}
+
+/* A ⊗ W without the rows and columns flagged in `drop` (A: n rows ai, aj, av with sorted columns,
+   its first row global row `row0` (0 on one rank), aj global; W: b × b row-major; drop: indexed by
+   global DOF): row b*i + c holds W[c][d] * A[i][j] at column b*j + d for W[c][d] != 0 and neither
+   b*(row0 + i) + c nor b*j + d dropped, j before d.  kronecker_rows: the entries per row. */
+void kronecker_rows(int32_t n, int32_t b, int32_t row0, const int32_t *ai, const int32_t *aj,
+                    const double *W, const int8_t *drop, int32_t *count)
 {
     for (int32_t i = 0; i < n; ++i)
         for (int32_t c = 0; c < b; ++c) {
             int32_t len = 0;
-            if (!drop[(int64_t)b * i + c])
+            if (!drop[(int64_t)b * (row0 + i) + c])
                 for (int32_t k = ai[i]; k < ai[i + 1]; ++k)
                     for (int32_t d = 0; d < b; ++d)
                         len += W[c * b + d] != 0.0 && !drop[(int64_t)b * aj[k] + d];
@@ -99,22 +119,32 @@ void kronecker_rows(int32_t n, int32_t b, const int32_t *ai, const int32_t *aj, 
         }
 }
 
-/* The rows of A ⊗ W (see kronecker_rows) through MatSetValues with MAT_SORTED_FULL set. */
+/* Row b*i + c of A ⊗ W (see kronecker_rows) into cols/vals; returns its length. */
+static int32_t kronecker_row(int32_t i, int32_t c, int32_t b, int32_t row0, const int32_t *ai,
+                             const int32_t *aj, const double *av, const double *W, const int8_t *drop,
+                             int32_t *cols, double *vals)
+{
+    int32_t len = 0;
+    if (drop[(int64_t)b * (row0 + i) + c])
+        return 0;
+    for (int32_t k = ai[i]; k < ai[i + 1]; ++k)
+        for (int32_t d = 0; d < b; ++d)
+            if (W[c * b + d] != 0.0 && !drop[(int64_t)b * aj[k] + d]) {
+                cols[len] = b * aj[k] + d;
+                vals[len++] = av[k] * W[c * b + d];
+            }
+    return len;
+}
+
+/* The rows of A ⊗ W (see kronecker_rows; one rank, row0 = 0) through MatSetValues with
+   MAT_SORTED_FULL set. */
 int fill_kronecker(setvalues_t set, void *mat, int32_t n, int32_t b, const int32_t *ai, const int32_t *aj,
                    const double *av, const double *W, const int8_t *drop, int32_t *cols, double *vals)
 {
     for (int32_t i = 0; i < n; ++i)
         for (int32_t c = 0; c < b; ++c) {
             const int32_t r = b * i + c;
-            int32_t len = 0;
-            if (drop[r])
-                continue;
-            for (int32_t k = ai[i]; k < ai[i + 1]; ++k)
-                for (int32_t d = 0; d < b; ++d)
-                    if (W[c * b + d] != 0.0 && !drop[(int64_t)b * aj[k] + d]) {
-                        cols[len] = b * aj[k] + d;
-                        vals[len++] = av[k] * W[c * b + d];
-                    }
+            const int32_t len = kronecker_row(i, c, b, 0, ai, aj, av, W, drop, cols, vals);
             if (len) {
                 const int rc = set(mat, 1, &r, len, cols, vals, 1 /* INSERT_VALUES */);
                 if (rc)
@@ -122,4 +152,16 @@ int fill_kronecker(setvalues_t set, void *mat, int32_t n, int32_t b, const int32
             }
         }
     return 0;
+}
+
+/* The rows of A ⊗ W (see kronecker_rows) as CSR: indptr (b*n + 1, from kronecker_rows' counts),
+   indices and data filled here. */
+void kronecker_csr(int32_t n, int32_t b, int32_t row0, const int32_t *ai, const int32_t *aj, const double *av,
+                   const double *W, const int8_t *drop, const int32_t *indptr, int32_t *indices, double *data)
+{
+    for (int32_t i = 0; i < n; ++i)
+        for (int32_t c = 0; c < b; ++c) {
+            const int64_t at = indptr[(int64_t)b * i + c];
+            kronecker_row(i, c, b, row0, ai, aj, av, W, drop, indices + at, data + at);
+        }
 }

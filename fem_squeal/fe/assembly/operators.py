@@ -326,7 +326,7 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
     t1 = time.perf_counter()
     contacts = []
     bc_rows = _owned_global_rows(K, V, bc_dofs)
-    springs = None     # the springs' sum, added to K once (each addition of another pattern copies K)
+    springs = []
     for it in spec.interfaces:
         op = build_interface(V, mesh_data, spec, it)
         if it.kind == "contact":
@@ -334,16 +334,10 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
             continue
         kt = it.kn if it.kind == "bonded" else it.kt
         S = itf.spring_stiffness(op, it.kn, kt)
+        S.zeroRowsColumns(bc_rows, diag=0.0)
+        springs.append(S)
         op.destroy()
-        if springs is None:
-            springs = S
-        else:
-            _add(springs, S)
-            S.destroy()
-    if springs is not None:
-        springs.zeroRowsColumns(bc_rows, diag=0.0)
-        _add(K, springs)
-        springs.destroy()
+    _add_springs(K, springs)
 
     t2 = time.perf_counter()
     K_parts = M_parts = plate_parts = None
@@ -381,6 +375,24 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
         timings.update(volume_forms=t1 - t0 + time.perf_counter() - t2, interfaces=t2 - t1)
     return Operators(V, K, Kf, M, C, Mz, bc_dofs, f, tuple(contacts), K_parts, M_parts,
                      plate_parts=plate_parts)
+
+
+def _add_springs(K: PETSc.Mat, springs: list[PETSc.Mat]) -> None:
+    """K += S_1 + S_2 + ..., each S added in turn (the same sums, to the bit, as one addition after
+    another), with K's pattern grown to all of theirs once: an addition of another pattern copies K
+    (MatAXPY with DIFFERENT_NONZERO_PATTERN), one within K's pattern touches the springs' rows only.
+    Destroys the springs."""
+    if not springs:
+        return
+    union = springs[0].duplicate(copy=True)
+    for S in springs[1:]:
+        _add(union, S)
+    union.zeroEntries()
+    _add(K, union)                 # K's entries + 0: unchanged; the springs' entries now in K's pattern
+    union.destroy()
+    for S in springs:
+        K.axpy(1.0, S, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        S.destroy()
 
 
 def _plate_forms(u, v, x, n, dsp, plate: RigidPlate, spec: ModelSpec, kt, mu):

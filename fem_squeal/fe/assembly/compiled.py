@@ -72,14 +72,16 @@ def _assemble(form, pattern: fem.FormMetaClass, bcs, diagonal: float, bc_dofs: n
     return A
 
 
-def assemble_form(a: ufl.Form, quadrature_degree, bcs, diagonal: float, bc_dofs: np.ndarray) -> PETSc.Mat:
+def assemble_form(a: ufl.Form, quadrature_degree, bcs, diagonal: float, bc_dofs: np.ndarray
+                  ) -> tuple[PETSc.Mat, fem.FormMetaClass | None]:
     """The matrix of the UFL form ``a`` on its own pattern (Dirichlet rows and columns of ``bcs``,
     unrolled DOFs ``bc_dofs``, zero with ``diagonal`` on them), its cell integrals by the compiled
     path (:func:`_assemble`) and its exterior-facet integrals (springs, plates) then added by dolfinx
     into that matrix, where their cells are among the cell integrals' (so their entries are in the
     pattern): dolfinx's own order, cells then facets, so on one rank the matrix is dolfinx's bit for
     bit.  Anything else (interior facets, a cell-only or facet-only form) is :func:`_assemble` of
-    the whole form."""
+    the whole form.  Returns the matrix and the whole form compiled (None where it was split: the
+    caller compiles it only where it needs its pattern)."""
     cells = [itg for itg in a.integrals() if itg.integral_type() == "cell"]
     rest = [itg for itg in a.integrals() if itg.integral_type() != "cell"]
     if cells and rest and all(itg.integral_type() == "exterior_facet" for itg in rest):
@@ -94,10 +96,10 @@ def assemble_form(a: ufl.Form, quadrature_degree, bcs, diagonal: float, bc_dofs:
             # the Dirichlet rows are zero in the facet element matrices; their diagonal is inserted again
             fem_petsc.assemble_matrix(A, fr, bcs=bcs, diagonal=diagonal)
             A.assemble()
-            return A
+            return A, None
         A.destroy()
     f = _compile(a, quadrature_degree)
-    return _assemble(f, f, bcs, diagonal, bc_dofs)
+    return _assemble(f, f, bcs, diagonal, bc_dofs), f
 
 
 def _owned_global_rows(A: PETSc.Mat, V, local_dofs: np.ndarray) -> np.ndarray:

@@ -282,8 +282,9 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
         a_K, a_M, a_Mz = (hexahedra.with_cell_rule(a, c8r.ONE_POINT) for a in (a_K, a_M, a_Mz))
         if a_C is not None:
             a_C = hexahedra.with_cell_rule(a_C, c8r.ONE_POINT)
-    K = assemble_form(a_K, qd, bcs, 1.0, bc_dofs)
-    fK = functools.cache(lambda: _compile(a_K, qd))     # K's form: the pattern of the matrices below
+    K, compiled_K = assemble_form(a_K, qd, bcs, 1.0, bc_dofs)
+    # K's form, the pattern of the matrices below: compiled where one of them needs it
+    fK = functools.cache(lambda: _compile(a_K, qd) if compiled_K is None else compiled_K)
 
     def scalar_mass(us, vs):
         terms = [forms.mass_form(us, vs, m.rho, dx(mesh_data.volumes[p])) for p, m in spec.materials.items()]

@@ -121,13 +121,19 @@ def gram(comm, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     return comm.allreduce(X.T @ Y, op=MPI.SUM)
 
 
+def subtract_combination(V: np.ndarray, C: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """W − V C, in place on column-major W (BLAS dgemm: no temporary V C); W as it is where it has no
+    columns or this rank no rows."""
+    if W.size == 0:
+        return W
+    return blas.dgemm(-1.0, V, C, beta=1.0, c=W, overwrite_c=1)
+
+
 def project_out(comm, V: np.ndarray, MV: np.ndarray, W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """C = (MV)ᵀW summed over the ranks and W − V C, in place on column-major W (BLAS dgemm: no
-    temporary V C)."""
+    """C = (MV)ᵀW summed over the ranks (collective, also where this rank has no rows) and W − V C in
+    place (:func:`subtract_combination`)."""
     C = gram(comm, MV, W)
-    if W.size == 0:       # no columns, or no rows on this rank (the sum above is collective)
-        return C, W
-    return C, blas.dgemm(-1.0, V, C, beta=1.0, c=W, overwrite_c=1)
+    return C, subtract_combination(V, C, W)
 
 
 def m_cholesky_qr(comm, W: np.ndarray, MW: np.ndarray, check: bool = False

@@ -7,10 +7,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
-from scipy.linalg import blas
 
 from fem_squeal.fe.csr import csr_view
-from fem_squeal.fe.dense import apply, gram, m_cholesky_qr, matmul_f, project_out
+from fem_squeal.fe.dense import apply, gram, m_cholesky_qr, matmul_f, project_out, subtract_combination
 
 
 @dataclass
@@ -111,8 +110,8 @@ def _new_block(M: PETSc.Mat, V: np.ndarray, rtol: float, blocks: list[tuple[np.n
         # collective calls depend on column counts only: a rank may own no rows of V
         for Phi, MPhi in blocks:
             C, W = project_out(comm, Phi, MPhi, W)
-            if MW is not None and MW.size:
-                MW = blas.dgemm(-1.0, MPhi, C, beta=1.0, c=MW, overwrite_c=1)
+            if MW is not None:
+                MW = subtract_combination(MPhi, C, MW)
         return W, MW
 
     MV = apply(M, V)

@@ -100,6 +100,28 @@ def find_sorted(keys: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return pos, keys[pos] == x
 
 
+def drop_zeros(A: PETSc.Mat) -> PETSc.Mat:
+    """A copy of the AIJ matrix ``A`` without its stored zeros (``A`` itself if it has none or is
+    not AIJ).  A vector mass matrix is assembled on the stiffness pattern, whole 3×3 blocks of which
+    two thirds are zero: without them each product with M in the Krylov iteration (two per step:
+    the operator and the M-inner product) reads a third of the memory; the contact stiffness of a
+    state without its open points (:func:`fem_squeal.fe.assembly.contact.linearise`) does not carry
+    their couplings into a factorisation's pattern."""
+    if "aij" not in A.getType():
+        return A
+    with csr_view(A) as (ai, aj, av):       # serial: PETSc's arrays (the check alone copies nothing)
+        keep = av != 0.0
+        if A.getComm().tompi4py().allreduce(bool(keep.all()), op=MPI.LAND):
+            return A
+        counts = np.concatenate([[0], np.cumsum(keep)])
+        B = PETSc.Mat().createAIJ(A.getSizes(), csr=(counts[ai].astype(PETSc.IntType), aj[keep], av[keep]),
+                                  comm=A.getComm())
+    known, symmetric = A.isSymmetricKnown()
+    if known:
+        B.setOption(PETSc.Mat.Option.SYMMETRIC, symmetric)
+    return B
+
+
 def local_rows(A: PETSc.Mat) -> sp.csr_matrix:
     """This rank's rows of the AIJ matrix ``A`` with global column numbers, as SciPy CSR (copies)."""
     ai, aj, av = A.getValuesCSR()

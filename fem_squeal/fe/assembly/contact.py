@@ -7,6 +7,7 @@ from petsc4py import PETSc
 from fem_squeal.fe import interface as itf
 from fem_squeal.fe.assembly.compiled import _add, _owned_global_rows
 from fem_squeal.fe.assembly.operators import Operators
+from fem_squeal.fe.csr import drop_zeros
 
 
 def contact_matrices(ops: Operators, stiffness: dict[str, np.ndarray] | None = None,
@@ -47,12 +48,17 @@ def linearise(ops: Operators, active: dict[str, np.ndarray] | None = None,
     """Operators with the contact interfaces' K_c and K_f added for the closed points.
 
     ``active[name]`` flags the closed quadrature points of each contact (None: all closed, the
-    linear route).  Returns new K and K_f (the inputs are not modified)."""
+    linear route).  Returns new K and K_f (the inputs are not modified).  Only the closed points'
+    couplings enter their patterns: the open ones' stored zeros would be factorised as entries (the
+    brake corner at 348k DOFs, 3554 of 5400 points closed: the CEA's LU of K − σM 8.48e11 flops and
+    474M entries with them, 6.60e11 and 428M without; docs/validation.md)."""
     if not ops.contacts:
         return ops
     stiffness = None if active is None else \
         {it.name: it.kn * active[it.name].astype(float) for it, _ in ops.contacts}
     Kc, Fc = contact_matrices(ops, stiffness, friction)
+    if active is not None:      # the open points' stored zeros left out of K's pattern (docstring)
+        Kc, Fc = (_without_zeros(A) for A in (Kc, Fc))
     K = ops.K.copy()
     _add(K, Kc)
     Kc.destroy()
@@ -65,6 +71,16 @@ def linearise(ops: Operators, active: dict[str, np.ndarray] | None = None,
             _add(Kf, Fc)
             Fc.destroy()
     return ops._replace(K=K, Kf=Kf)
+
+
+def _without_zeros(A: PETSc.Mat | None) -> PETSc.Mat | None:
+    """``A`` without its stored zeros (:func:`fem_squeal.fe.csr.drop_zeros`), ``A`` destroyed if copied."""
+    if A is None:
+        return None
+    B = drop_zeros(A)
+    if B is not A:
+        A.destroy()
+    return B
 
 
 def contact_change(ops: Operators, active: dict[str, np.ndarray], to: dict[str, np.ndarray],

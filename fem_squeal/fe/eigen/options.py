@@ -8,11 +8,10 @@ from collections.abc import Mapping
 from contextlib import contextmanager
 
 import numpy as np
-from mpi4py import MPI
 from petsc4py import PETSc
 from slepc4py import SLEPc
 
-from fem_squeal.fe.csr import csr_view
+from fem_squeal.fe.csr import drop_zeros  # noqa: F401  (its former home: fe.eigen.options.drop_zeros)
 from fem_squeal.fe.factorisation import CHOLESKY, Factorisation
 from fem_squeal.util.progress import ProgressBar
 
@@ -61,26 +60,6 @@ def _shift_invert_eps(A: PETSc.Mat, B: PETSc.Mat, problem_type, nev: int, target
     eps.setTarget(target)
     eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
     return eps
-
-
-def drop_zeros(A: PETSc.Mat) -> PETSc.Mat:
-    """A copy of the AIJ matrix ``A`` without its stored zeros (``A`` itself if it has none or is
-    not AIJ).  A vector mass matrix is assembled on the stiffness pattern, whole 3×3 blocks of which
-    two thirds are zero: without them each product with M in the Krylov iteration (two per step:
-    the operator and the M-inner product) reads a third of the memory."""
-    if "aij" not in A.getType():
-        return A
-    with csr_view(A) as (ai, aj, av):       # serial: PETSc's arrays (the check alone copies nothing)
-        keep = av != 0.0
-        if A.getComm().tompi4py().allreduce(bool(keep.all()), op=MPI.LAND):
-            return A
-        counts = np.concatenate([[0], np.cumsum(keep)])
-        B = PETSc.Mat().createAIJ(A.getSizes(), csr=(counts[ai].astype(PETSc.IntType), aj[keep], av[keep]),
-                                  comm=A.getComm())
-    known, symmetric = A.isSymmetricKnown()
-    if known:
-        B.setOption(PETSc.Mat.Option.SYMMETRIC, symmetric)
-    return B
 
 
 #: seconds between progress lines of a SLEPc solve in a log (a terminal redraws the bar in place)

@@ -42,6 +42,33 @@ def test_relinearised_operators_are_those_about_the_state(scale):
         X.destroy()
 
 
+def test_linearised_operators_store_no_open_point_couplings():
+    """linearise's K and K_f: the values of the union-pattern sum (every point's coupling stored, the open
+    ones as zeros), but only the closed points' couplings in the pattern, so that a factorisation of K − σM
+    (the CEA's) does not treat the open points as entries."""
+    from petsc4py import PETSc
+
+    from fem_squeal.fe.assembly import contact_matrices, linearise
+
+    ops, _, pre, _, _, _, _ = model()
+    lin = linearise(ops, pre.active)
+    Kc, Fc = contact_matrices(ops, {it.name: it.kn * pre.active[it.name].astype(float) for it, _ in ops.contacts})
+    union = ops.K.copy()
+    union.axpy(1.0, Kc, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+    for A, B in ((lin.K, union), (lin.Kf, Fc)):
+        D = A.copy()
+        D.axpy(-1.0, B, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        assert D.norm() <= 1e-15 * B.norm()
+        D.destroy()
+        stored = COMM.allreduce(int(np.count_nonzero(B.getValuesCSR()[2] == 0.0)), op=MPI.SUM)
+        assert stored > 0, "the union pattern stores the open points' zeros (else the test shows nothing)"
+        assert A.getInfo()["nz_used"] < B.getInfo()["nz_used"]
+    lin_zeros = COMM.allreduce(int(np.count_nonzero(lin.Kf.getValuesCSR()[2] == 0.0)), op=MPI.SUM)
+    assert lin_zeros == 0
+    for X in (lin.K, lin.Kf, Kc, Fc, union):
+        X.destroy()
+
+
 @pytest.mark.parametrize("scale", SCALES)
 @pytest.mark.parametrize("point", [{"mu": MU}, {"mu": -0.5, "kn.pad": 2e12, "kt.pad": 0.0}])
 def test_reduced_model_at_a_pressure_is_the_projection_about_its_state(scale, point):

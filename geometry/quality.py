@@ -46,6 +46,21 @@ def _tet10_gradients(xi: np.ndarray) -> np.ndarray:
     return g
 
 
+#: ∇N at every sample point side by side: (10, 3·len(_XI)), column 3p + b = ∂N/∂ξ_b at point p.
+_GRADIENTS = np.concatenate([_tet10_gradients(xi) for xi in _XI], axis=1)
+
+
+def _tet10_jacobians(x: np.ndarray) -> np.ndarray:
+    """det J(ξ_p) of each tetra10 (coordinates ``x``: (m, 10, 3)) at every sample point: (m, len(_XI)).
+    J_nb = Σ_a x_an ∂N_a/∂ξ_b for all points in one matrix product, the determinants by the triple
+    product (the same numbers as ``np.linalg.det`` to round-off, a fraction of its time)."""
+    m = len(x)
+    J = (x.transpose(0, 2, 1).reshape(3 * m, 10) @ _GRADIENTS).reshape(m, 3, len(_XI), 3)
+    a, b, c = J[:, :, :, 0], J[:, :, :, 1], J[:, :, :, 2]          # the columns ∂x/∂ξ_b, each (m, 3, p)
+    return (a[:, 0] * (b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1]) - a[:, 1] * (b[:, 0] * c[:, 2] - b[:, 2] * c[:, 0])
+            + a[:, 2] * (b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]))
+
+
 _EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
 
 
@@ -68,8 +83,7 @@ def tet_quality(points: np.ndarray, cells: np.ndarray, max_aspect_ratio: float =
     with np.errstate(divide="ignore", invalid="ignore"):
         gamma = np.where(vol > 0, h_max * area / (6.0 * np.sqrt(6.0) * vol), np.inf)
         if cells.shape[1] == 10:
-            dets = np.stack([np.linalg.det(np.einsum("man,ab->mnb", x, _tet10_gradients(xi)))
-                             for xi in _XI], axis=1)
+            dets = _tet10_jacobians(x)
             ratio = dets.min(axis=1) / six_v
             ratio = np.where(six_v > 0, ratio, np.minimum(dets.min(axis=1), 0.0) / np.abs(six_v))
         else:

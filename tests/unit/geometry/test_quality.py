@@ -24,5 +24,7 @@ def test_tet10_jacobians_equal_the_determinants_point_by_point():
     x[0, 4] = x[0, 0] - 2.0 * (x[0, 1] - x[0, 0])
     got, ref = quality._tet10_jacobians(x), _reference(x)
     scale = np.abs(ref).max(axis=1, keepdims=True)
+    # both are the determinant to round-off: a few ε times the products of J's entries, which the largest
+    # |det J| of the element bounds for these shapes (2e-14 measured on the 255k-DOF disc): 1e-13
     assert np.max(np.abs(got - ref) / scale) < 1e-13
     assert (got[0] <= 0).any() and np.array_equal(np.sign(got) <= 0, np.sign(ref) <= 0)

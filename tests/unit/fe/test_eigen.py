@@ -315,6 +315,18 @@ def test_block_lanczos_with_a_threshold_runs_within_the_memory_room(monkeypatch)
     assert lanczos(2400) is None
 
 
+def _diagonal_shift_invert(n: int, sigma: float):
+    """λ_i = (i + 1)² with M = I: the eigenvalues, (K − σM)⁻¹ as a block solve, and the list of the
+    column counts it was called with."""
+    lam = (np.arange(n) + 1.0) ** 2
+    columns: list[int] = []
+
+    def solve(B):
+        columns.append(B.shape[1])
+        return B / (lam - sigma)[:, None]
+    return lam, solve, columns
+
+
 def test_block_arnoldi_stops_at_the_band():
     """With a band's radius block Arnoldi returns the pairs in the disc |ν − σ| ≤ radius and the BEYOND
     next ones once those converge, before the nev asked (the brake's 0–16 kHz: 91 pairs of 120): the same
@@ -325,12 +337,7 @@ def test_block_arnoldi_stops_at_the_band():
     from fem_squeal.fe.eigen import block_krylov
 
     n, b, nev, sigma = 2000, 8, 40, 510.0
-    lam = (np.arange(n) + 1.0) ** 2
-    columns = []
-
-    def solve(B):
-        columns.append(B.shape[1])
-        return B / (lam - sigma)[:, None]
+    lam, solve, columns = _diagonal_shift_invert(n, sigma)
 
     def arnoldi(radius):
         columns.clear()
@@ -357,12 +364,7 @@ def test_block_arnoldi_runs_in_a_room_smaller_than_its_budget(monkeypatch):
     from fem_squeal.fe.eigen import block_krylov
 
     n, b, nev, sigma = 2000, 8, 20, 510.0
-    lam = (np.arange(n) + 1.0) ** 2
-    columns = []
-
-    def solve(B):
-        columns.append(B.shape[1])
-        return B / (lam - sigma)[:, None]
+    lam, solve, columns = _diagonal_shift_invert(n, sigma)
 
     def arnoldi(room):
         monkeypatch.setattr(block_krylov, "BLOCK_MEMORY", room * 8 * n)

@@ -19,7 +19,6 @@ factorisation is 20–40 % (docs/validation.md), the counts are exact.
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -163,11 +162,7 @@ def main() -> None:
     if len(sys.argv) > 1 and sys.argv[1] == "--case":
         casework.report(run_case(sys.argv[2], float(sys.argv[3])))
         return
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--mesh-size", type=float, default=0.0056)
-    ap.add_argument("--repeats", type=int, default=2)
-    ap.add_argument("--ranks", type=int, default=2)
-    a = ap.parse_args()
+    a = casework.brake_args()
     rows = run(a.mesh_size, a.repeats, a.ranks)
     casework.save("contact_factorisation", table(rows), rows, a.ranks, False)
 

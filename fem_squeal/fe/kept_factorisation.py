@@ -25,8 +25,10 @@ surroundings, so few iterations reach round-off.  Measured on the brake corner (
 the Jacobians of the exact Newton path, GMRES to 1e-11): 21–25 iterations from the factorisation of the
 first step (922 points changed by the last), 15–17 from the second's (268–377 changed).
 
-Which route a step takes is decided by measured cost: the new columns times the measured seconds per
-column, the GMRES iterations last taken (:data:`KRYLOV_GUESS` before any) times the seconds per
+GMRES goes to ``rtol`` (:data:`KRYLOV_RTOL` unless the caller's inexact Newton step asks less:
+:func:`fem_squeal.fe.preload.forcing`).  Which route a step takes is decided by measured cost: the new
+columns times the measured seconds per column, GMRES's iterations per decade of residual last measured
+(:data:`KRYLOV_GUESS` over 11 decades before any) times the decades the step asks and the seconds per
 iteration (a solve with the factor, measured), and the seconds of the last factorisation (while
 ``max_factorisations``, the first included, allows one); the columns must also fit the memory budget.
 Columns and factorisations serve the later steps too, a GMRES step only itself: GMRES counts
@@ -100,6 +102,11 @@ def default_memory_budget(comm: MPI.Comm) -> float:
     return 0.25 * phys / comm.size
 
 
+def _decades(rtol: float) -> float:
+    """The decades of residual a Krylov solve to ``rtol`` gains (at least 1)."""
+    return max(1.0, -math.log10(rtol))
+
+
 class KeptFactorisation:
     """The factorisation of J_f (``ksp``, ``J`` holding J_f's values) and the low-rank updates of it.
 
@@ -128,6 +135,8 @@ class KeptFactorisation:
         self.solve_seconds: float | None = None    # one solve with the factor (note_solve)
         self.iteration_seconds: float | None = None  # one GMRES iteration of a Krylov step, measured
         self.krylov_guess = KRYLOV_GUESS            # the iterations of the last Krylov step
+        self.krylov_rate = KRYLOV_GUESS / _decades(KRYLOV_RTOL)   # its iterations per decade of residual
+        self.rtol = KRYLOV_RTOL                     # the relative residual of the next Krylov step (forcing)
         self.krylov_iterations = 0                  # GMRES iterations of the Krylov steps, all solves
         self.krylov_before = 0                      # krylov_iterations when the current solve began
         self.route = ""                             # how the last step was solved: "update" or "krylov"
@@ -186,7 +195,7 @@ class KeptFactorisation:
     def _krylov_seconds(self) -> float | None:
         """The expected seconds of a Krylov step (None before any solve with the factor was measured)."""
         per = self.iteration_seconds or self.solve_seconds
-        return None if per is None or self.krylov_failed else self.krylov_guess * per
+        return None if per is None or self.krylov_failed else self.krylov_rate * _decades(self.rtol) * per
 
     def prepare(self, values: dict[str, np.ndarray]) -> bool:
         """Set up the step J_k − J_f for the families' ``values``: True when the step can be solved
@@ -330,7 +339,7 @@ class KeptFactorisation:
         ksp.setGMRESRestart(KRYLOV_RESTART)
         ksp.setPCSide(PETSc.PC.Side.RIGHT)
         ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-        ksp.setTolerances(rtol=KRYLOV_RTOL, atol=0.0, max_it=KRYLOV_MAX_IT)
+        ksp.setTolerances(rtol=self.rtol, atol=0.0, max_it=KRYLOV_MAX_IT)
         pc = ksp.getPC()
         pc.setType(PETSc.PC.Type.PYTHON)
         pc.setPythonContext(_KeptPreconditioner(self.ksp))
@@ -344,11 +353,12 @@ class KeptFactorisation:
             if its:
                 self.iteration_seconds = self.comm.allreduce(time.perf_counter() - t, op=MPI.MAX) / its
                 self.krylov_guess = its
+                self.krylov_rate = its / _decades(self.rtol)
             ok = ksp.getConvergedReason() > 0
         finally:
             ksp.destroy()
             op.destroy()
-        return ok and self._residual(changes, d, x, b) <= UPDATE_RESIDUAL
+        return ok and self._residual(changes, d, x, b) <= max(UPDATE_RESIDUAL, 2.0 * self.rtol)
 
     def apply(self, changes, d: np.ndarray, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = J_k x = J_f x + A D Bᵀ x, A D Bᵀ x by products with the point matrices (J_f's clamped

@@ -134,11 +134,12 @@ def test_preload_newton_reuses_the_lu_ordering_and_its_updates_reach_the_same_st
     ‖R‖/‖f‖ from above 1e-6 to the 1e-9 tolerance with the closed set unchanged.
 
     The default keeps a factorisation and solves the later steps by low-rank (Woodbury) updates for
-    the points that opened or closed, or by GMRES preconditioned by the kept factorisation to 1e-11
-    (fem_squeal.fe.kept_factorisation; on this model GMRES, one factorisation): Newton steps exact to
-    that, so the same closed sets at every iteration and the same state — to the 1e-9 residual
-    tolerance times the condition of the Jacobian at worst; the converged step takes it to ~1e-12, and
-    1e-10 relative in displacement is the issue's (#36) bound — with at most two factorisations."""
+    the points that opened or closed, or by GMRES preconditioned by the kept factorisation
+    (fem_squeal.fe.kept_factorisation; on this model GMRES, one factorisation), inexact while the closed
+    set still moves (fem_squeal.fe.preload.forcing), so the closed sets on the way may differ; the last
+    one is the same and so is the state — the inexact steps' is accepted only at 1e-2 × the 1e-9
+    residual tolerance, the exact ones reach ~1e-12, and 1e-10 relative in displacement is the issue's
+    (#36) bound — with at most two factorisations."""
     from petsc4py import PETSc
 
     from fem_squeal.fe.preload import solve_preload
@@ -158,7 +159,8 @@ def test_preload_newton_reuses_the_lu_ordering_and_its_updates_reach_the_same_st
     (n1, r1), (n2, r2) = pre.history[-2:]
     assert n1 == n2 and r2 <= 1e-9 and r1 > 1e-6, pre.history
     up = preloaded()
-    assert [n for n, _ in up.history] == [n for n, _ in pre.history]
+    assert up.history[-1][0] == pre.history[-1][0] and up.history[-1][1] <= 1e-9
+    assert all(np.array_equal(up.active[n], a) for n, a in pre.active.items())
     assert up.factorisations <= 2 and up.update_columns + up.krylov_iterations > 0
     du = up.u.copy()
     du.axpy(-1.0, pre.u)

@@ -105,6 +105,12 @@ def forcing(residuals: list[float], tol: float, settled: bool) -> float:
     return float(max(KRYLOV_RTOL, eta, 0.1 * tol / rel if rel > 0 else 0.0))
 
 
+def reached(rel: float, tol: float, step_eta: float) -> bool:
+    """Whether ‖R‖/‖f‖ = ``rel`` after a step whose GMRES went to ``step_eta`` is converged (the closed set
+    unchanged): ≤ ``tol`` after an exact step, ≤ :data:`FORCING_FINAL` × ``tol`` after an inexact one."""
+    return rel <= (tol if step_eta <= KRYLOV_RTOL else FORCING_FINAL * tol)
+
+
 def _traction(g: np.ndarray, kn: float, k3: float) -> tuple[np.ndarray, np.ndarray]:
     """Normal traction σ = −p (≤ 0) per unit area and dσ/dg at gaps ``g``, from the cubic unilateral law
     of the reduced layer (one definition: p = k_n δ + k_3 δ³ for the closure δ = −g > 0, else 0)."""
@@ -254,7 +260,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         changed = -1 if prev is None else comm.allreduce(
             int(sum(np.count_nonzero(prev[n] != closed[n]) for n in closed)), op=MPI.SUM)
         same = changed == 0
-        if (same or (k == 0 and not cold)) and rel <= (tol if step_eta <= KRYLOV_RTOL else FORCING_FINAL * tol):
+        if (same or (k == 0 and not cold)) and reached(rel, tol, step_eta):
             break
         if k == max_iterations:
             raise PreloadError(f"preload: no convergence in {max_iterations} Newton iterations; "

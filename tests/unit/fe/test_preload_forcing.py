@@ -3,7 +3,7 @@ solved on the kept factorisation."""
 import pytest
 
 from fem_squeal.fe.kept_factorisation import KRYLOV_RTOL
-from fem_squeal.fe.preload import FORCING_MAX, forcing
+from fem_squeal.fe.preload import FORCING_FINAL, FORCING_MAX, forcing, reached
 
 
 def test_steps_are_loose_while_the_closed_set_moves_and_exact_once_it_stays():
@@ -19,3 +19,13 @@ def test_steps_are_loose_while_the_closed_set_moves_and_exact_once_it_stays():
     assert forcing([1e-6, 1e-9], tol, settled=False) == pytest.approx(0.1)         # a tenth of tol/‖R‖
     assert forcing([1.05e-3, 1.01e-5], tol, settled=True) == KRYLOV_RTOL
     assert forcing([1.0, 1e-30], 1e-40, settled=False) == KRYLOV_RTOL               # never below 1e-11
+
+
+def test_a_state_an_inexact_step_reached_converges_only_well_below_the_tolerance():
+    """After an exact step ‖R‖/‖f‖ ≤ tol ends the preload; after an inexact one only FORCING_FINAL × tol
+    does (else one more step, exact: the 348k brake stopped at 5e-10 after an inexact step, 4.4e-10 from
+    the exact steps' displacement, against the issue's 1e-10)."""
+    tol = 1e-9
+    assert reached(5e-10, tol, KRYLOV_RTOL) and reached(tol, tol, KRYLOV_RTOL)
+    assert not reached(5e-10, tol, 9e-5) and not reached(2 * FORCING_FINAL * tol, tol, 1e-2)
+    assert reached(FORCING_FINAL * tol, tol, 9e-5) and reached(7e-12, tol, 1e-2)

@@ -127,8 +127,9 @@ def band_radius(target_hz: float, band_hz: tuple[float, float] | None) -> float 
     """The radius about σ = (2π target)² of the disc in ν = ω² that holds the band ``band_hz`` (None: no
     band): max(σ − ν_lo, ν_hi − σ).  Block Arnoldi stops once the Ritz values in it and
     :data:`~fem_squeal.fe.eigen.block_krylov.BEYOND` more have converged, where that is before ``nev``.
-    A pair of the band with growth rate a has ν = ω² − a² − 2iaω: it lies in the disc but within
-    2aω of its rim at the band's ends, where the BEYOND pairs cover it."""
+    A pair of the band with growth rate a has ν = ω² − a² − 2iaω, off the real axis by 2aω: one within
+    2a²/ω of a band end (0.3 Hz at a = 300/s, 16 kHz) lies just outside the disc, among the BEYOND
+    pairs, which are then returned too (the results keep the band's pairs of those returned)."""
     if band_hz is None:
         return None
     sigma, lo, hi = ((TWO_PI * f) ** 2 for f in (target_hz, *band_hz))

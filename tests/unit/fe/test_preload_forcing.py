@@ -12,8 +12,8 @@ def test_steps_are_loose_while_the_closed_set_moves_and_exact_once_it_stays():
     steps' 1e-11; a settled closed set gets the exact step (the values of the 348k brake's history)."""
     tol = 1e-9
     assert forcing([1.0], tol, settled=False) == FORCING_MAX
-    assert forcing([1.0, 0.206], tol, settled=False) == FORCING_MAX                  # 0.042 > 1e-2
-    assert forcing([0.117, 2.18e-2], tol, settled=False) == FORCING_MAX               # 0.035 capped
+    assert forcing([1.0, 0.9], tol, settled=False) == FORCING_MAX                     # 0.81 capped
+    assert forcing([1.0, 0.206], tol, settled=False) == pytest.approx(0.206 ** 2)
     assert forcing([2.18e-2, 1.05e-3], tol, settled=False) == pytest.approx((1.05e-3 / 2.18e-2) ** 2)
     assert forcing([1.05e-3, 1.01e-5], tol, settled=False) == pytest.approx((1.01e-5 / 1.05e-3) ** 2)
     assert forcing([1e-6, 1e-9], tol, settled=False) == pytest.approx(0.1)         # a tenth of tol/‖R‖

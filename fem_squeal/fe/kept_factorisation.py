@@ -136,7 +136,8 @@ class KeptFactorisation:
         self.iteration_seconds: float | None = None  # one GMRES iteration of a Krylov step, measured
         self.krylov_guess = KRYLOV_GUESS            # the iterations of the last Krylov step
         self.krylov_rate = KRYLOV_GUESS / _decades(KRYLOV_RTOL)   # its iterations per decade of residual
-        self.rtol = KRYLOV_RTOL                     # the relative residual of the next Krylov step (forcing)
+        self.rtol = KRYLOV_RTOL                     # the relative residual of the step prepared (forcing)
+        self._ahead = steps_ahead                   # ... and the steps its GMRES cost counts for
         self.krylov_iterations = 0                  # GMRES iterations of the Krylov steps, all solves
         self.krylov_before = 0                      # krylov_iterations when the current solve began
         self.route = ""                             # how the last step was solved: "update" or "krylov"
@@ -197,11 +198,16 @@ class KeptFactorisation:
         per = self.iteration_seconds or self.solve_seconds
         return None if per is None or self.krylov_failed else self.krylov_rate * _decades(self.rtol) * per
 
-    def prepare(self, values: dict[str, np.ndarray]) -> bool:
+    def prepare(self, values: dict[str, np.ndarray], rtol: float = KRYLOV_RTOL, steps_ahead: int | None = None
+                ) -> bool:
         """Set up the step J_k − J_f for the families' ``values``: True when the step can be solved
         without a refactorisation (by Woodbury on the points' columns, or by GMRES preconditioned by
         the factor, whichever the measured costs say is cheaper), False when a refactorisation is
-        cheaper than both (as long as ``max_factorisations`` allows one)."""
+        cheaper than both (as long as ``max_factorisations`` allows one).  ``rtol``: GMRES's relative
+        residual for this step (an inexact Newton step's forcing); ``steps_ahead``: how many steps
+        GMRES's cost counts for this one (None: the constructor's)."""
+        self.rtol = rtol
+        self._ahead = self.steps_ahead if steps_ahead is None else steps_ahead
         changes = self._changes(values)
         new = [(key, int(r)) for key, rows, _ in changes for r in rows if (key, int(r)) not in self._index]
         d = np.concatenate([ds for _, _, ds in changes]) if changes else np.zeros(0)
@@ -212,7 +218,7 @@ class KeptFactorisation:
         while new:
             per_column = self.column_seconds if self.column_seconds is not None else \
                 (None if self.solve_seconds is None else COLUMN_SHARE * self.solve_seconds)
-            costs = {"krylov": None if krylov is None else self.steps_ahead * krylov,
+            costs = {"krylov": None if krylov is None else self._ahead * krylov,
                      "refactorise": self.factor_seconds if self.may_refactorise() else None,
                      "columns": (None if per_column is None else len(new) * per_column) if fits else math.inf}
             known = {k: c for k, c in costs.items() if c is not None}
@@ -302,7 +308,7 @@ class KeptFactorisation:
             if self._krylov_solve(b, x):
                 return True
             self.krylov_failed = True          # the columns then, unless a refactorisation is cheaper
-            return self.prepare(self._step[3]) and self.solve(b, x)
+            return self.prepare(self._step[3], self.rtol, self._ahead) and self.solve(b, x)
         _, changes, d, order, S = self._step
         self.ksp.solve(b, x)
         if len(order):

@@ -271,14 +271,12 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         values = _family_values(ops, tangents) if jacobian == "update" else {}
         t_step = time.perf_counter()
         step_eta = KRYLOV_RTOL    # the step's GMRES residual (exact: a factorisation or Woodbury's update)
-        if kept is not None:
-            # an inexact step while the closed set moves; once it (nearly) stays, an exact one, and GMRES
-            # then counted for this step only (the last, unless a continuation's next pressures follow)
-            settled = 0 <= changed <= SETTLED_SHARE * n_closed
-            kept.rtol = forcing([r for _, r in history], tol, settled)
-            kept.steps_ahead = KRYLOV_STEPS_AHEAD_KEPT if factor is not None else \
-                (1 if settled else KRYLOV_STEPS_AHEAD)
-        if kept is not None and kept.prepare(values) and kept.solve(R, du):
+        # an inexact step while the closed set moves; once it (nearly) stays, an exact one, and GMRES then
+        # counted for this step only (the last, unless a continuation's next pressures follow)
+        settled = 0 <= changed <= SETTLED_SHARE * n_closed
+        ahead = KRYLOV_STEPS_AHEAD_KEPT if factor is not None else (1 if settled else KRYLOV_STEPS_AHEAD)
+        if kept is not None and kept.prepare(values, forcing([r for _, r in history], tol, settled), ahead) \
+                and kept.solve(R, du):
             u.axpy(1.0, du)
             woodbury = kept.route == "update"
             step_eta = KRYLOV_RTOL if woodbury else kept.rtol
@@ -309,9 +307,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         if jacobian == "update":
             if kept is None:
                 kept = KeptFactorisation(ksp, J, bc_rows, _families(ops, friction),
-                                         max_factorisations=max_factorisations,
-                                         steps_ahead=KRYLOV_STEPS_AHEAD_KEPT if factor is not None else
-                                         KRYLOV_STEPS_AHEAD, options=options)
+                                         max_factorisations=max_factorisations, options=options)
             kept.reset(values, comm.allreduce(time.perf_counter() - t0, op=MPI.MAX))
         t0 = time.perf_counter()
         ksp.solve(R, du)

@@ -114,7 +114,7 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
     xrs, xis = [xrs[i] for i in order], [xis[i] for i in order]
     what = f"complex-mode {'EPS' if method == 'linear' else 'PEP'} (prefix {prefix!r})"
     # block Arnoldi returns fewer than nev where the band's pairs and BEYOND more converged first
-    _check(n_found, n_found if algorithm.startswith("block") else nev, res, max_residual, what, lams.imag / TWO_PI)
+    _check(n_found, nev if got is None else n_found, res, max_residual, what, lams.imag / TWO_PI)
     kernels.note("complex_modes", f"{method}, {algorithm.split(',')[0]}")
     return ComplexModes(lams, xrs, xis, res, method, seconds, algorithm)
 

@@ -45,7 +45,10 @@ def petsc_library() -> ctypes.CDLL | None:
                        ("MatSeqAIJGetArrayRead", [ctypes.c_void_p, ctypes.POINTER(_PDOUBLE)]),
                        ("MatSeqAIJRestoreArrayRead", [ctypes.c_void_p, ctypes.POINTER(_PDOUBLE)]),
                        ("MatSeqAIJGetArray", [ctypes.c_void_p, ctypes.POINTER(_PDOUBLE)]),
-                       ("MatSeqAIJRestoreArray", [ctypes.c_void_p, ctypes.POINTER(_PDOUBLE)])):
+                       ("MatSeqAIJRestoreArray", [ctypes.c_void_p, ctypes.POINTER(_PDOUBLE)]),
+                       ("MatMPIAIJGetSeqAIJ", [ctypes.c_void_p, ctypes.POINTER(ctypes.c_void_p),
+                                               ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(_PINT)]),
+                       ("MatSetOption", [ctypes.c_void_p, ctypes.c_int, ctypes.c_int])):
         getattr(lib, name).argtypes, getattr(lib, name).restype = args, ctypes.c_int
     return lib
 

@@ -1,4 +1,5 @@
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 typedef void (*kernel_t)(double *, const double *, const double *, const double *,
@@ -82,23 +83,128 @@ int fill_pattern(setvalues_t set, void *mat, int32_t n_nodes, int32_t b, const i
     return 0;
 }
 
-/* Node row k of the DOF matrix in `val` (the layout of assemble_cells: b rows of b entries per node
-   column, row-major) added into a parallel matrix through PETSc's MatSetValuesBlockedLocal (`set`,
-   local node numbers mapped by the matrix's block local-to-global map; a ghost node's row goes to
-   its owner at the assembly), for every node k with node_ptr[k] < node_ptr[k + 1]. */
-int add_node_rows(setvalues_t set, void *mat, int32_t n_nodes, int32_t b, const int64_t *node_ptr,
-                  const int32_t *node_col, const int64_t *row_ptr, const double *val)
+/* One entry of a merged node row: its global node column, and where its b × b block lies (row -1:
+   the rank's own row, position q in it; otherwise received row `row`, position q in it). */
+typedef struct {
+    int64_t col;
+    int32_t row, q;
+} entry_t;
+
+/* The owned node rows of a matrix assembled rank-locally, merged with the rows other ranks
+   assembled for the same nodes, written into PETSc's two parts of a parallel AIJ matrix.
+   Own node row k < n_own: entries node_ptr[k] .. node_ptr[k + 1] with global node columns gcol[p];
+   DOF row b*k + i holds b values per entry at val[row_ptr[b*k + i] + b*q + j] (the layout of
+   assemble_cells).  Received row r: entries recv_ptr[r] .. recv_ptr[r + 1] with global node columns
+   recv_col[x], its values row-major by DOF row: recv_val[b*b*recv_ptr[r] + i*b*L + b*q + j] (L its
+   length); the received rows of owned node k are in_rows[in_ptr[k] .. in_ptr[k + 1]) in the order
+   they are to be added.  The block of a column that several rows hold is their sum, own row first,
+   then the received ones in that order.  Columns of the owned nodes lo .. hi - 1 go to the diagonal
+   part, the others to the off-diagonal part.
+   set == NULL: n_diag[k] and n_off[k], the distinct node columns of node row k in either part.
+   Otherwise every DOF row b*k + i, columns in increasing order, through `set` (MatSetValues with
+   MAT_SORTED_FULL on both parts, preallocated with b·n_diag and b·n_off per DOF row): into `diag` at
+   local columns b*(col - lo) + j, into `off` at global columns b*col + j (as PETSc's MPIAIJ holds
+   them before its first assembly).  Returns 0, MatSetValues' error code, or -1 if the scratch
+   cannot be had. */
+int merge_rows(int32_t n_own, int32_t b, int64_t lo, int64_t hi, const int64_t *node_ptr, const int64_t *gcol,
+               const int64_t *row_ptr, const double *val, const int64_t *in_ptr, const int32_t *in_rows,
+               const int64_t *recv_ptr, const int64_t *recv_col, const double *recv_val, int32_t *n_diag,
+               int32_t *n_off, setvalues_t set, void *diag, void *off)
 {
-    for (int32_t k = 0; k < n_nodes; ++k) {
-        const int32_t len = (int32_t)(node_ptr[k + 1] - node_ptr[k]);
-        if (len == 0)
-            continue;
-        const int rc = set(mat, 1, &k, len, node_col + node_ptr[k], val + row_ptr[(int64_t)b * k],
-                           2 /* ADD_VALUES */);
-        if (rc)
-            return rc;
+    int64_t longest = 1;
+    for (int32_t k = 0; k < n_own; ++k) {
+        int64_t len = node_ptr[k + 1] - node_ptr[k];
+        for (int64_t t = in_ptr[k]; t < in_ptr[k + 1]; ++t)
+            len += recv_ptr[in_rows[t] + 1] - recv_ptr[in_rows[t]];
+        if (len > longest)
+            longest = len;
     }
-    return 0;
+    entry_t *e = malloc((size_t)longest * sizeof(entry_t));
+    int32_t *cols = malloc((size_t)longest * b * sizeof(int32_t));
+    double *vals = malloc((size_t)longest * b * b * sizeof(double));
+    int rc = (e && cols && vals) ? 0 : -1;
+    for (int32_t k = 0; k < n_own && rc == 0; ++k) {
+        int32_t m = 0;
+        for (int64_t p = node_ptr[k]; p < node_ptr[k + 1]; ++p)
+            e[m++] = (entry_t){gcol[p], -1, (int32_t)(p - node_ptr[k])};
+        for (int64_t t = in_ptr[k]; t < in_ptr[k + 1]; ++t) {
+            const int32_t r = in_rows[t];
+            for (int64_t x = recv_ptr[r]; x < recv_ptr[r + 1]; ++x)
+                e[m++] = (entry_t){recv_col[x], r, (int32_t)(x - recv_ptr[r])};
+        }
+        for (int32_t s = 1; s < m; ++s) {        /* stable insertion sort by column: own entries first */
+            const entry_t cur = e[s];
+            int32_t t = s;
+            while (t > 0 && e[t - 1].col > cur.col) {
+                e[t] = e[t - 1];
+                --t;
+            }
+            e[t] = cur;
+        }
+        /* the distinct columns: n_lo below lo, n_in in lo .. hi - 1, the rest above */
+        int32_t u = 0, n_lo = 0, n_in = 0;
+        for (int32_t s = 0; s < m; ++s)
+            if (s == 0 || e[s].col != e[s - 1].col) {
+                n_lo += e[s].col < lo;
+                n_in += e[s].col >= lo && e[s].col < hi;
+                ++u;
+            }
+        if (!set) {
+            n_diag[k] = n_in;
+            n_off[k] = u - n_in;
+            continue;
+        }
+        /* values: block row i of distinct column v at vals[(i*u + v)*b + j] */
+        memset(vals, 0, (size_t)u * b * b * sizeof(double));
+        int32_t v = -1;
+        for (int32_t s = 0; s < m; ++s) {
+            if (s == 0 || e[s].col != e[s - 1].col)
+                ++v;
+            for (int32_t i = 0; i < b; ++i) {
+                const double *in;
+                if (e[s].row < 0)
+                    in = val + row_ptr[(int64_t)b * k + i] + (int64_t)b * e[s].q;
+                else {
+                    const int64_t r0 = recv_ptr[e[s].row], L = recv_ptr[e[s].row + 1] - r0;
+                    in = recv_val + (int64_t)b * b * r0 + (int64_t)i * b * L + (int64_t)b * e[s].q;
+                }
+                double *out = vals + ((int64_t)i * u + v) * b;
+                for (int32_t j = 0; j < b; ++j)
+                    out[j] += in[j];
+            }
+        }
+        /* the distinct columns in order, then each DOF row's diagonal and off-diagonal parts */
+        v = -1;
+        for (int32_t s = 0; s < m; ++s)
+            if (s == 0 || e[s].col != e[s - 1].col)
+                e[++v].col = e[s].col;
+        for (int32_t i = 0; i < b && rc == 0; ++i) {
+            const int32_t r = b * k + i;
+            double *row = vals + (int64_t)i * u * b;
+            for (int32_t t = 0; t < n_in; ++t)
+                for (int32_t j = 0; j < b; ++j)
+                    cols[t * b + j] = (int32_t)(b * (e[n_lo + t].col - lo) + j);
+            if (n_in)
+                rc = set(diag, 1, &r, b * n_in, cols, row + (int64_t)n_lo * b, 1 /* INSERT_VALUES */);
+            if (rc || u == n_in)
+                continue;
+            /* the off-diagonal part: below lo, then above hi (the values moved next to each other) */
+            int32_t c = 0;
+            for (int32_t t = 0; t < u; ++t)
+                if (t < n_lo || t >= n_lo + n_in) {
+                    for (int32_t j = 0; j < b; ++j)
+                        cols[c * b + j] = (int32_t)(b * e[t].col + j);
+                    ++c;
+                }
+            memmove(row + (int64_t)n_lo * b, row + (int64_t)(n_lo + n_in) * b,
+                    (size_t)(u - n_lo - n_in) * b * sizeof(double));
+            rc = set(off, 1, &r, b * c, cols, row, 1 /* INSERT_VALUES */);
+        }
+    }
+    free(e);
+    free(cols);
+    free(vals);
+    return rc;
 }
 
 /* A ⊗ W without the rows and columns flagged in `drop` (A: n rows ai, aj, av with sorted columns,

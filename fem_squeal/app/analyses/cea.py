@@ -41,8 +41,9 @@ def above_one(v):
 
 
 SECTION = {
-    "n_modes": Field(int, 20, positive, "complex modes (Im λ > 0) to compute near target_hz; block Arnoldi "
-                     "stops sooner once every pair of band_hz and 2 beyond have converged"),
+    "n_modes": Field(int, 20, positive, "complex modes (Im λ > 0) to compute near target_hz; the linear "
+                     "method (block Arnoldi or Krylov–Schur) stops sooner once every pair of band_hz and 2 "
+                     "beyond have converged"),
     "target_hz": Field(REAL, None, positive, "shift; not set: centre of band_hz", unset=0),
     "band_hz": Field(list, [0.0, 10000.0], band, "frequency band kept in the results"),
     "method": Field(str, "auto", one_of("auto", "linear", "pep", "projection"),

@@ -42,7 +42,7 @@ class ComplexModes:
     residuals: np.ndarray         # ‖(λ²M+λC+K)x‖ / (‖K‖ ‖x‖)
     method: str
     seconds: dict[str, float] = field(default_factory=dict)   # "factor" (setUp), "solve" (wall, rank 0)
-    algorithm: str = ""           # "block Arnoldi, <b> columns", "Krylov-Schur" or "TOAR"
+    algorithm: str = ""    # "block Arnoldi, <b> columns", "Krylov-Schur" (", stopped at the band") or "TOAR"
 
     @property
     def freqs_hz(self) -> np.ndarray:

@@ -379,3 +379,36 @@ def test_block_arnoldi_runs_in_a_room_smaller_than_its_budget(monkeypatch):
     nearest = np.sort(lam[np.argsort(np.abs(lam - sigma))[:nev]])
     assert np.allclose(np.sort(got[0].real), nearest, rtol=1e-10) and np.all(got[0].imag == 0)
     assert arnoldi(block_krylov.ARNOLDI_MIN_SPACE * nev - b) is None
+
+
+def test_krylov_schur_stops_at_the_band():
+    """Krylov–Schur (the CEA's path where block Arnoldi is refused or switched off) stops at the band as
+    block Arnoldi does, once no Ritz value in the band's disc about σ is unconverged and BEYOND converged
+    ones lie beyond it, before the nev asked: the band's pairs equal those of the solve that converges
+    all nev, within the tolerance.  A diagonal pencil λ_i = (i + 1)² with a skew coupling of its
+    neighbours (non-symmetric, as with friction; real eigenvalues)."""
+    from petsc4py import PETSc
+
+    n = 600
+    K = PETSc.Mat().createAIJ((n, n), nnz=3, comm=PETSc.COMM_SELF)
+    M = PETSc.Mat().createAIJ((n, n), nnz=1, comm=PETSc.COMM_SELF)
+    for i in range(n):
+        K.setValue(i, i, (i + 1.0) ** 2)
+        M.setValue(i, i, 1.0)
+        if i + 1 < n:
+            K.setValue(i, i + 1, 0.2)
+            K.setValue(i + 1, i, -0.2)
+    K.assemble()
+    M.assemble()
+    target = np.sqrt(510.0) / (2 * np.pi)
+    # ν in [9.5², 34.5²] (10² … 34²: 25 pairs); its disc |ν − 510| ≤ 680.25 holds 1² … 34²
+    band = (9.5 / (2 * np.pi), 34.5 / (2 * np.pi))
+    ks = {"cea_block_size": 0, "cea_eps_ncv": 46}          # several restarts for 40 pairs
+    short = solve_complex_modes(K, M, None, 40, target, band_hz=band, method="linear", options=ks)
+    full = solve_complex_modes(K, M, None, 40, target, method="linear", options=ks)
+    assert short.algorithm == "Krylov-Schur, stopped at the band" and full.algorithm == "Krylov-Schur"
+    f = full.eigenvalues.imag / (2 * np.pi)
+    in_band = np.sort(full.eigenvalues[(f >= band[0]) & (f <= band[1])].imag)
+    assert len(in_band) == len(short.eigenvalues) == 25
+    assert np.allclose(np.sort(short.eigenvalues.imag), in_band, rtol=1e-9)
+    assert np.max(short.residuals) <= 1e-8

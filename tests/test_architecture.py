@@ -89,6 +89,27 @@ def test_imports_only_downward(module):
     assert not errors, "\n".join(errors)
 
 
+#: fe modules that are NumPy, SciPy and mpi4py only, with everything of the package they import (issue 34:
+#: the block Krylov methods and the blocks' algebra, testable and reusable without the FE stack)
+FE_STACK_FREE = ("fem_squeal.fe.eigen.block_krylov", "fem_squeal.fe.row_blocks")
+
+
+@pytest.mark.parametrize("module", FE_STACK_FREE)
+def test_block_krylov_is_numpy_and_mpi4py_only(module):
+    seen, todo, errors = set(), [module], []
+    while todo:
+        m = todo.pop()
+        if m in seen:
+            continue
+        seen.add(m)
+        for name, line, _ in _imports(MODULES[m]):
+            if name.split(".")[0] in FE_STACK:
+                errors.append(f"{MODULES[m].relative_to(ROOT)}:{line} imports {name}")
+            elif name in MODULES and name != "fem_squeal" and not name.endswith(".__init__"):
+                todo.append(name)
+    assert not errors, f"{module} (with what it imports) is NumPy/SciPy/mpi4py only:\n" + "\n".join(errors)
+
+
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_function_body_imports_name_their_reason(module):
     """Imports go at the top; one inside a function must defer a heavy optional import and say which."""

@@ -1,6 +1,7 @@
-"""Block Krylov methods on a factorisation's block solves, on rank-local rows (NumPy, mpi4py; PETSc
-only for the ``<prefix>block_size`` option): block Lanczos for K φ = ω² M φ with a threshold, block
-Arnoldi for the undamped CEA, and their memory budgets."""
+"""Block Krylov methods on a factorisation's block solves, on rank-local rows (NumPy, SciPy's BLAS and
+mpi4py only; the ``<prefix>block_size`` option is read by :func:`fem_squeal.fe.eigen.options.block_columns`):
+block Lanczos for K φ = ω² M φ with a threshold, block Arnoldi for the undamped CEA, and their memory
+budgets."""
 from __future__ import annotations
 
 import os
@@ -8,10 +9,9 @@ from collections.abc import Callable
 
 import numpy as np
 from mpi4py import MPI
-from petsc4py import PETSc
 from scipy.linalg import blas
 
-from fem_squeal.fe.dense import gram, m_cholesky_qr, project_out, subtract_combination
+from fem_squeal.fe.row_blocks import gram, m_cholesky_qr, project_out, subtract_combination
 
 # Block Lanczos (issue 23): the factor's multiple-right-hand-side solve (MatMatSolve) costs a
 # fraction of single solves per column (clamped disc, 85k DOFs: CHOLMOD 35 → 7 ms, MUMPS on 2 ranks
@@ -32,11 +32,6 @@ def block_size(nev: int) -> int:
     with its factorisation and the inertia count): Krylov–Schur 29.4, blocks of 8, 12, 23, 32: 16.7,
     16.5, 19.4, 20.5.  Larger blocks cost less per column but need more columns."""
     return int(min(max(8, -(-nev // 8)), 16))
-
-
-def _block_columns(nev: int, prefix: str) -> int:
-    """``<prefix>block_size`` if given (0: SLEPc's own iteration), else :func:`block_size`."""
-    return PETSc.Options().getInt(f"{prefix}block_size", block_size(nev))
 
 
 def _krylov_dim(nev: int, b: int, n: int) -> int:

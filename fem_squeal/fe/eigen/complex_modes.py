@@ -10,8 +10,15 @@ from slepc4py import SLEPc
 
 from fem_squeal.fe import kernels
 from fem_squeal.fe.dense import block_solve, product_of
-from fem_squeal.fe.eigen.block_krylov import BEYOND, _block_arnoldi, _block_columns
-from fem_squeal.fe.eigen.options import PEP_OPTIONS, _progress, _shift_invert_eps, _zero_like, eps_defaults
+from fem_squeal.fe.eigen.block_krylov import BEYOND, _block_arnoldi
+from fem_squeal.fe.eigen.options import (
+    PEP_OPTIONS,
+    _progress,
+    _shift_invert_eps,
+    _zero_like,
+    block_columns,
+    eps_defaults,
+)
 from fem_squeal.fe.eigen.results import TWO_PI, ComplexModes, _check, _sort_key, normalised_residuals
 from fem_squeal.fe.factorisation import LU, scoped_options, user_option
 from fem_squeal.util.errors import ModelError
@@ -78,7 +85,7 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
                     xrs.append(xr)
                     xis.append(xi)
                 nconv = 0
-                algorithm = f"block Arnoldi, {_block_columns(nev, prefix)} columns"
+                algorithm = f"block Arnoldi, {block_columns(nev, prefix)} columns"
             else:
                 algorithm = "Krylov-Schur" if method == "linear" else "TOAR"
                 with _progress(solver, nev if method == "linear" else 2 * nev, "CEA", progress):
@@ -182,7 +189,7 @@ def _cea_block(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: floa
     otherwise or where it does not converge (then the EPS solves as before).  ``radius``: the band's disc
     (:func:`band_radius`): fewer than ``nev`` pairs where those in it converge first.
     Measured on the brake corner (163k DOFs, 1 rank, 60 modes, tol 1e-10): see docs/validation.md."""
-    b = _block_columns(nev, prefix)
+    b = block_columns(nev, prefix)
     ksp = eps.getST().getKSP()
     if (b <= 0 or ksp.getType() != "preonly" or ksp.getPC().getType() not in ("lu", "cholesky")
             or any(user_option(f"{prefix}eps_{o}") is not None for o in SLEPC_SOLVER_OPTIONS)):

@@ -12,6 +12,7 @@ from petsc4py import PETSc
 from slepc4py import SLEPc
 
 from fem_squeal.fe.csr import drop_zeros  # noqa: F401  (its former home: fe.eigen.options.drop_zeros)
+from fem_squeal.fe.eigen.block_krylov import block_size
 from fem_squeal.fe.factorisation import CHOLESKY, Factorisation
 from fem_squeal.util.progress import ProgressBar
 
@@ -81,6 +82,12 @@ def restarts_left(before: np.ndarray | None, now: np.ndarray, tol: float) -> flo
     if not falling.any():
         return float("nan")
     return float(np.max(np.log(e[falling] / tol) / np.log(p[falling] / e[falling])))
+
+
+def block_columns(nev: int, prefix: str) -> int:
+    """``<prefix>block_size`` if given (0: SLEPc's own iteration), else
+    :func:`~fem_squeal.fe.eigen.block_krylov.block_size`."""
+    return PETSc.Options().getInt(f"{prefix}block_size", block_size(nev))
 
 
 @contextmanager

@@ -15,7 +15,7 @@ from slepc4py import SLEPc
 from fem_squeal.fe import cholmod, kernels
 from fem_squeal.fe.csr import block_product, csr_view, local_rows
 from fem_squeal.fe.dense import apply, block_solve, product_of
-from fem_squeal.fe.eigen.block_krylov import _block_columns, _block_lanczos, block_size
+from fem_squeal.fe.eigen.block_krylov import _block_lanczos, block_size
 from fem_squeal.fe.eigen.options import (
     REAL_MODE_EPS,
     REAL_MODE_FACTOR,
@@ -23,6 +23,7 @@ from fem_squeal.fe.eigen.options import (
     REAL_MODE_TOL_FALLBACK,
     _progress,
     _shift_invert_eps,
+    block_columns,
     drop_zeros,
     eps_defaults,
 )
@@ -74,7 +75,7 @@ def _solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: f
     """:func:`solve_real_modes` with the user's options in PETSc's database; ``definite``: CHOLMOD's
     LLᵀ may be tried (K − σM not known to be indefinite)."""
     Ms = drop_zeros(M)
-    b = _block_columns(nev, prefix)
+    b = block_columns(nev, prefix)
     lanczos = _cholmod_block_lanczos if K.getComm().getSize() == 1 else _substructured_block_lanczos
     try:
         direct = lanczos(K, Ms, nev, sigma, tol, b, prefix, definite, lam_max) if b > 0 else None

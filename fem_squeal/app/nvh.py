@@ -84,10 +84,16 @@ def compute(ctx, ops, fields, rows: list[dict], lam: np.ndarray, a, coupling=Non
     out: dict = {}
     if a["coupling"] and fields:
         t = time.perf_counter()
+        if coupling is None:
+            ctx.say("[fem_squeal] coupling: the real modes of the frictionless model up to "
+                    f"{a['coupling_f_max_hz'] or COUPLING_CUT_FACTOR * a['band_hz'][1]:g} Hz")
         rc = coupling if coupling is not None else _coefficients(ctx, ops, fields, a)
         out["cea_coupling"] = {**coupling_summaries(rc, rows, ctx.products.get("basis"), ops.M),
                                "seconds": time.perf_counter() - t}
+        ctx.say(f"[fem_squeal] coupling: the CEA's modes on {len(rc.freqs_hz)} real modes, "
+                f"{out['cea_coupling']['seconds']:.2f} s")
     rad = radiation_settings(a["radiation"])
+    t_rad = time.perf_counter()
     if rad.enabled and fields:
         from fem_squeal.fe.radiation import radiated_power  # heavy: FE stack
 
@@ -110,6 +116,7 @@ def compute(ctx, ops, fields, rows: list[dict], lam: np.ndarray, a, coupling=Non
             "squeal_index": "SI = L_W + 10 log10(Re λ · 1 s) [dB], unstable modes only"}
         out["cea_squeal_ranking"] = squeal_index.ranking(SI, unstable)
         out["cea_bands"] = squeal_index.band_summary([r["freq_hz"] for r in rows], L, unstable, SI)
+        ctx.say(f"[fem_squeal] radiation (ERP, squeal index): {time.perf_counter() - t_rad:.2f} s")
     return out
 
 

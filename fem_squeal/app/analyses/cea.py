@@ -113,6 +113,10 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
                                  options=scene.solver.petsc_options, prefix="cea_", progress=True)
     timings["cea"] = time.perf_counter() - t
     lo, hi = a["band_hz"]
+    n_unstable = sum(bool(unstable(lam, a["growth_tol"])) for lam in cm.eigenvalues)
+    ctx.say(f"[fem_squeal] CEA ({cm.method}, {cm.algorithm}): {len(cm.eigenvalues)} modes in {lo:g}-{hi:g} Hz, "
+            f"{n_unstable} unstable, {timings['cea']:.2f} s (factorisation {cm.seconds['factor']:.2f} s, "
+            f"iterations {cm.seconds['solve']:.2f} s)")
     t = time.perf_counter()
     fields = list(zip(cm.vectors_re, cm.vectors_im))
     described = basis.describe_all(fields)
@@ -126,14 +130,11 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
         if e is not None:
             rows[-1]["energy_shares"] = e
     timings["cea_descriptors"] = time.perf_counter() - t
+    ctx.say(f"[fem_squeal] CEA descriptors (nodal diameters, energy shares): {timings['cea_descriptors']:.2f} s")
     t = time.perf_counter()
     more = nvh.compute(ctx, ops, fields, rows, cm.eigenvalues, a,
                        coupling=projection.coupling if projection is not None else None)
     timings["cea_nvh"] = time.perf_counter() - t
-    n_unstable = sum(r["unstable"] for r in rows)
-    ctx.say(f"[fem_squeal] CEA ({cm.method}, {cm.algorithm}): {len(rows)} modes in {lo:g}-{hi:g} Hz, "
-            f"{n_unstable} unstable, {timings['cea']:.2f} s (factorisation {cm.seconds['factor']:.2f} s, "
-            f"iterations {cm.seconds['solve']:.2f} s)")
     t = time.perf_counter()
     write_modes_xdmf(ctx.comm, work / "complex_modes.xdmf", ops.V, fields)
     gathered = write_vtu(ctx.comm, work / "complex_modes.vtu", ops.V,
@@ -141,6 +142,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
                           for part, x in zip(("re", "im"), pair)},
                          {"freq_hz": [r["freq_hz"] for r in rows], "real_part": [r["real_part"] for r in rows]})
     timings["cea_fields"] = time.perf_counter() - t
+    ctx.say(f"[fem_squeal] CEA mode fields written: {timings['cea_fields']:.2f} s")
     out = {"complex_modes": rows, "n_unstable": n_unstable, "cea_method": cm.method, **more}
     if choice is not None:
         out["cea_choice"] = choice
@@ -153,6 +155,8 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     pictures = write_mode_shapes(work, gathered, rows, scene.title) if gathered and ctx.keep_files else None
     out["mode_shapes"] = ctx.comm.bcast(pictures, root=0)
     timings["cea_pictures"] = time.perf_counter() - t
+    if pictures:
+        ctx.say(f"[fem_squeal] CEA mode pictures drawn: {timings['cea_pictures']:.2f} s")
     if rotation:
         out["cea_rotation"] = {"speed": scene.operating.speed, **rotation}
     return out

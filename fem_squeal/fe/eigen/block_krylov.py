@@ -75,7 +75,8 @@ def _grown(A: np.ndarray, shape: tuple[int, int], order: str) -> np.ndarray:
 
 def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np.ndarray], np.ndarray],
                    comm, rows: tuple[int, int], n: int, nev: int, sigma: float, tol: float, b: int,
-                   lam_max: float | None = None, radius: float | None = None
+                   lam_max: float | None = None, radius: float | None = None,
+                   progress: Callable[[int, int, int], None] | None = None
                    ) -> tuple[np.ndarray, np.ndarray] | None:
     """The ``nev`` eigenpairs of K x = λ M x nearest σ by block Lanczos on (K − σM)⁻¹M in the M-inner
     product, with full reorthogonalisation.  ``solve``: B ↦ (K − σM)⁻¹B and ``mass``: W ↦ MW, both
@@ -101,7 +102,8 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     first (an inertia count cost one more factorisation).  ``radius``: likewise every pair with
     |λ − σ| ≤ ``radius`` (|θ| ≥ 1/radius: they lead in |θ| whatever σ) and the next :data:`BEYOND`:
     one slice of spectrum slicing
-    (:mod:`fem_squeal.fe.eigen.slicing`)."""
+    (:mod:`fem_squeal.fe.eigen.slicing`).  ``progress``: called with (converged wanted pairs, vectors,
+    wanted pairs) after each block."""
     r0, r1 = rows
     dim = _krylov_dim(nev, b, n)
     open_count = lam_max is not None or radius is not None
@@ -155,6 +157,8 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
         nxt = _m_orthonormal(comm, mass, W)
         # an invariant subspace (nothing new in W): the Ritz pairs are exact
         res = np.zeros(want.size) if nxt is None else np.linalg.norm(nxt[2] @ Y[k - b:k, want], axis=0)
+        if progress is not None:
+            progress(int(np.count_nonzero(res <= tol * np.abs(theta[want]))), k, count)
         if k >= count and np.all(res <= tol * np.abs(theta[want])):
             return sigma + 1.0 / theta[want], blas.dgemm(1.0, V[:, :k], Y[:, want])
         if MV is not None and 2 * (k + b) > room:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from contextlib import contextmanager
 
 import numpy as np
 import scipy.sparse as sp
@@ -17,6 +18,7 @@ from fem_squeal.fe.csr import block_product, csr_view, local_rows
 from fem_squeal.fe.dense import apply, block_solve, product_of
 from fem_squeal.fe.eigen.block_krylov import _block_lanczos, block_size
 from fem_squeal.fe.eigen.options import (
+    PROGRESS_HEARTBEAT,
     REAL_MODE_EPS,
     REAL_MODE_FACTOR,
     REAL_MODE_TOL,
@@ -33,6 +35,7 @@ from fem_squeal.fe.ordering import ORDERINGS, fill_reducing_order, node_block_si
 from fem_squeal.fe.substructured import SubstructuredCholesky, Unavailable
 from fem_squeal.util.blas import serial_openmp
 from fem_squeal.util.errors import ModelError
+from fem_squeal.util.progress import ProgressBar
 
 
 def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, tol: float = REAL_MODE_TOL,
@@ -49,7 +52,7 @@ def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, 
     PETSc's CHOLMOD works on K and M permuted to that order; the vectors come back in the caller's
     order.  On more than one rank the same block Lanczos runs on the substructured CHOLMOD
     factorisation (:mod:`fem_squeal.fe.substructured`; ``<prefix>substructure 0``: MUMPS instead).
-    ``progress``: draw converged/requested pairs on rank 0's stderr (Krylov–Schur only).
+    ``progress``: draw converged/requested pairs on rank 0's stderr (block Lanczos and Krylov–Schur).
     ``f_max_hz``: every mode up to it and :data:`BEYOND` more instead of ``nev`` (then a
     guess: the block size follows it) where block Lanczos answers; Krylov–Schur, where it takes
     over, returns ``nev``.  ``positive_definite``: False where K − σM is known not to be (an earlier
@@ -77,8 +80,10 @@ def _solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: f
     Ms = drop_zeros(M)
     b = block_columns(nev, prefix)
     lanczos = _cholmod_block_lanczos if K.getComm().getSize() == 1 else _substructured_block_lanczos
+    comm = K.getComm().tompi4py()
     try:
-        direct = lanczos(K, Ms, nev, sigma, tol, b, prefix, definite, lam_max) if b > 0 else None
+        with _lanczos_progress(progress and b > 0, comm, nev) as step:
+            direct = lanczos(K, Ms, nev, sigma, tol, b, prefix, definite, lam_max, step) if b > 0 else None
     except cholmod.NotPositiveDefinite:
         # σ above the lowest mode, or a free body: neither is K − σ'M definite for σ' ≥ σ: MUMPS below
         direct, definite = None, False
@@ -98,10 +103,10 @@ def _solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: f
     t_factor += t_order
     try:
         t0 = time.perf_counter()
-        comm = K.getComm().tompi4py()
-        got = _block_lanczos(block_solve(eps.getST().getKSP().getPC().getFactorMatrix()),
-                             product_of(Mw), comm, Kw.getOwnershipRange(), Kw.getSize()[0], nev,
-                             sigma, tol, b, lam_max) if b > 0 else None
+        with _lanczos_progress(progress and b > 0, comm, nev, t_factor) as step:
+            got = _block_lanczos(block_solve(eps.getST().getKSP().getPC().getFactorMatrix()),
+                                 product_of(Mw), comm, Kw.getOwnershipRange(), Kw.getSize()[0], nev,
+                                 sigma, tol, b, lam_max, progress=step) if b > 0 else None
         rm = _checked_modes(K, Ms, got[0], _caller_rows(got[1], perm), max_residual, solver, t_factor, t0,
                             0.0, b) if got is not None else None
         if rm is not None:
@@ -130,6 +135,42 @@ def _solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: f
     kernels.note("real_modes", f"{solver}, Krylov-Schur")
     return RealModes(np.array(vals)[order], [vecs[i] for i in order], res[order], solver,
                      {"factor": t_factor, "solve": t_solve}, "Krylov-Schur")
+
+
+@contextmanager
+def _lanczos_progress(enabled: bool, comm, nev: int, factor_seconds: float | None = None):
+    """A progress line of block Lanczos on rank 0 (the callback :func:`_block_lanczos` takes; None when
+    not ``enabled``): first "factorising" where the factorisation is still to come
+    (``factor_seconds`` None), then the converged wanted pairs, the vectors and the seconds left,
+    estimated from the iterations' own rate (the factorisation's seconds shown apart).  Drawn full
+    where the Lanczos converged, left short where it stopped (Krylov–Schur then takes over)."""
+    if not enabled:
+        yield None
+        return
+    bar = ProgressBar(nev, "real modes", unit=" pairs", enabled=comm.rank == 0,
+                      heartbeat=PROGRESS_HEARTBEAT)
+    state: dict = {"factor": factor_seconds, "first": None, "done": False}
+    if factor_seconds is None:
+        bar.update(0, extra="factorising")
+
+    def step(done: int, k: int, wanted: int) -> None:
+        now = time.perf_counter()
+        if state["first"] is None:               # the first block: the factorisation is over
+            state["first"] = (now, done)
+            if state["factor"] is None:
+                state["factor"] = now - bar.t0
+        t1, d1 = state["first"]
+        bar.total = float(max(wanted, 1))
+        state["done"] = done >= wanted
+        bar.update(done, eta=(now - t1) * (wanted - done) / (done - d1) if done > d1 else float("nan"),
+                   extra=f"{k} vectors, factorised in {state['factor']:.1f} s")
+    try:
+        yield step
+    finally:
+        if state["done"]:
+            bar.close()
+        else:
+            bar.abandon()
 
 
 def _checked_modes(K: PETSc.Mat, Ms: PETSc.Mat, lam: np.ndarray, X: np.ndarray, max_residual: float,
@@ -177,7 +218,7 @@ def modes_on_factor(solve: Callable[[np.ndarray], np.ndarray], K: PETSc.Mat, M: 
 
 
 def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, tol: float, b: int, prefix: str,
-                           definite: bool, lam_max: float | None = None
+                           definite: bool, lam_max: float | None = None, step=None
                            ) -> tuple[np.ndarray | None, np.ndarray | None, dict] | None:
     """Block Lanczos (:func:`_block_lanczos`) on CHOLMOD's supernodal factorisation of K − σM,
     called directly (:mod:`fem_squeal.fe.cholmod`) with the fill-reducing order of K's node
@@ -207,7 +248,7 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
         try:
             mass = block_product(m_csr) or Msp.__matmul__
             got = _block_lanczos(factor.solve, mass, K.getComm().tompi4py(), (0, n), n, nev, sigma, tol, b,
-                                 lam_max)
+                                 lam_max, progress=step)
         finally:
             factor.close()
     seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1, "solver": "cholmod"}
@@ -215,7 +256,7 @@ def _cholmod_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, 
 
 
 def _substructured_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: float, tol: float, b: int,
-                                 prefix: str, definite: bool, lam_max: float | None = None
+                                 prefix: str, definite: bool, lam_max: float | None = None, step=None
                                  ) -> tuple[np.ndarray | None, np.ndarray | None, dict] | None:
     """:func:`_cholmod_block_lanczos` on N ranks: block Lanczos on the substructured CHOLMOD
     factorisation of K − σM (:class:`fem_squeal.fe.substructured.SubstructuredCholesky`: every rank's
@@ -239,7 +280,8 @@ def _substructured_block_lanczos(K: PETSc.Mat, Ms: PETSc.Mat, nev: int, sigma: f
     del A
     t1 = time.perf_counter()
     try:
-        got = _block_lanczos(factor.solve, product_of(Ms), comm, (r0, r1), n, nev, sigma, tol, b, lam_max)
+        got = _block_lanczos(factor.solve, product_of(Ms), comm, (r0, r1), n, nev, sigma, tol, b, lam_max,
+                             progress=step)
     finally:
         factor.close()
     seconds = {"factor": t1 - t0, "solve": time.perf_counter() - t1,

@@ -298,6 +298,9 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
             if A is not None:
                 J.axpy(1.0, A, structure=pattern)
                 A.destroy()
+        if progress is not None:           # the preload's longest silent phase (348k DOFs: 17-22 s)
+            progress(f"preload: step {k} by factorisation {factorisations + 1} of the Jacobian "
+                     f"({J.getSize()[0]} rows)")
         t0 = time.perf_counter()
         if ksp is None:
             ksp = direct_solver(J, options, prefix)

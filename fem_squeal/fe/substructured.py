@@ -102,28 +102,28 @@ def interface_nodes(A_rows: sp.csr_matrix, ranges: np.ndarray, bs: int, comm: MP
 
 
 def _lower_gram(L: np.ndarray) -> np.ndarray:
-    """L Lᵀ of a lower triangular L in s³/3 flops: with J the reversal, U = JLJ is upper triangular and
-    L Lᵀ = J (U Uᵀ) J, which LAPACK's dlauum forms (its upper triangle; mirrored here)."""
+    """The lower triangle of L Lᵀ (L lower triangular; the strict upper triangle returned is zero), in
+    s³/3 flops: with J the reversal, U = JLJ is upper triangular and L Lᵀ = J (U Uᵀ) J, which LAPACK's
+    dlauum forms in place (its upper triangle; U's strict lower triangle is zero and stays so).  A
+    reversed view: no copy back (a 5628-row interface is 253 MB a copy)."""
     if L.size == 0:
         return np.zeros_like(L)
-    G, info = sla.lapack.dlauum(np.asfortranarray(L[::-1, ::-1]), lower=0)
+    G, info = sla.lapack.dlauum(np.asfortranarray(L[::-1, ::-1]), lower=0, overwrite_c=1)
     if info:
         raise RuntimeError(f"dlauum failed (info {info})")
-    G = np.triu(G)
-    G = G + np.triu(G, 1).T
-    return np.ascontiguousarray(G[::-1, ::-1])
+    return G[::-1, ::-1]
 
 
 def _local_matrix(A_rows: sp.csr_matrix, r0: int, r1: int, local: np.ndarray, gamma: np.ndarray, n_i: int,
                   interior: np.ndarray, own_gamma: np.ndarray, comm: MPI.Comm, compiled: bool = True):
     """This rank's local matrix [A_II A_IΓ; · A_ΓΓ] as CSR (indptr, indices: int32, data; CHOLMOD reads the
     upper triangle, rows need not be sorted), the A_II pattern (inner_ptr, inner_idx: the fill-reducing
-    order's graph) and A_ΓΓ dense (symmetric, from the ranks' interface rows).  ``local``: each owned
-    row's local number (interior 0 … n_i − 1, Γ n_i …); other ranks' columns through Γ (``gamma``, sorted
-    global rows).  The compiled kernel ``substructure`` writes the interior rows straight into the arrays
-    CHOLMOD reads (255k-DOF disc, 2 ranks, in a fresh process: NumPy's pieces and their concatenation took
-    0.5–0.7 s of the set-up); NumPy where it is not built, or ``compiled=False`` (the reference of its
-    test): the same arrays.  Collective."""
+    order's graph) and A_ΓΓ dense (its lower triangle, the upper one zero; from the ranks' interface
+    rows).  ``local``: each owned row's local number (interior 0 … n_i − 1, Γ n_i …); other ranks'
+    columns through Γ (``gamma``, sorted global rows).  The compiled kernel ``substructure`` writes
+    the interior rows straight into the arrays CHOLMOD reads (255k-DOF disc, 2 ranks, in a fresh
+    process: NumPy's pieces and their concatenation took 0.5–0.7 s of the set-up); NumPy where it is
+    not built, or ``compiled=False`` (the reference of its test): the same arrays.  Collective."""
     lib = _split_lib() if compiled else None
     if compiled:                      # the reference call of the test is not a path that ran
         kernels.note("interface", "numpy" if lib is None else "compiled")
@@ -144,10 +144,9 @@ def _local_matrix(A_rows: sp.csr_matrix, r0: int, r1: int, local: np.ndarray, ga
         g = lib.substructure_gamma(r0, r1, *common, address(own_gamma), len(own_gamma), *map(address, trip))
         trip = tuple(a[:g] for a in trip)
     allr, allc, allv = (np.concatenate(x) for x in zip(*comm.allgather(trip)))
-    upper = allc >= allr                                   # A_ΓΓ from its upper triangle, symmetric
+    upper = allc >= allr                                   # A_ΓΓ from its upper triangle (CHOLMOD's)
     gg = sp.csr_matrix((allv[upper], (allr[upper], allc[upper])), shape=(s, s))
-    A_gg = gg.toarray()
-    A_gg = A_gg + np.triu(A_gg, 1).T
+    A_gg = gg.T.toarray()                                  # dense: its lower triangle only
     if lib is None:
         indptr = np.concatenate([top_ptr, top_ptr[-1] + gg.indptr[1:]]).astype(np.int32)
         indices = np.concatenate([top_idx, n_i + gg.indices]).astype(np.int32)
@@ -274,19 +273,25 @@ class SubstructuredCholesky:
                 raise NotPositiveDefinite("substructured CHOLMOD: the matrix is not positive definite")
             raise Unavailable("the compiled block solve does not apply to the local factor")
         t2 = time.perf_counter()
-        C = A_gg - _lower_gram(factor.trailing_block(n_i))        # L₂₁L₂₁ᵀ of this rank
+        # lower triangles throughout (the upper ones are zero and not read): this rank's L₂₁L₂₁ᵀ =
+        # A_ΓΓ − L₂₂L₂₂ᵀ (its factor's trailing block), summed over the ranks, S = A_ΓΓ − Σ L₂₁L₂₁ᵀ
+        C = np.subtract(A_gg, _lower_gram(factor.trailing_block(n_i)))
         comm.Allreduce(MPI.IN_PLACE, C, op=MPI.SUM)
-        Ls, ok = None, True
+        np.subtract(A_gg, C, out=C)
+        del A_gg
+        Rs, ok = None, True
         if s:
             try:
-                Ls = sla.cholesky(A_gg - C, lower=True, overwrite_a=True, check_finite=False)
+                # S's lower triangle is the upper one of C's Fortran-order transpose: potrf('U') in
+                # place on it, S = RᵀR with R upper triangular (Fortran order, as potrs takes it)
+                Rs = sla.cholesky(C.T, lower=False, overwrite_a=True, check_finite=False)
             except np.linalg.LinAlgError:
                 ok = False
         if not comm.allreduce(ok, op=MPI.LAND):
             factor.close()
             raise NotPositiveDefinite("substructured CHOLMOD: the interface's Schur complement is not "
                                       "positive definite")
-        self._S = Ls
+        self._S = Rs
         self._factor, self._n_i, self._s = factor, n_i, s
         self._order = interior[perm_i]                 # factor row i < n_i is this rank's row _order[i]
         self._work: dict[int, np.ndarray] = {}
@@ -316,7 +321,7 @@ class SubstructuredCholesky:
             g = np.ascontiguousarray(Y[n_i:, :m])
             g[gp] += B2[og, j0:j0 + m]
             self.comm.Allreduce(MPI.IN_PLACE, g, op=MPI.SUM)
-            xg = sla.cho_solve((self._S, True), g) if self._s else g
+            xg = sla.cho_solve((self._S, False), g, check_finite=False) if self._s else g
             Y[n_i:, :m] = xg
             self._factor.sweep(Y, n_i, back=True)
             X[order, j0:j0 + m] = Y[:n_i, :m]

@@ -85,8 +85,7 @@ def compute(ctx, ops, fields, rows: list[dict], lam: np.ndarray, a, coupling=Non
     if a["coupling"] and fields:
         t = time.perf_counter()
         if coupling is None:
-            ctx.say("[fem_squeal] coupling: the real modes of the frictionless model up to "
-                    f"{a['coupling_f_max_hz'] or COUPLING_CUT_FACTOR * a['band_hz'][1]:g} Hz")
+            ctx.say(f"[fem_squeal] coupling: the frictionless model's real modes up to {coupling_cut(a):g} Hz")
         rc = coupling if coupling is not None else _coefficients(ctx, ops, fields, a)
         out["cea_coupling"] = {**coupling_summaries(rc, rows, ctx.products.get("basis"), ops.M),
                                "seconds": time.perf_counter() - t}
@@ -120,6 +119,12 @@ def compute(ctx, ops, fields, rows: list[dict], lam: np.ndarray, a, coupling=Non
     return out
 
 
+def coupling_cut(a) -> float:
+    """The real modes' cut of the coupling [Hz]: analyses.cea.coupling_f_max_hz, else
+    :data:`COUPLING_CUT_FACTOR` × the band's top."""
+    return a["coupling_f_max_hz"] or COUPLING_CUT_FACTOR * a["band_hz"][1]
+
+
 def _coefficients(ctx, ops, fields, a):
     """The coefficients on the real modes of the frictionless K (``ops.K``: the reduced basis's modes, so
     that a real mode has one number in the CEA's table and the sweep's, map's and operating matrix's) up
@@ -129,7 +134,7 @@ def _coefficients(ctx, ops, fields, a):
     from fem_squeal.fe.coupling import real_mode_coefficients  # heavy: FE stack
     from fem_squeal.fe.projection.shifted import count_guess  # heavy: FE stack
 
-    f_max = a["coupling_f_max_hz"] or COUPLING_CUT_FACTOR * a["band_hz"][1]
+    f_max = coupling_cut(a)
     n_start = max(20, math.ceil(count_guess(len(fields), a["band_hz"][1], f_max)))
     return real_mode_coefficients(ops.K, ops.M, fields, f_max, frictionless=True,
                                   options=ctx.scene.solver.petsc_options, n_start=n_start)

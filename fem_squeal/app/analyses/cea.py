@@ -113,7 +113,8 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
                                  options=scene.solver.petsc_options, prefix="cea_", progress=True)
     timings["cea"] = time.perf_counter() - t
     lo, hi = a["band_hz"]
-    n_unstable = sum(bool(unstable(lam, a["growth_tol"])) for lam in cm.eigenvalues)
+    growing = [bool(unstable(lam, a["growth_tol"])) for lam in cm.eigenvalues]
+    n_unstable = sum(growing)
     ctx.say(f"[fem_squeal] CEA ({cm.method}, {cm.algorithm}): {len(cm.eigenvalues)} modes in {lo:g}-{hi:g} Hz, "
             f"{n_unstable} unstable, {timings['cea']:.2f} s (factorisation {cm.seconds['factor']:.2f} s, "
             f"iterations {cm.seconds['solve']:.2f} s)")
@@ -123,10 +124,10 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     groups = COMPONENT_GROUPS.get(scene.geometry.builder)
     shares = strain_energy_shares_all(ops.K_parts, fields, groups) if ops.K_parts else [None] * len(fields)
     rows = []
-    for lam, f, re, zeta, r, d, e in zip(cm.eigenvalues, cm.freqs_hz, cm.real_parts, cm.damping_ratios,
-                                         cm.residuals, described, shares):
+    for g, f, re, zeta, r, d, e in zip(growing, cm.freqs_hz, cm.real_parts, cm.damping_ratios,
+                                       cm.residuals, described, shares):
         rows.append({"index": len(rows), "freq_hz": f, "real_part": re, "damping_ratio": zeta,
-                     "residual": r, "unstable": bool(unstable(lam, a["growth_tol"])), **d._asdict()})
+                     "residual": r, "unstable": g, **d._asdict()})
         if e is not None:
             rows[-1]["energy_shares"] = e
     timings["cea_descriptors"] = time.perf_counter() - t

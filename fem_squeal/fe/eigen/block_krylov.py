@@ -157,9 +157,10 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
         nxt = _m_orthonormal(comm, mass, W)
         # an invariant subspace (nothing new in W): the Ritz pairs are exact
         res = np.zeros(want.size) if nxt is None else np.linalg.norm(nxt[2] @ Y[k - b:k, want], axis=0)
+        done = res <= tol * np.abs(theta[want])
         if progress is not None:
-            progress(int(np.count_nonzero(res <= tol * np.abs(theta[want]))), k, count)
-        if k >= count and np.all(res <= tol * np.abs(theta[want])):
+            progress(int(np.count_nonzero(done)), k, count)
+        if k >= count and np.all(done):
             return sigma + 1.0 / theta[want], blas.dgemm(1.0, V[:, :k], Y[:, want])
         if MV is not None and 2 * (k + b) > room:
             MV = None                                      # the room holds V only from here on

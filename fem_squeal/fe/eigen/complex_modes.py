@@ -17,13 +17,13 @@ from fem_squeal.fe.eigen.options import (
     _shift_invert_eps,
     _zero_like,
     block_columns,
+    block_progress,
     eps_defaults,
 )
 from fem_squeal.fe.eigen.results import TWO_PI, ComplexModes, _check, _sort_key, normalised_residuals
 from fem_squeal.fe.factorisation import LU, scoped_options, user_option
 from fem_squeal.util.errors import ModelError
 from fem_squeal.util.memory import release_freed_memory
-from fem_squeal.util.progress import ProgressBar
 
 
 def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: int, target_hz: float,
@@ -71,14 +71,14 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
         try:
             solver.setFromOptions()
             t0 = time.perf_counter()
-            # the factorisation is the longest silent phase (348k DOFs: 17-22 s): say it runs
-            ProgressBar(nev, "CEA", unit=" pairs", enabled=progress and comm.getRank() == 0).update(
-                0, extra=f"factorising the operator shifted to {target_hz:.0f} Hz")
-            solver.setUp()          # the factorisation of the shifted operator
-            t1 = time.perf_counter()
             radius = band_radius(target_hz, band_hz) if method == "linear" else None
-            got = _cea_block(solver, K, M, nev, (TWO_PI * target_hz) ** 2, tol, prefix, progress,
-                             radius) if method == "linear" else None
+            # the factorisation is the longest silent phase (348k DOFs: 17-22 s): the bar says it runs
+            with block_progress("CEA", progress, comm.tompi4py(), nev,
+                                factorising=f"factorising the operator shifted to {target_hz:.0f} Hz") as step:
+                solver.setUp()          # the factorisation of the shifted operator
+                t1 = time.perf_counter()
+                got = _cea_block(solver, K, M, nev, (TWO_PI * target_hz) ** 2, tol, prefix, step,
+                                 radius) if method == "linear" else None
             stop = {"band": False}
             if got is not None:
                 for val, x in zip(got[0], got[1].T):
@@ -185,30 +185,18 @@ def _band_stop(eps: SLEPc.EPS, sigma: float, radius: float | None) -> dict:
 
 
 def _cea_block(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: float, prefix: str,
-               progress: bool, radius: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+               step=None, radius: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """The linear CEA's pairs by block Arnoldi (:func:`_block_arnoldi`) on the factorisation the
     set-up EPS holds, where it is a direct one (``preonly`` + LU/Cholesky), ``<prefix>block_size``
     is not 0 and no option of SLEPc's own iteration is given (:data:`SLEPC_SOLVER_OPTIONS`); None
     otherwise or where it does not converge (then the EPS solves as before).  ``radius``: the band's disc
-    (:func:`band_radius`): fewer than ``nev`` pairs where those in it converge first.
+    (:func:`band_radius`): fewer than ``nev`` pairs where those in it converge first.  ``step``: the
+    progress callback (:func:`~fem_squeal.fe.eigen.options.block_progress`).
     Measured on the brake corner (163k DOFs, 1 rank, 60 modes, tol 1e-10): see docs/validation.md."""
     b = block_columns(nev, prefix)
     ksp = eps.getST().getKSP()
     if (b <= 0 or ksp.getType() != "preonly" or ksp.getPC().getType() not in ("lu", "cholesky")
             or any(user_option(f"{prefix}eps_{o}") is not None for o in SLEPC_SOLVER_OPTIONS)):
         return None
-    comm = K.getComm().tompi4py()
-    # drawn full only where block Arnoldi answers (issue 36: "120/120 pairs, 0.0 s" was drawn when its
-    # memory rule refused it, before Krylov–Schur's minutes)
-    bar = ProgressBar(nev, "CEA", unit=" pairs", enabled=progress and comm.rank == 0)
-
-    def step(done: int, k: int, wanted: int) -> None:
-        bar.total = float(wanted)            # the band's pairs, where fewer than nev
-        bar.update(done, extra=f"{k} vectors")
-    got = _block_arnoldi(block_solve(ksp.getPC().getFactorMatrix()), product_of(M), comm,
-                         K.getOwnershipRange(), K.getSize()[0], nev, sigma, tol, b, step, radius)
-    if got is not None:
-        bar.close()
-    else:
-        bar.abandon()
-    return got
+    return _block_arnoldi(block_solve(ksp.getPC().getFactorMatrix()), product_of(M), K.getComm().tompi4py(),
+                          K.getOwnershipRange(), K.getSize()[0], nev, sigma, tol, b, step, radius)

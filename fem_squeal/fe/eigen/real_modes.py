@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from contextlib import contextmanager
 
 import numpy as np
 import scipy.sparse as sp
@@ -18,7 +17,6 @@ from fem_squeal.fe.csr import block_product, csr_view, local_rows
 from fem_squeal.fe.dense import apply, block_solve, product_of
 from fem_squeal.fe.eigen.block_krylov import _block_lanczos, block_size
 from fem_squeal.fe.eigen.options import (
-    PROGRESS_HEARTBEAT,
     REAL_MODE_EPS,
     REAL_MODE_FACTOR,
     REAL_MODE_TOL,
@@ -26,6 +24,7 @@ from fem_squeal.fe.eigen.options import (
     _progress,
     _shift_invert_eps,
     block_columns,
+    block_progress,
     drop_zeros,
     eps_defaults,
 )
@@ -35,7 +34,6 @@ from fem_squeal.fe.ordering import ORDERINGS, fill_reducing_order, node_block_si
 from fem_squeal.fe.substructured import SubstructuredCholesky, Unavailable
 from fem_squeal.util.blas import serial_openmp
 from fem_squeal.util.errors import ModelError
-from fem_squeal.util.progress import ProgressBar
 
 
 def solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, target_hz: float, *, tol: float = REAL_MODE_TOL,
@@ -82,7 +80,7 @@ def _solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: f
     lanczos = _cholmod_block_lanczos if K.getComm().getSize() == 1 else _substructured_block_lanczos
     comm = K.getComm().tompi4py()
     try:
-        with _lanczos_progress(progress and b > 0, comm, nev) as step:
+        with block_progress("real modes", progress and b > 0, comm, nev) as step:
             direct = lanczos(K, Ms, nev, sigma, tol, b, prefix, definite, lam_max, step) if b > 0 else None
     except cholmod.NotPositiveDefinite:
         # σ above the lowest mode, or a free body: neither is K − σ'M definite for σ' ≥ σ: MUMPS below
@@ -103,7 +101,7 @@ def _solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: f
     t_factor += t_order
     try:
         t0 = time.perf_counter()
-        with _lanczos_progress(progress and b > 0, comm, nev, t_factor) as step:
+        with block_progress("real modes", progress and b > 0, comm, nev, t_factor) as step:
             got = _block_lanczos(block_solve(eps.getST().getKSP().getPC().getFactorMatrix()),
                                  product_of(Mw), comm, Kw.getOwnershipRange(), Kw.getSize()[0], nev,
                                  sigma, tol, b, lam_max, progress=step) if b > 0 else None
@@ -135,42 +133,6 @@ def _solve_real_modes(K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: f
     kernels.note("real_modes", f"{solver}, Krylov-Schur")
     return RealModes(np.array(vals)[order], [vecs[i] for i in order], res[order], solver,
                      {"factor": t_factor, "solve": t_solve}, "Krylov-Schur")
-
-
-@contextmanager
-def _lanczos_progress(enabled: bool, comm, nev: int, factor_seconds: float | None = None):
-    """A progress line of block Lanczos on rank 0 (the callback :func:`_block_lanczos` takes; None when
-    not ``enabled``): first "factorising" where the factorisation is still to come
-    (``factor_seconds`` None), then the converged wanted pairs, the vectors and the seconds left,
-    estimated from the iterations' own rate (the factorisation's seconds shown apart).  Drawn full
-    where the Lanczos converged, left short where it stopped (Krylov–Schur then takes over)."""
-    if not enabled:
-        yield None
-        return
-    bar = ProgressBar(nev, "real modes", unit=" pairs", enabled=comm.rank == 0,
-                      heartbeat=PROGRESS_HEARTBEAT)
-    state: dict = {"factor": factor_seconds, "first": None, "done": False}
-    if factor_seconds is None:
-        bar.update(0, extra="factorising")
-
-    def step(done: int, k: int, wanted: int) -> None:
-        now = time.perf_counter()
-        if state["first"] is None:               # the first block: the factorisation is over
-            state["first"] = (now, done)
-            if state["factor"] is None:
-                state["factor"] = now - bar.t0
-        t1, d1 = state["first"]
-        bar.total = float(max(wanted, 1))
-        state["done"] = done >= wanted
-        bar.update(done, eta=(now - t1) * (wanted - done) / (done - d1) if done > d1 else float("nan"),
-                   extra=f"{k} vectors, factorised in {state['factor']:.1f} s")
-    try:
-        yield step
-    finally:
-        if state["done"]:
-            bar.close()
-        else:
-            bar.abandon()
 
 
 def _checked_modes(K: PETSc.Mat, Ms: PETSc.Mat, lam: np.ndarray, X: np.ndarray, max_residual: float,

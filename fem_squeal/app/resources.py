@@ -42,6 +42,13 @@ to its cut and their mass products (``analyses.cea.band_hz`` × ``cut_factor``, 
 measured mode count :data:`BRAKE_MODE_COUNTS`), so that a band or cut that cannot fit is refused
 naming its key.
 The same model says how many such machines an N-DOF model needs under MPI.
+
+Out of core where in core does not fit (issue 36: "out-of-core chosen by the memory model"): when the
+scene's PETSc options leave MUMPS's ICNTL(22) unset and the in-core factors would be refused while the
+``ooc`` fit holds, the run keeps every MUMPS factor in files (:func:`fem_squeal.fe.factorisation.
+factors_out_of_core`, in a folder of its own under $MUMPS_OOC_TMPDIR or the system's temporary folder,
+removed after the run) and says so; an ICNTL(22) the user gives decides instead.  The files hold the
+whole factor, :func:`factor_file_bytes`; a disk that cannot hold them refuses the run before meshing.
 """
 from __future__ import annotations
 
@@ -49,10 +56,11 @@ import math
 import os
 import socket
 import tempfile
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from fem_squeal.util.errors import InputError, ResourceError
+from fem_squeal.util.storage import free_bytes
 from geometry.estimate import ESTIMATORS
 
 GIB = 2.0 ** 30
@@ -101,6 +109,32 @@ def factorisation_kind(scene: dict) -> str:
         return all(opts.get(f"{p}mat_mumps_icntl_{icntl}", "0") not in ("0", "false")
                    for p in ("preload_", "cea_st_"))
     return "ooc" if both(22) else "blr" if both(35) else "exact"
+
+
+#: MUMPS LU factor entries (INFOG(9)) of the brake corner's preload Jacobian at 347,853 DOFs (2 ranks;
+#: the CEA's K − σM: 434M): the out-of-core files hold them, 8 bytes each, ∝ N^(4/3) as the fill-in
+FACTOR_ENTRIES = (347_853, 455e6)
+
+
+def factor_file_bytes(dofs: float) -> float:
+    """Bytes of MUMPS's out-of-core files for an N-DOF model (all ranks): one LU factor, 8 bytes per
+    entry of :data:`FACTOR_ENTRIES` scaled by N^(4/3) (MUMPS deletes a factor's files when it is
+    destroyed, and the run holds one large factor at a time)."""
+    n0, entries = FACTOR_ENTRIES
+    return 8.0 * entries * (dofs / n0) ** FILL_EXPONENT
+
+
+def storage_given(scene: dict) -> bool:
+    """Whether the scene's PETSc options set MUMPS's ICNTL(22) (in or out of core) for any solver:
+    then the user decides, and the memory model does not."""
+    return any(k.lstrip("-").endswith("mat_mumps_icntl_22")
+               for k in scene.get("solver", {}).get("petsc_options", {}))
+
+
+def factor_folder_parent() -> str:
+    """Where out-of-core factor files go: $MUMPS_OOC_TMPDIR (MUMPS's own variable) or the system's
+    temporary folder."""
+    return os.environ.get("MUMPS_OOC_TMPDIR") or tempfile.gettempdir()
 
 
 #: real modes of the brake corner below f [Hz]: 90 below 16 kHz and 159 below 24 kHz (163,506 DOFs; 157 at
@@ -153,6 +187,8 @@ class Estimate:
     memory_gib: float          # of the largest solve on one rank (r ranks: r^γ times this, solve_memory)
     available_gib: float       # physical memory of the machines of this run
     machines: int              # machines like this one the model needs, one rank each (90 % of each usable)
+    factors: str = "in core"   # where MUMPS keeps its factors: "in core", "out of core" (the user's options),
+    #                            "out of core (memory model)": chosen because in core does not fit
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -180,18 +216,27 @@ def machines_needed(dofs: float, machine: float, ranks_per_machine: int = 1, kin
     return max(1, math.ceil((one / (REFUSE_SHARE * machine)) ** (1.0 / (1.0 - RANK_EXPONENT)) * (1 - 1e-12)))
 
 
-def _what_fits(est: Estimate, ranks: int, nodes: int, kind: str) -> str:
+def _what_fits(est: Estimate, ranks: int, nodes: int, kind: str, auto: bool = False) -> str:
     """Where a model refused on ``ranks`` ranks over ``nodes`` machines would fit: fewer ranks on these
-    machines (each rank adds its share of memory, r^γ), or more machines with as many ranks each."""
+    machines (each rank adds its share of memory, r^γ), or more machines with as many ranks each.
+    ``auto``: in-core ``kind`` factors that the run would put out of core where only that fits."""
     usable = REFUSE_SHARE * est.available_gib * GIB
-    fewer = [r for r in range(ranks - 1, 0, -1) if solve_memory(est.dofs, r, kind) <= usable]
     per = -(-ranks // nodes)
-    more = f"it needs {machines_needed(est.dofs, est.available_gib * GIB / nodes, per, kind)} such machines " \
-        f"with {per} rank(s) each under MPI"
-    if not fewer:
-        return more
-    r = fewer[0]
-    return f"on {r} rank(s) it needs {solve_memory(est.dofs, r, kind) / GIB:.3g} GiB, which fits; or {more}"
+    kinds = (kind, "ooc") if auto else (kind,)
+    least = min(machines_needed(est.dofs, est.available_gib * GIB / nodes, per, k) for k in kinds)
+    more = f"it needs {least} such machines with {per} rank(s) each under MPI"
+    for k in kinds:
+        fewer = [r for r in range(ranks - 1, 0, -1) if solve_memory(est.dofs, r, k) <= usable]
+        if fewer:
+            how = "" if k == kind else " out of core (chosen by itself there)"
+            return f"on {fewer[0]} rank(s) it needs {solve_memory(est.dofs, fewer[0], k) / GIB:.3g} GiB{how}, " \
+                f"which fits; or {more}"
+    return more
+
+
+def _free_bytes(folder: str) -> float | None:
+    """Free bytes on the disk of ``folder``; None if it is no folder."""
+    return float(free_bytes(folder)) if os.path.isdir(folder) else None
 
 
 def check_resources(scene: dict, comm) -> tuple[Estimate | None, list[str]]:
@@ -202,26 +247,55 @@ def check_resources(scene: dict, comm) -> tuple[Estimate | None, list[str]]:
     if est is None:
         return None, []
     geo = scene.geometry
-    need = solve_memory(est.dofs, comm.size, factorisation_kind(scene)) / GIB
     kind = factorisation_kind(scene)
+    need = solve_memory(est.dofs, comm.size, kind) / GIB
+    usable = REFUSE_SHARE * est.available_gib
+    notes = []
+    if kind == "ooc":
+        est = replace(est, factors="out of core")
+    elif kind == "exact" and need > usable and not storage_given(scene) \
+            and solve_memory(est.dofs, comm.size, "ooc") / GIB <= usable:
+        in_core, kind = need, "ooc"
+        need = solve_memory(est.dofs, comm.size, kind) / GIB
+        est = replace(est, memory_gib=solve_memory(est.dofs, 1, kind) / GIB, factors="out of core (memory model)",
+                      machines=machines_needed(est.dofs, est.available_gib * GIB / nodes, 1, kind))
+        files, machine = factor_file_bytes(est.dofs) / 1e9, est.available_gib
+        notes.append(f"the factors go out of core: in core the largest solve needs about {in_core:.3g} GiB on "
+                     f"{comm.size} rank(s), more than {100 * REFUSE_SHARE:.0f} % of the {machine:.3g} GiB of this "
+                     f"run; out of core {need:.3g} GiB and about {files:.3g} GB of files under "
+                     f"{factor_folder_parent()} (MUMPS_OOC_TMPDIR), read back by every solve (slower); a "
+                     "*_mat_mumps_icntl_22 option of the scene's decides instead")
     (n_ref, m_ref) = MEMORY_POINTS.get(kind, MEMORY_POINTS["exact"])[1]
     what = (f"geometry.mesh_size: {geo['mesh_size']:g} m gives about {est.cells:.3g} elements and "
             f"{est.dofs:.3g} DOFs (P{scene.discretisation['degree']}); its largest solve needs about "
             f"{need:.3g} GiB on {comm.size} rank(s) ({m_ref:g} GiB at {n_ref / 1e3:.0f}k DOFs on one rank "
             f"with {kind} factors, fill-in ∝ DOFs^(4/3))")
-    vectors = cea_vectors(scene) if need <= REFUSE_SHARE * est.available_gib else None
-    if vectors is not None and need + 8.0 * vectors[0] * est.dofs / GIB > REFUSE_SHARE * est.available_gib:
+    vectors = cea_vectors(scene) if need <= usable else None
+    if vectors is not None and need + 8.0 * vectors[0] * est.dofs / GIB > usable:
         extra = 8.0 * vectors[0] * est.dofs / GIB
         raise ResourceError(f"{vectors[1]}: {extra:.3g} GiB of vectors of {est.dofs:.3g} DOFs on top of the "
                             f"{need:.3g} GiB of the largest solve, more than {100 * REFUSE_SHARE:.0f} % of the "
                             f"{est.available_gib:.3g} GiB of the {nodes} machine(s) of this run; lower it")
-    if need > REFUSE_SHARE * est.available_gib:
-        raise ResourceError(f"{what}, more than {100 * REFUSE_SHARE:.0f} % of the {est.available_gib:.3g} GiB of "
-                            f"the {nodes} machine(s) of this run: {_what_fits(est, comm.size, nodes, kind)}; "
-                            "or use a larger mesh_size")
+    if need > usable:
+        auto = kind == "exact" and not storage_given(scene)
+        also = f" (out of core {solve_memory(est.dofs, comm.size, 'ooc') / GIB:.3g} GiB, which does not fit " \
+            "either)" if auto else ""
+        raise ResourceError(f"{what}{also}, more than {100 * REFUSE_SHARE:.0f} % of the {est.available_gib:.3g} "
+                            f"GiB of the {nodes} machine(s) of this run: "
+                            f"{_what_fits(est, comm.size, nodes, kind, auto)}; or use a larger mesh_size")
+    if est.factors == "out of core (memory model)":
+        folder, files = factor_folder_parent(), factor_file_bytes(est.dofs) / nodes
+        free = comm.bcast(_free_bytes(folder) if comm.rank == 0 else None, root=0)
+        if free is None:
+            raise ResourceError(f"MUMPS_OOC_TMPDIR={folder}: not a folder this run can use for the out-of-core "
+                                "factor files; point it to an existing folder")
+        if files > free:
+            raise ResourceError(f"{what}: out of core, the factor files need about {files / 1e9:.3g} GB under "
+                                f"{folder}, which has {free / 1e9:.3g} GB free; point MUMPS_OOC_TMPDIR to a "
+                                "larger disk, run on more machines, or use a larger mesh_size")
     if need > WARN_SHARE * est.available_gib:
-        return est, [f"{what}: close to the {est.available_gib:.3g} GiB of this run's machine(s)"]
-    return est, []
+        notes.append(f"{what}: close to the {est.available_gib:.3g} GiB of this run's machine(s)")
+    return est, notes
 
 
 def check_outdir(outdir: Path) -> None:

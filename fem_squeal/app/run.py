@@ -22,9 +22,11 @@ solver           kernels {name: built} (fem_squeal.fe.kernels: the compiled kern
                  has) and paths {stage: {operation: {path: count}}}: which path each assembly, block
                  product, factorisation, block solve and eigensolve of a computed stage took (rank 0;
                  "compiled", "compiled-avx512", "cholmod", "petsc", "dolfinx", "mumps, block Lanczos", ...),
-                 recorded when the stage was computed and kept with its cache entry
-estimate         (when the mesh is built) cells, dofs, memory_gib of the largest solve, available_gib,
-                 machines: the size check made before any stage ran (fem_squeal.app.resources)
+                 recorded when the stage was computed and kept with its cache entry; factors: where
+                 MUMPS kept the factors of the stages run ("in core", "out of core": the scene's
+                 ICNTL(22), "out of core (memory model)": chosen because in core did not fit)
+estimate         (when a stage runs) cells, dofs, memory_gib of the largest solve, available_gib,
+                 machines, factors: the size check made before any stage ran (fem_squeal.app.resources)
 preload          (models with contact interfaces) mode, iterations, history [[closed points,
                  ‖R‖/‖f‖]], and per interface: normal_force [N], friction_force [N],
                  contact_area [m²], area [m²], peak_pressure [Pa], closed_share
@@ -120,11 +122,14 @@ files.
 from __future__ import annotations
 
 import errno
+import os
 import shutil
 import sys
 import tempfile
 import time
 import warnings
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -137,7 +142,7 @@ from fem_squeal.app.outputs import listed_outputs, publish, staged_outputs
 from fem_squeal.app.outputs import remove_stale_outputs as _remove_stale
 from fem_squeal.app.pipeline import Cache, code_version, make_plan, scratch
 from fem_squeal.app.report import write_report
-from fem_squeal.app.resources import check_outdir, check_resources
+from fem_squeal.app.resources import check_outdir, check_resources, factor_folder_parent, factorisation_kind
 from fem_squeal.app.scene import model_spec
 from fem_squeal.app.stage import Context
 from fem_squeal.util.atomic import jsonable, write_json_atomic
@@ -151,6 +156,24 @@ SCHEMA_VERSION = 3
 #: a stage failure with less than this free [bytes] on the cache's file system is reported as a full disk
 #: (a library writing HDF5 reports its own error, not ENOSPC)
 FULL_DISK_BYTES = 4 << 20
+
+
+@contextmanager
+def _factors_out_of_core(comm, say) -> Iterator[str]:
+    """Every MUMPS factor of the stages run inside in files of a folder of this run's own, under
+    $MUMPS_OOC_TMPDIR or the system's temporary folder, removed afterwards (app.resources: chosen by
+    the memory model where in-core factors do not fit)."""
+    from fem_squeal.fe.factorisation import factors_out_of_core  # heavy: the FE stack, only when chosen
+
+    folder = comm.bcast(tempfile.mkdtemp(prefix="fem_squeal_factors.", dir=factor_folder_parent())
+                        if comm.rank == 0 else None, root=0)
+    os.makedirs(folder, exist_ok=True)                  # the ranks of other machines: their own disk
+    say(f"[fem_squeal] MUMPS's factors go out of core, to files in {folder}")
+    try:
+        with factors_out_of_core(folder):
+            yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)       # nothing a factor left (MUMPS removes its own)
 
 
 def _tally(reset: bool = False) -> dict:
@@ -232,6 +255,7 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
     if temporary:
         cache = comm.bcast(tempfile.mkdtemp(prefix="fem_squeal_cache.") if rank0 else None, root=0)
     store = Cache(cache)
+    stages_context = ExitStack()        # what the stages run inside (out-of-core factors), closed at the end
     try:
         spec = model_spec(scene) if "geometry" in scene else None   # the one the scene's validation built
         plan = on_root(comm, lambda: make_plan(scene, store, force=force))   # rank 0 reads the cache
@@ -242,12 +266,14 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
                                    "run": {**(provenance or {}), "version": __version__,
                                            "code_version": code_version(), "ranks": comm.size,
                                            "started": datetime.now(UTC).isoformat(timespec="seconds")}}
-        if any(p.stage == "mesh" and p.status != "cached" for p in plan):   # the mesh will be built
+        if any(p.status != "cached" for p in plan):         # a stage will run: its model must fit
             est, notes = check_resources(scene, comm)
             if est is not None:
                 results["estimate"] = est.as_dict()
                 say(f"[fem_squeal] estimate: {est.cells:.3g} cells, {est.dofs:.3g} DOFs, largest solve "
-                    f"{est.memory_gib:.3g} GiB of {est.available_gib:.3g} GiB")
+                    f"{est.memory_gib:.3g} GiB of {est.available_gib:.3g} GiB, factors {est.factors}")
+                if est.factors == "out of core (memory model)":
+                    stages_context.enter_context(_factors_out_of_core(comm, say))
             for w in notes:
                 warnings.warn(w, ResourceWarning, stacklevel=2)
                 say(f"[fem_squeal] warning: {w}")
@@ -288,7 +314,9 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
             if entry.get("paths"):
                 paths[item.stage] = entry["paths"]
         results["timings_s"] = timings
-        results["solver"] = {"kernels": _kernels_built(), "paths": paths}
+        results["solver"] = {"kernels": _kernels_built(), "paths": paths,
+                             "factors": results["estimate"]["factors"] if "estimate" in results else
+                             "out of core" if factorisation_kind(scene) == "ooc" else "in core"}
         if "model" in results:
             results["model"]["ranks"] = comm.size
 
@@ -310,6 +338,7 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
         results["files"] = on_root(comm, write_outputs)
         return results
     finally:
+        stages_context.close()
         if temporary:
             comm.barrier()
             if rank0:

@@ -11,16 +11,24 @@ The factory hands these settings to the objects it sets up only for the duration
 (:func:`scoped_options`): afterwards PETSc's global options database holds exactly what it held
 before.  Nothing is keyed by object handles (PETSc reuses them); what a solve learns about a matrix
 (K − σM not positive definite) the caller passes on explicitly.
+
+Where a run's factors do not fit in memory, :func:`factors_out_of_core` keeps every MUMPS factor set
+up inside it in files (ICNTL(22) = 1, a default like the others: the user's option wins).
 """
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, replace
 
 from petsc4py import PETSc
 
 Options = Mapping[str, object]     # PETSc options with their full prefix, e.g. the scene's petsc_options
+
+#: the folder of MUMPS's factor files while :func:`factors_out_of_core` is active (None: in core)
+_OUT_OF_CORE: ContextVar[str | None] = ContextVar("fem_squeal_out_of_core", default=None)
 
 
 @dataclass(frozen=True)
@@ -37,6 +45,8 @@ class Factorisation:
         out = {f"{prefix}ksp_type": "preonly", f"{prefix}pc_type": self.kind}
         if self.package:
             out[f"{prefix}pc_factor_mat_solver_type"] = self.package
+        if _OUT_OF_CORE.get() is not None and self.package in ("mumps", ""):     # "": MUMPS if it is chosen
+            out[f"{prefix}mat_mumps_icntl_22"] = "1"
         out.update({f"{prefix}mat_mumps_icntl_{i}": str(v) for i, v in self.icntl})
         out.update({f"{prefix}{k}": v for k, v in self.extra})
         return out
@@ -53,6 +63,30 @@ class Factorisation:
 LU = Factorisation()
 #: MUMPS LDLᵀ of a symmetric matrix.
 CHOLESKY = Factorisation("cholesky")
+
+
+def out_of_core_folder() -> str | None:
+    """The folder of MUMPS's factor files inside :func:`factors_out_of_core`, else None (in core)."""
+    return _OUT_OF_CORE.get()
+
+
+@contextmanager
+def factors_out_of_core(folder: str) -> Iterator[None]:
+    """Every MUMPS factorisation set up in this block keeps its factors in files in ``folder``
+    (ICNTL(22) = 1 as a default of :meth:`Factorisation.options`; MUMPS reads $MUMPS_OOC_TMPDIR when
+    it factorises and deletes its files when the factor is destroyed).  The factors are the in-core
+    ones, stored elsewhere: the same values, read back at every solve.  Collective where the
+    factorisations are: every rank enters it."""
+    token, old = _OUT_OF_CORE.set(folder), os.environ.get("MUMPS_OOC_TMPDIR")
+    os.environ["MUMPS_OOC_TMPDIR"] = folder
+    try:
+        yield
+    finally:
+        _OUT_OF_CORE.reset(token)
+        if old is None:
+            os.environ.pop("MUMPS_OOC_TMPDIR", None)
+        else:
+            os.environ["MUMPS_OOC_TMPDIR"] = old
 
 
 def _text(value: object) -> str:

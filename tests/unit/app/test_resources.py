@@ -178,3 +178,42 @@ def test_a_refused_size_says_what_would_fit():
     assert solve_memory(3e6, 2 * m) <= REFUSE_SHARE * m * 24 * GIB
     assert solve_memory(3e6, 2 * (m - 1)) > REFUSE_SHARE * (m - 1) * 24 * GIB
     assert "with 2 rank(s) each" in said and "which fits" not in said
+
+
+def test_out_of_core_is_chosen_only_where_in_core_does_not_fit(monkeypatch):
+    """issue 36, "out-of-core chosen by the memory model": in core where it fits; out of core where only
+    that fits (the estimate's memory then the out-of-core fit's); refused where neither does, naming
+    both figures; an ICNTL(22) of the user's decides instead (refused here rather than overridden); and
+    a refusal on 2 ranks names the one rank on which out of core fits (1.32M DOFs on 24 GiB: 43.6 GiB in
+    core on 2 ranks, 36.1 on 1, 22.2 out of core on 2 and 18.4 on 1)."""
+    from fem_squeal.app import resources
+    from fem_squeal.app.resources import REFUSE_SHARE, Estimate, _what_fits, check_resources
+    from fem_squeal.app.scene import load_scene
+    from fem_squeal.util.errors import ResourceError
+
+    sets = ["geometry.mesh_size=0.012"]
+    scene = load_scene(ROOT / "scenes" / "brake_corner_cea.toml", sets)
+    dofs = resources.estimate(scene).dofs
+    exact, ooc = solve_memory(dofs), solve_memory(dofs, kind="ooc")
+    assert ooc < exact
+    est, _ = check_resources(scene, MPI.COMM_SELF)
+    assert est.factors == "in core"
+    monkeypatch.setattr(resources, "machine_memory", lambda: 0.5 * (exact + ooc) / REFUSE_SHARE)
+    est, notes = check_resources(scene, MPI.COMM_SELF)
+    assert est.factors == "out of core (memory model)" and est.memory_gib == pytest.approx(ooc / GIB)
+    assert any(n.startswith("the factors go out of core") for n in notes)
+    user = load_scene(ROOT / "scenes" / "brake_corner_cea.toml",
+                      sets + ["solver.petsc_options.preload_mat_mumps_icntl_22=0"])
+    with pytest.raises(ResourceError, match="with exact factors") as info:
+        check_resources(user, MPI.COMM_SELF)
+    assert "out of core" not in str(info.value)
+    both = {"preload_mat_mumps_icntl_22": 1, "cea_st_mat_mumps_icntl_22": 1}
+    asked = load_scene(ROOT / "scenes" / "brake_corner_cea.toml",
+                       sets + [f"solver.petsc_options.{k}={v}" for k, v in both.items()])
+    assert check_resources(asked, MPI.COMM_SELF)[0].factors == "out of core"
+    monkeypatch.setattr(resources, "machine_memory", lambda: 0.9 * ooc / REFUSE_SHARE)
+    with pytest.raises(ResourceError, match=r"\(out of core .* GiB, which does not fit either\)"):
+        check_resources(scene, MPI.COMM_SELF)
+    big = Estimate(0.0, 1_323_816, solve_memory(1_323_816) / GIB, 24.0, 2)
+    assert _what_fits(big, 2, 1, "exact", auto=True).startswith("on 1 rank(s) it needs 18.4 GiB out of core")
+    assert not _what_fits(big, 2, 1, "exact").startswith("on 1 rank")

@@ -2,6 +2,8 @@
 them, and nothing left in PETSc's options database after a solve."""
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 from petsc4py import PETSc
@@ -115,3 +117,49 @@ def test_eigensolvers_apply_the_scenes_options_for_their_solve_only(ring_operato
     assert _database() == before
     for v in (*rm.vectors, *default.vectors, *cm.vectors_re, *cm.vectors_im):
         v.destroy()
+
+
+def _factor_files(folder) -> dict[str, int]:
+    return {p.name: p.stat().st_size for p in folder.iterdir()}
+
+
+def test_factors_out_of_core_go_to_files_and_solve_as_in_core(tmp_path, monkeypatch):
+    """Inside ``factors_out_of_core`` a MUMPS factorisation writes its factors to files in the folder
+    given (MUMPS reads $MUMPS_OOC_TMPDIR when it factorises), as many bytes as its INFOG(9) entries
+    (8 each: the whole factor), and solves to what the in-core factor gives (the same factor, stored
+    elsewhere: 1e-13 relative, rounding of a 3D Laplacian's solve); destroying the factor removes the
+    files; afterwards the environment and the options database are as before.  A MUMPS ICNTL(22) the
+    user gives wins (0: in core), and an eigensolver's spectral transformation gets the default too."""
+    from fem_squeal.fe.eigen.options import eps_defaults
+    from fem_squeal.fe.factorisation import factors_out_of_core, out_of_core_folder
+
+    monkeypatch.delenv("MUMPS_OOC_TMPDIR", raising=False)
+    A, before = _laplacian(4000), _database()
+    b = A.createVecLeft()
+    b.setArray(np.sin(np.arange(4000.0)))
+    x_in, x_out = b.duplicate(), b.duplicate()
+    ksp = factor_solver(A, LU, "ooc_test_")
+    ksp.solve(b, x_in)
+    ksp.destroy()
+    folder = tmp_path / "factors"
+    folder.mkdir()
+    with factors_out_of_core(str(folder)):
+        assert out_of_core_folder() == str(folder)
+        assert eps_defaults("e_", LU)["e_st_mat_mumps_icntl_22"] == "1"
+        assert "e_st_mat_mumps_icntl_22" not in eps_defaults("e_", LU.with_(package="cholmod"))
+        ksp = factor_solver(A, LU, "ooc_test_")
+        F = ksp.getPC().getFactorMatrix()
+        files = _factor_files(folder)
+        assert F.getMumpsIcntl(22) == 1 and files and sum(files.values()) == 8 * F.getMumpsInfog(9)
+        ksp.solve(b, x_out)
+        F = None                                               # the factor's last handle with the KSP's
+        ksp.destroy()
+        assert not _factor_files(folder)                       # MUMPS removed its files
+        kept = factor_solver(A, LU, "ooc_test_", {"ooc_test_mat_mumps_icntl_22": 0})
+        assert kept.getPC().getFactorMatrix().getMumpsIcntl(22) == 0 and not _factor_files(folder)
+        kept.destroy()
+    assert out_of_core_folder() is None and "MUMPS_OOC_TMPDIR" not in os.environ
+    assert _database() == before
+    x_out.axpy(-1.0, x_in)
+    assert x_out.norm() <= 1e-13 * x_in.norm()
+    assert "ooc_test_mat_mumps_icntl_22" not in LU.options("ooc_test_")

@@ -1,0 +1,80 @@
+"""Out-of-core factors chosen by the memory model (issue 36, fem_squeal.app.resources): a run whose
+in-core factors would not fit keeps every MUMPS factor in files of a folder of its own, says so in
+results.json, removes the folder afterwards, and gives the in-core run's eigenvalues."""
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fem_squeal.app import resources
+from fem_squeal.app.run import run_scene
+from fem_squeal.app.scene import load_scene
+
+RING = Path(__file__).resolve().parents[2] / "scenes" / "ryzhik_ring.toml"
+
+
+def _eigenvalues(res: dict) -> np.ndarray:
+    return np.array([m["real_part"] + 1j * m["freq_hz"] * 2 * np.pi for m in res["complex_modes"]])
+
+
+def test_a_run_that_does_not_fit_in_core_goes_out_of_core(tmp_path, monkeypatch):
+    """The ring on a machine faked to hold its out-of-core but not its in-core factors.  Files appear in
+    the run's folder under $MUMPS_OOC_TMPDIR while it runs (polled), and none is left.  The factors are
+    the in-core ones stored elsewhere and the eigensolves converge to 1e-10 on the shifted operator, so
+    the two runs' eigenvalues differ by rounding of their solves only: 1e-9 relative allows both runs'
+    tolerance twice over; the same unstable set."""
+    scene = load_scene(RING, ["geometry.mesh_size=0.003"])
+    dofs = resources.estimate(scene).dofs
+    exact, ooc = resources.solve_memory(dofs), resources.solve_memory(dofs, kind="ooc")
+    folder = tmp_path / "ooc"
+    folder.mkdir()
+    monkeypatch.setenv("MUMPS_OOC_TMPDIR", str(folder))
+    with monkeypatch.context() as m:
+        m.setattr(resources, "machine_memory", lambda: 0.5 * (exact + ooc) / resources.REFUSE_SHARE)
+        seen, done = set(), threading.Event()
+
+        def poll():
+            while not done.wait(0.002):
+                seen.update(p.name for p in folder.glob("fem_squeal_factors.*/mumps_*"))
+        watcher = threading.Thread(target=poll)
+        watcher.start()
+        lines: list[str] = []
+        try:
+            out = run_scene(scene, tmp_path / "out", MPI.COMM_SELF, write_fields=False, report=False,
+                            log=lambda *a, **k: lines.append(" ".join(map(str, a))))
+        finally:
+            done.set()
+            watcher.join()
+    assert out["solver"]["factors"] == out["estimate"]["factors"] == "out of core (memory model)"
+    assert any("the factors go out of core" in line and "MUMPS_OOC_TMPDIR" in line for line in lines)
+    assert seen and not list(folder.iterdir())
+    ref = run_scene(scene, tmp_path / "ref", MPI.COMM_SELF, write_fields=False, report=False,
+                    log=lambda *a, **k: None)
+    assert ref["solver"]["factors"] == "in core"
+    a, b = _eigenvalues(out), _eigenvalues(ref)
+    assert len(a) == len(b) > 0 and out["n_unstable"] == ref["n_unstable"]
+    assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max()
+    assert [m["unstable"] for m in out["complex_modes"]] == [m["unstable"] for m in ref["complex_modes"]]
+
+
+def test_out_of_core_refused_where_its_files_do_not_fit(tmp_path, monkeypatch):
+    """The files' disk is checked before meshing: too small, or no folder, is refused naming it."""
+    from fem_squeal.util.errors import ResourceError
+
+    scene = load_scene(RING, ["geometry.mesh_size=0.003"])
+    dofs = resources.estimate(scene).dofs
+    exact, ooc = resources.solve_memory(dofs), resources.solve_memory(dofs, kind="ooc")
+    monkeypatch.setattr(resources, "machine_memory", lambda: 0.5 * (exact + ooc) / resources.REFUSE_SHARE)
+    monkeypatch.setenv("MUMPS_OOC_TMPDIR", str(tmp_path))
+    est, notes = resources.check_resources(scene, MPI.COMM_SELF)
+    assert est.factors == "out of core (memory model)" and est.memory_gib == pytest.approx(ooc / resources.GIB)
+    monkeypatch.setattr(resources, "factor_file_bytes", lambda n: 1e18)
+    with pytest.raises(ResourceError, match=rf"factor files need about 1e\+09 GB under {tmp_path}, which has"):
+        resources.check_resources(scene, MPI.COMM_SELF)
+    monkeypatch.setenv("MUMPS_OOC_TMPDIR", str(tmp_path / "missing"))
+    with pytest.raises(ResourceError, match=r"MUMPS_OOC_TMPDIR=.*missing: not a folder"):
+        resources.check_resources(scene, MPI.COMM_SELF)

@@ -272,11 +272,11 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
                 results["estimate"] = est.as_dict()
                 say(f"[fem_squeal] estimate: {est.cells:.3g} cells, {est.dofs:.3g} DOFs, largest solve "
                     f"{est.memory_gib:.3g} GiB of {est.available_gib:.3g} GiB, factors {est.factors}")
-                if est.factors == "out of core (memory model)":
-                    stages_context.enter_context(_factors_out_of_core(comm, say))
             for w in notes:
                 warnings.warn(w, ResourceWarning, stacklevel=2)
                 say(f"[fem_squeal] warning: {w}")
+            if est is not None and est.factors == "out of core (memory model)":
+                stages_context.enter_context(_factors_out_of_core(comm, say))
         ctx = Context(scene, spec, comm, say, write_fields, store, {p.stage: p.key for p in plan})
         functions = _stage_functions()
         if "matrices" in scene:     # a model given as matrices: the analyses' functions for it

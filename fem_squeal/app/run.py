@@ -9,7 +9,9 @@ scene            the validated scene (all defaults filled in)
 run              scene_file, overrides (the --set values; from the command line), version, code_version
                  (hash of the sources), ranks, started (UTC)
 stages           [{stage, key, status ("run" | "cached" | "memory" | "forced"), seconds (of the
-                 run that computed it)}]
+                 run that computed it), peak_rss_gib (a stage computed in this run: the processes'
+                 peak resident memory so far, largest_rank and sum_of_ranks of the ranks' peaks; it
+                 never falls, so the stage after which it rose set it)}]
 files            output files of the stages (relative to outdir)
 mesh             cells, volumes (part names)
 matrices         (a model given as matrices) dofs, files {name: {file, format, sha256, nonzeros}}, operators
@@ -148,7 +150,7 @@ from fem_squeal.app.stage import Context
 from fem_squeal.util.atomic import jsonable, write_json_atomic
 from fem_squeal.util.blas import limit_threads_for
 from fem_squeal.util.errors import FemSquealError
-from fem_squeal.util.memory import release_freed_memory
+from fem_squeal.util.memory import peak_rss_bytes, release_freed_memory
 from fem_squeal.util.parallel import on_root
 from fem_squeal.util.storage import STORAGE_ERRNOS, free_bytes, storage_error, storage_errors
 
@@ -311,6 +313,10 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
             results.update(entry["results"])
             results["stages"].append({"stage": item.stage, "key": item.key, "status": item.status,
                                       "seconds": entry["seconds"]})
+            if item.status != "cached":                  # this process's high-water mark after the stage
+                peaks = comm.allgather(peak_rss_bytes())
+                results["stages"][-1]["peak_rss_gib"] = {"largest_rank": max(peaks) / 2 ** 30,
+                                                         "sum_of_ranks": sum(peaks) / 2 ** 30}
             if entry.get("paths"):
                 paths[item.stage] = entry["paths"]
         results["timings_s"] = timings

@@ -14,6 +14,7 @@ modes in the same stage.
 from __future__ import annotations
 
 import ctypes
+import resource
 from functools import cache
 
 
@@ -33,3 +34,9 @@ def release_freed_memory() -> bool:
     the C library has no such call).  True where memory was released."""
     trim = _malloc_trim()
     return bool(trim(0)) if trim is not None else False
+
+
+def peak_rss_bytes() -> int:
+    """This process's peak resident memory so far [bytes] (getrusage's high-water mark: it never falls,
+    so the stage after which it rose is the one that set it)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024      # Linux: kilobytes

@@ -55,6 +55,10 @@ def test_a_run_that_does_not_fit_in_core_goes_out_of_core(tmp_path, monkeypatch)
     ref = run_scene(scene, tmp_path / "ref", MPI.COMM_SELF, write_fields=False, report=False,
                     log=lambda *a, **k: None)
     assert ref["solver"]["factors"] == "in core"
+    # every computed stage says the peak memory so far (getrusage's high-water mark: it never falls)
+    peaks = [st["peak_rss_gib"]["largest_rank"] for st in ref["stages"]]
+    assert len(peaks) == len(ref["stages"]) and 0 < peaks[0] and peaks == sorted(peaks)
+    assert all(st["peak_rss_gib"]["sum_of_ranks"] == st["peak_rss_gib"]["largest_rank"] for st in ref["stages"])
     a, b = _eigenvalues(out), _eigenvalues(ref)
     assert len(a) == len(b) > 0 and out["n_unstable"] == ref["n_unstable"]
     assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max()

@@ -88,7 +88,7 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
                     xrs.append(xr)
                     xis.append(xi)
                 nconv = 0
-                algorithm = f"block Arnoldi, {got[2]} columns"
+                algorithm = f"block Arnoldi, {block_columns(nev, prefix)} columns"
             else:
                 algorithm = "Krylov-Schur" if method == "linear" else "TOAR"
                 with _progress(solver, nev if method == "linear" else 2 * nev, "CEA", progress):
@@ -185,23 +185,18 @@ def _band_stop(eps: SLEPc.EPS, sigma: float, radius: float | None) -> dict:
 
 
 def _cea_block(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: float, prefix: str,
-               step=None, radius: float | None = None) -> tuple[np.ndarray, np.ndarray, int] | None:
-    """The linear CEA's pairs (and the columns per block solve) by block Arnoldi (:func:`_block_arnoldi`,
-    :func:`~fem_squeal.fe.eigen.options.block_columns`: more where the factor is out of core) on the
-    factorisation the set-up EPS holds, where it is a direct one (``preonly`` + LU/Cholesky),
-    ``<prefix>block_size`` is not 0 and no option of SLEPc's own iteration is given
-    (:data:`SLEPC_SOLVER_OPTIONS`); None otherwise or where it does not converge (then the EPS solves as
-    before). ``radius``: the band's disc (:func:`band_radius`): fewer than ``nev`` pairs where those in it
-    converge first. ``step``: the progress callback (:func:`~fem_squeal.fe.eigen.options.block_progress`).
+               step=None, radius: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+    """The linear CEA's pairs by block Arnoldi (:func:`_block_arnoldi`) on the factorisation the
+    set-up EPS holds, where it is a direct one (``preonly`` + LU/Cholesky), ``<prefix>block_size``
+    is not 0 and no option of SLEPc's own iteration is given (:data:`SLEPC_SOLVER_OPTIONS`); None
+    otherwise or where it does not converge (then the EPS solves as before).  ``radius``: the band's disc
+    (:func:`band_radius`): fewer than ``nev`` pairs where those in it converge first.  ``step``: the
+    progress callback (:func:`~fem_squeal.fe.eigen.options.block_progress`).
     Measured on the brake corner (163k DOFs, 1 rank, 60 modes, tol 1e-10): see docs/validation.md."""
+    b = block_columns(nev, prefix)
     ksp = eps.getST().getKSP()
-    pc = ksp.getPC()
-    if (ksp.getType() != "preonly" or pc.getType() not in ("lu", "cholesky")
+    if (b <= 0 or ksp.getType() != "preonly" or ksp.getPC().getType() not in ("lu", "cholesky")
             or any(user_option(f"{prefix}eps_{o}") is not None for o in SLEPC_SOLVER_OPTIONS)):
         return None
-    b = block_columns(nev, prefix, pc)
-    if b <= 0:
-        return None
-    got = _block_arnoldi(block_solve(pc.getFactorMatrix()), product_of(M), K.getComm().tompi4py(),
-                         K.getOwnershipRange(), K.getSize()[0], nev, sigma, tol, b, step, radius)
-    return None if got is None else (*got, b)
+    return _block_arnoldi(block_solve(ksp.getPC().getFactorMatrix()), product_of(M), K.getComm().tompi4py(),
+                          K.getOwnershipRange(), K.getSize()[0], nev, sigma, tol, b, step, radius)

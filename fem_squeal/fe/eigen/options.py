@@ -84,24 +84,10 @@ def restarts_left(before: np.ndarray | None, now: np.ndarray, tol: float) -> flo
     return float(np.max(np.log(e[falling] / tol) / np.log(p[falling] / e[falling])))
 
 
-#: Columns per block solve on an out-of-core MUMPS factor (ICNTL(22) = 1).  Every block solve reads the
-#: whole factor back from its files, so a block's seconds hardly grow with its columns: the brake corner
-#: at 1,323,816 DOFs, one rank, the LU of K − σM out of core (2.74G entries), 1, 12, 24, 32, 48 columns in
-#: 9.4, 11.8–12.6, 12.9, 15.6, 15.9 s.  In core larger blocks need more columns in all (block_size), so
-#: 32 rather than 48.
-OUT_OF_CORE_BLOCK = 32
-
-
-def factor_out_of_core(pc: PETSc.PC) -> bool:
-    """Whether the factorisation ``pc`` holds is MUMPS's with its factors in files (ICNTL(22) = 1)."""
-    return pc.getFactorSolverType() == "mumps" and pc.getFactorMatrix().getMumpsIcntl(22) == 1
-
-
-def block_columns(nev: int, prefix: str, pc: PETSc.PC | None = None) -> int:
-    """``<prefix>block_size`` if given (0: SLEPc's own iteration), else :data:`OUT_OF_CORE_BLOCK` where
-    the factorisation ``pc`` is out of core, else :func:`~fem_squeal.fe.eigen.block_krylov.block_size`."""
-    default = OUT_OF_CORE_BLOCK if pc is not None and factor_out_of_core(pc) else block_size(nev)
-    return PETSc.Options().getInt(f"{prefix}block_size", default)
+def block_columns(nev: int, prefix: str) -> int:
+    """``<prefix>block_size`` if given (0: SLEPc's own iteration), else
+    :func:`~fem_squeal.fe.eigen.block_krylov.block_size`."""
+    return PETSc.Options().getInt(f"{prefix}block_size", block_size(nev))
 
 
 @contextmanager

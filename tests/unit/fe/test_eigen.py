@@ -171,29 +171,6 @@ def test_block_arnoldi_equals_krylov_schur(monkeypatch, ring_operators):
     assert np.max(np.abs(low.eigenvalues / ks.eigenvalues - 1)) < 1e-9
 
 
-def test_block_arnoldi_takes_wider_blocks_on_an_out_of_core_factor(tmp_path, ring_operators):
-    """On a MUMPS factor kept in files (ICNTL(22) = 1, the run's choice where in core does not fit) every
-    block solve reads the whole factor back, so the CEA's block Arnoldi solves OUT_OF_CORE_BLOCK columns
-    at a time (8 in core for 16 modes); a ``block_size`` of the user's still wins.  The same eigenvalues
-    as in core within 1e-9 (both converged to 1e-10 on the shift-inverted operator; test above)."""
-    from fem_squeal.fe.eigen.options import OUT_OF_CORE_BLOCK
-    from fem_squeal.fe.factorisation import factors_out_of_core
-
-    ops = ring_operators()
-    K = ops.K_total()
-    core = solve_complex_modes(K, ops.M, None, 16, TARGET, band_hz=BAND, method="linear", prefix="oc_")
-    with factors_out_of_core(str(tmp_path)):
-        files = solve_complex_modes(K, ops.M, None, 16, TARGET, band_hz=BAND, method="linear", prefix="oc_")
-        asked = solve_complex_modes(K, ops.M, None, 16, TARGET, band_hz=BAND, method="linear", prefix="oc_",
-                                    options={"oc_block_size": 12})
-    assert core.algorithm == "block Arnoldi, 8 columns" and asked.algorithm == "block Arnoldi, 12 columns"
-    assert files.algorithm == f"block Arnoldi, {OUT_OF_CORE_BLOCK} columns"
-    assert len(files.eigenvalues) == len(core.eigenvalues) >= 8
-    assert np.max(np.abs(files.eigenvalues / core.eigenvalues - 1)) < 1e-9
-    assert np.max(np.abs(asked.eigenvalues / core.eigenvalues - 1)) < 1e-9
-    assert not list(tmp_path.iterdir())                # MUMPS removed its files with the factors
-
-
 def test_a_bad_substructure_switch_is_a_named_error():
     """``real_substructure`` takes a yes or a no; anything else names the option (checked before any
     factorisation, on 2 ranks only in practice: here the function is called directly)."""

@@ -126,6 +126,7 @@ from __future__ import annotations
 import errno
 import os
 import shutil
+import socket
 import sys
 import tempfile
 import time
@@ -160,14 +161,42 @@ SCHEMA_VERSION = 3
 FULL_DISK_BYTES = 4 << 20
 
 
+FACTOR_FOLDER = "fem_squeal_factors"     # <this>.<host>.<pid of rank 0>.<random>: out-of-core factor files
+
+
+def _remove_stale_factor_folders(parent: str, host: str) -> float:
+    """Remove the out-of-core factor folders under ``parent`` that a run on ``host`` left when it was
+    killed (its process is gone: a killed process runs no clean-up, and at 1.3M DOFs they hold 26 GB);
+    the bytes removed."""
+    freed = 0.0
+    for d in Path(parent).glob(f"{FACTOR_FOLDER}.{host}.*.*"):
+        try:
+            pid = int(d.name.split(".")[-2])
+            os.kill(pid, 0)                     # alive (or another user's): kept
+            continue
+        except ProcessLookupError:
+            pass
+        except (ValueError, PermissionError):
+            continue
+        freed += sum(f.stat().st_size for f in d.glob("*") if f.is_file())
+        shutil.rmtree(d, ignore_errors=True)
+    return freed
+
+
 @contextmanager
 def _factors_out_of_core(comm, say) -> Iterator[str]:
     """Every MUMPS factor of the stages run inside in files of a folder of this run's own, under
     $MUMPS_OOC_TMPDIR or the system's temporary folder, removed afterwards (app.resources: chosen by
-    the memory model where in-core factors do not fit)."""
+    the memory model where in-core factors do not fit); first the folders of killed runs on this
+    machine are removed."""
     from fem_squeal.fe.factorisation import factors_out_of_core  # heavy: the FE stack, only when chosen
 
-    folder = comm.bcast(tempfile.mkdtemp(prefix="fem_squeal_factors.", dir=factor_folder_parent())
+    parent, host = factor_folder_parent(), socket.gethostname()
+    if comm.rank == 0:
+        freed = _remove_stale_factor_folders(parent, host)
+        if freed:
+            say(f"[fem_squeal] removed {freed / 1e9:.3g} GB of factor files that killed runs left in {parent}")
+    folder = comm.bcast(tempfile.mkdtemp(prefix=f"{FACTOR_FOLDER}.{host}.{os.getpid()}.", dir=parent)
                         if comm.rank == 0 else None, root=0)
     os.makedirs(folder, exist_ok=True)                  # the ranks of other machines: their own disk
     say(f"[fem_squeal] MUMPS's factors go out of core, to files in {folder}")

@@ -3,6 +3,10 @@ in-core factors would not fit keeps every MUMPS factor in files of a folder of i
 results.json, removes the folder afterwards, and gives the in-core run's eigenvalues."""
 from __future__ import annotations
 
+import os
+import socket
+import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -23,7 +27,8 @@ def _eigenvalues(res: dict) -> np.ndarray:
 
 def test_a_run_that_does_not_fit_in_core_goes_out_of_core(tmp_path, monkeypatch):
     """The ring on a machine faked to hold its out-of-core but not its in-core factors.  Files appear in
-    the run's folder under $MUMPS_OOC_TMPDIR while it runs (polled), and none is left.  The factors are
+    the run's folder under $MUMPS_OOC_TMPDIR while it runs (polled), and none is left; the folder a killed
+    run on this machine left goes too.  The factors are
     the in-core ones stored elsewhere and the eigensolves converge to 1e-10 on the shifted operator, so
     the two runs' eigenvalues differ by rounding of their solves only: 1e-9 relative allows both runs'
     tolerance twice over; the same unstable set."""
@@ -33,6 +38,15 @@ def test_a_run_that_does_not_fit_in_core_goes_out_of_core(tmp_path, monkeypatch)
     folder = tmp_path / "ooc"
     folder.mkdir()
     monkeypatch.setenv("MUMPS_OOC_TMPDIR", str(folder))
+    # a killed run's folder (its process is gone) is removed; a live run's and another machine's are kept
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    host = socket.gethostname()
+    stale, live, other = (folder / f"fem_squeal_factors.{h}.{pid}.x" for h, pid in
+                          ((host, dead.pid), (host, os.getpid()), ("elsewhere", dead.pid)))
+    for d in (stale, live, other):
+        d.mkdir()
+        (d / "mumps_0_x").write_bytes(b"0" * 1000)
     with monkeypatch.context() as m:
         m.setattr(resources, "machine_memory", lambda: 0.5 * (exact + ooc) / resources.REFUSE_SHARE)
         seen, done = set(), threading.Event()
@@ -51,7 +65,8 @@ def test_a_run_that_does_not_fit_in_core_goes_out_of_core(tmp_path, monkeypatch)
             watcher.join()
     assert out["solver"]["factors"] == out["estimate"]["factors"] == "out of core (memory model)"
     assert any("the factors go out of core" in line and "MUMPS_OOC_TMPDIR" in line for line in lines)
-    assert seen and not list(folder.iterdir())
+    assert seen and sorted(folder.iterdir()) == sorted([live, other])
+    assert any("removed 1e-06 GB of factor files that killed runs left" in line for line in lines)
     ref = run_scene(scene, tmp_path / "ref", MPI.COMM_SELF, write_fields=False, report=False,
                     log=lambda *a, **k: None)
     assert ref["solver"]["factors"] == "in core"

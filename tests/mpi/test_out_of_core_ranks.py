@@ -1,0 +1,74 @@
+"""Out-of-core factors chosen by the memory model on 2 ranks (issue 36): rank 0 names the run's folder
+for both, both ranks' MUMPS write their factor files there, the folder is gone afterwards, and the
+eigenvalues are those of one rank in core."""
+from __future__ import annotations
+
+import numpy as np
+from support.ranks import assert_same_spectrum, two_rank_signature
+
+SETS = ["geometry.mesh_size=0.003"]
+
+
+def _ring_run(comm, outdir, memory=None) -> dict:
+    from support.paths import ROOT
+
+    from fem_squeal.app import resources
+    from fem_squeal.app.run import run_scene
+    from fem_squeal.app.scene import load_scene
+
+    scene = load_scene(ROOT / "scenes" / "ryzhik_ring.toml", SETS)
+    if memory is not None:      # a machine too small for the in-core factors on comm.size ranks
+        dofs = resources.estimate(scene).dofs
+        exact, ooc = (resources.solve_memory(dofs, comm.size, k) for k in ("exact", "ooc"))
+        resources.machine_memory = lambda: 0.5 * (exact + ooc) / resources.REFUSE_SHARE
+    res = run_scene(scene, outdir, comm, write_fields=False, report=False, log=lambda *a, **k: None)
+    lam = np.array([m["real_part"] + 2j * np.pi * m["freq_hz"] for m in res["complex_modes"]])
+    return {"factors": res["solver"]["factors"], "cea_re": lam.real.tolist(), "cea_im": lam.imag.tolist()}
+
+
+def signature() -> dict:
+    """The 2-rank out-of-core run: where the factors were, the files each rank saw in the run's folder
+    while it ran (polled), what is left, the eigenvalues."""
+    import os
+    import shutil
+    import tempfile
+    import threading
+    from pathlib import Path
+
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    base = Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None, root=0))
+    os.environ["MUMPS_OOC_TMPDIR"] = str(base)
+    seen, done = set(), threading.Event()
+
+    def poll():
+        while not done.wait(0.002):
+            seen.update(p.name.split("_")[1] for p in base.glob("fem_squeal_factors.*/mumps_*"))
+    watcher = threading.Thread(target=poll)
+    watcher.start()
+    try:
+        out = _ring_run(comm, base / "out", memory=True)
+    finally:
+        done.set()
+        watcher.join()
+    writers = sorted(set().union(*comm.allgather(seen)))     # MUMPS names its files mumps_<rank>_...
+    out.update(writers=writers, left=sorted(p.name for p in base.iterdir() if p.name != "out"))
+    comm.barrier()
+    if comm.rank == 0:
+        shutil.rmtree(base)
+    return out
+
+
+def test_out_of_core_on_two_ranks_as_one_rank_in_core(mpirun, tmp_path):
+    """Both ranks' factors in the run's one folder, nothing left, and the eigenvalues of one rank in
+    core within 1e-8 relative (the rank-count rule; the two runs' factors are exact, and each pair
+    converges to 1e-10 on the shifted operator)."""
+    from mpi4py import MPI
+
+    sig = two_rank_signature(mpirun, "test_out_of_core_ranks", tmp_path / "sig.json")
+    assert sig["factors"] == "out of core (memory model)"
+    assert sig["writers"] == ["0", "1"] and sig["left"] == []
+    one = _ring_run(MPI.COMM_SELF, tmp_path / "one")
+    assert one["factors"] == "in core"
+    assert_same_spectrum(sig, one, "cea_", 1e-8)

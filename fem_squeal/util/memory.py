@@ -9,7 +9,8 @@ factorisations left 3.0 GB in the heap at 163k DOFs (RSS 3.85 GB, 0.80 GB after 
 vectors (``fem_squeal.fe.eigen.block_krylov``) and the run peaked at 24.2 GB on a 24 GiB machine.
 :func:`release_freed_memory` returns the heap's free pages (glibc ``malloc_trim(0)``): the runner calls it
 after every stage (``app/run.py``), and the CEA after its solver is destroyed, before the coupling's real
-modes in the same stage.
+modes in the same stage.  :func:`peak_rss_bytes` is the process's peak so far (results.json records it
+after every stage computed).
 """
 from __future__ import annotations
 

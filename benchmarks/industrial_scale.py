@@ -51,6 +51,7 @@ def run_case(mesh_size: str, method: str, n_modes: int) -> dict:
     return {"mesh_size": float(mesh_size), "method": res["cea_method"], "ranks": comm.size,
             "dofs": res["model"]["dofs"], "timings": res["timings_s"], "peak_rss_gib_per_rank": rss,
             "factors": res["solver"]["factors"],
+            "stage_peaks_gib": {st["stage"]: st.get("peak_rss_gib") for st in res["stages"]},
             "pairs": [[m["freq_hz"], m["real_part"], m["unstable"], m["residual"]] for m in modes],
             "projection": {k: v for k, v in res.get("cea_projection", {}).items() if k != "rounds"}}
 

@@ -41,6 +41,12 @@ class ProgressBar:
             self.stream.write("\n")
             self.stream.flush()
 
+    def note(self, text: str) -> None:
+        """A line of its own after the bar (``<label>: text``): what the bar cannot show."""
+        if self.enabled:
+            self.stream.write(("\n" if self.tty else "") + f"{self.label}: {text}\n")
+            self.stream.flush()
+
     def update(self, done: float, force: bool = False, extra: str = "", eta: float | None = None) -> None:
         """Draw ``done`` of the total; ``eta``: the caller's estimate of the seconds left (NaN: not
         known yet), else elapsed × (1 − share done)/share done."""

@@ -130,12 +130,13 @@ def block_progress(label: str, enabled: bool, comm, total: int, factor_seconds: 
     None), then the converged pairs, the vectors and the seconds left, estimated from the iterations'
     own rate (the factorisation's seconds shown apart).  Drawn full where the solve converged, left
     short where it stopped (issue 36: "120/120 pairs, 0.0 s" was drawn when block Arnoldi's memory rule
-    refused it, before Krylov–Schur's minutes)."""
+    refused it, before Krylov–Schur's minutes), with a line that says so where it had begun (its space
+    spent: at 1.32M DOFs out of core the log was then silent for minutes of the solve that followed)."""
     if not enabled:
         yield None
         return
     bar = ProgressBar(total, label, unit=" pairs", enabled=comm.rank == 0, heartbeat=PROGRESS_HEARTBEAT)
-    state: dict = {"factor": factor_seconds, "first": None, "done": False}
+    state: dict = {"factor": factor_seconds, "first": None, "done": False, "last": None}
     if factor_seconds is None:
         bar.update(0, extra=factorising)
 
@@ -147,16 +148,21 @@ def block_progress(label: str, enabled: bool, comm, total: int, factor_seconds: 
                 state["factor"] = now - bar.t0
         t1, d1 = state["first"]
         bar.total = float(max(wanted, 1))        # the band's or the threshold's pairs, where not nev
-        state["done"] = done >= wanted
+        state["done"], state["last"] = done >= wanted, (done, k, wanted)
         bar.update(done, eta=(now - t1) * (wanted - done) / (done - d1) if done > d1 else float("nan"),
                    extra=f"{k} vectors, factorised in {state['factor']:.1f} s")
     try:
         yield step
-    finally:
-        if state["done"]:
-            bar.close()
-        else:
-            bar.abandon()
+    except BaseException:
+        bar.abandon()
+        raise
+    if state["done"]:
+        bar.close()
+        return
+    if state["last"] is not None:
+        done, k, wanted = state["last"]
+        bar.note(f"stopped with {done} of {wanted} pairs converged after {k} vectors")
+    bar.abandon()
 
 
 def _zero_like(M: PETSc.Mat) -> PETSc.Mat:

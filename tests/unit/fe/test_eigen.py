@@ -1,6 +1,8 @@
 """Solver checks: residuals, PEP against linear EPS, damping limits, clear errors."""
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -427,3 +429,26 @@ def test_block_lanczos_progress_is_drawn(ring_operators, capsys):
     assert shown.method.startswith("block Lanczos")
     assert "factorising" in err and "100.0% 12/12 pairs" in err and "vectors, factorised in" in err
     assert np.array_equal(shown.freqs_hz, quiet.freqs_hz)
+
+
+def test_a_block_solve_that_stops_short_says_so(monkeypatch, ring_operators, capsys):
+    """Where block Arnoldi's space is spent before its pairs converge (the room its memory rule leaves
+    capped at the ARNOLDI_MIN_SPACE·nev it still accepts), the CEA gives way to Krylov–Schur, which
+    starts from the beginning.  The bar then says so on a line of its own: at 1.32M DOFs out of core the
+    log was silent for minutes after the bar's last line.  The pairs are Krylov–Schur's (the same as
+    block Arnoldi's within 1e-9: test_block_arnoldi_equals_krylov_schur)."""
+    from fem_squeal.fe import eigen
+
+    ops = ring_operators()
+    K = ops.K_total()
+    full = solve_complex_modes(K, ops.M, None, 16, TARGET, band_hz=BAND, method="linear", prefix="sa_")
+    rows = K.getLocalSize()[0]
+    monkeypatch.setattr(eigen.block_krylov, "_vector_memory",
+                        lambda comm: 8.0 * rows * eigen.block_krylov.ARNOLDI_MIN_SPACE * 16)
+    capsys.readouterr()
+    short = solve_complex_modes(K, ops.M, None, 16, TARGET, band_hz=BAND, method="linear", prefix="sb_",
+                                progress=True)
+    err = capsys.readouterr().err
+    assert short.algorithm.startswith("Krylov-Schur") and full.algorithm.startswith("block Arnoldi")
+    assert re.search(r"CEA: stopped with \d+ of \d+ pairs converged after 48 vectors\n", err), err[-800:]
+    assert np.max(np.abs(short.eigenvalues / full.eigenvalues - 1)) < 1e-9

@@ -255,13 +255,13 @@ def check_resources(scene: dict, comm) -> tuple[Estimate | None, list[str]]:
     kind = factorisation_kind(scene)
     need = solve_memory(est.dofs, comm.size, kind) / GIB
     usable = REFUSE_SHARE * est.available_gib
+    auto = kind == "exact" and not storage_given(scene)        # the memory model may choose out of core
+    out_of_core = solve_memory(est.dofs, comm.size, "ooc") / GIB
     notes = []
     if kind == "ooc":
         est = replace(est, factors="out of core")
-    elif kind == "exact" and need > usable and not storage_given(scene) \
-            and solve_memory(est.dofs, comm.size, "ooc") / GIB <= usable:
-        in_core, kind = need, "ooc"
-        need = solve_memory(est.dofs, comm.size, kind) / GIB
+    elif auto and need > usable and out_of_core <= usable:
+        in_core, kind, need = need, "ooc", out_of_core
         est = replace(est, memory_gib=solve_memory(est.dofs, 1, kind) / GIB, factors="out of core (memory model)",
                       machines=machines_needed(est.dofs, est.available_gib * GIB / nodes, 1, kind))
         files, machine = factor_file_bytes(est.dofs) / 1e9, est.available_gib
@@ -282,9 +282,7 @@ def check_resources(scene: dict, comm) -> tuple[Estimate | None, list[str]]:
                             f"{need:.3g} GiB of the largest solve, more than {100 * REFUSE_SHARE:.0f} % of the "
                             f"{est.available_gib:.3g} GiB of the {nodes} machine(s) of this run; lower it")
     if need > usable:
-        auto = kind == "exact" and not storage_given(scene)
-        also = f" (out of core {solve_memory(est.dofs, comm.size, 'ooc') / GIB:.3g} GiB, which does not fit " \
-            "either)" if auto else ""
+        also = f" (out of core {out_of_core:.3g} GiB, which does not fit either)" if auto else ""
         raise ResourceError(f"{what}{also}, more than {100 * REFUSE_SHARE:.0f} % of the {est.available_gib:.3g} "
                             f"GiB of the {nodes} machine(s) of this run: "
                             f"{_what_fits(est, comm.size, nodes, kind, auto)}; or use a larger mesh_size")

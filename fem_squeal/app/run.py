@@ -7,7 +7,8 @@ results.json (schema_version 3)
 -------------------------------
 scene            the validated scene (all defaults filled in)
 run              scene_file, overrides (the --set values; from the command line), version, code_version
-                 (hash of the sources), ranks, started (UTC)
+                 (hash of the sources), ranks, blas_threads (OpenBLAS threads per rank: the cores over
+                 the ranks on the machine unless OPENBLAS_NUM_THREADS or OMP_NUM_THREADS says), started (UTC)
 stages           [{stage, key, status ("run" | "cached" | "memory" | "forced"), seconds (of the
                  run that computed it), peak_rss_gib (a stage computed in this run: the processes'
                  peak resident memory so far, largest_rank and sum_of_ranks of the ranks' peaks; it
@@ -30,7 +31,9 @@ solver           kernels {name: built} (fem_squeal.fe.kernels: the compiled kern
 estimate         (when a stage runs) cells, dofs, memory_gib of the largest solve, available_gib,
                  machines, factors: the size check made before any stage ran (fem_squeal.app.resources)
 preload          (models with contact interfaces) mode, iterations, history [[closed points,
-                 ‖R‖/‖f‖]], and per interface: normal_force [N], friction_force [N],
+                 ‖R‖/‖f‖]], jacobian (how Newton's steps were solved: "update", "refactorise",
+                 "symmetric"; preload.jacobian "auto" resolved), factorisations, update_columns,
+                 krylov_iterations, and per interface: normal_force [N], friction_force [N],
                  contact_area [m²], area [m²], peak_pressure [Pa], closed_share
 friction_damping (interfaces with friction_damping) norm (‖C_d‖), speed [rad/s]
 real_modes       [{freq_hz, residual, in_plane_share, nodal_diameter, nodal_share}] (nodal_share: the
@@ -149,7 +152,7 @@ from fem_squeal.app.resources import check_outdir, check_resources, factor_folde
 from fem_squeal.app.scene import model_spec
 from fem_squeal.app.stage import Context
 from fem_squeal.util.atomic import jsonable, write_json_atomic
-from fem_squeal.util.blas import limit_threads_for
+from fem_squeal.util.blas import blas_threads, limit_threads_for
 from fem_squeal.util.errors import FemSquealError
 from fem_squeal.util.memory import peak_rss_bytes, release_freed_memory
 from fem_squeal.util.parallel import on_root
@@ -296,6 +299,7 @@ def run_scene(scene: dict, outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, 
         results: dict[str, Any] = {"schema_version": SCHEMA_VERSION, "scene": scene, "stages": [],
                                    "run": {**(provenance or {}), "version": __version__,
                                            "code_version": code_version(), "ranks": comm.size,
+                                           "blas_threads": blas_threads(),
                                            "started": datetime.now(UTC).isoformat(timespec="seconds")}}
         if any(p.status != "cached" for p in plan):         # a stage will run: its model must fit
             est, notes = check_resources(scene, comm)

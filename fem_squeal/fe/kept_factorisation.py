@@ -116,8 +116,9 @@ class KeptFactorisation:
 
     def __init__(self, ksp: PETSc.KSP, J: PETSc.Mat, bc_rows: np.ndarray, families: list[RankOneFamily], *,
                  max_factorisations: int = 2, memory_bytes: float | None = None,
-                 steps_ahead: int = KRYLOV_STEPS_AHEAD, options=None):
+                 steps_ahead: int = KRYLOV_STEPS_AHEAD, options=None, exact: bool = True):
         self.ksp, self.J = ksp, J
+        self.exact = exact          # ksp factorises J_f itself (else a preconditioner of it: GMRES only)
         self.comm = J.getComm().tompi4py()
         self.families = {f.key: f for f in families}
         lo, hi = J.getOwnershipRange()
@@ -215,6 +216,12 @@ class KeptFactorisation:
         fits = not new or self.comm.allreduce(8.0 * self.n_local * (total + 2 * BLOCK_COLUMNS), op=MPI.MAX) <= \
             self.memory_bytes
         krylov = self._krylov_seconds()
+        if not self.exact:          # the factor is not J_f's: no Woodbury columns, GMRES unless refactorising
+            if len(d) and krylov is not None and self.may_refactorise() and \
+                    self.factor_seconds < self._ahead * krylov:
+                return False
+            self._step = ("krylov", changes, d, values)
+            return True
         while new:
             per_column = self.column_seconds if self.column_seconds is not None else \
                 (None if self.solve_seconds is None else COLUMN_SHARE * self.solve_seconds)
@@ -308,6 +315,8 @@ class KeptFactorisation:
             if self._krylov_solve(b, x):
                 return True
             self.krylov_failed = True          # the columns then, unless a refactorisation is cheaper
+            if not self.exact:
+                return False                   # no columns of a preconditioner: refactorise
             return self.prepare(self._step[3], self.rtol, self._ahead) and self.solve(b, x)
         _, changes, d, order, S = self._step
         self.ksp.solve(b, x)

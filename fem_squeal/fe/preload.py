@@ -42,7 +42,7 @@ from fem_squeal.fe.assembly import (
     plate_friction_fields,
 )
 from fem_squeal.fe.assembly import static_displacement as assembly_static_displacement
-from fem_squeal.fe.factorisation import refactorise
+from fem_squeal.fe.factorisation import factors_in_files, refactorise, symmetric_solver
 from fem_squeal.fe.kept_factorisation import (
     KRYLOV_RTOL,
     KRYLOV_STEPS_AHEAD,
@@ -68,6 +68,7 @@ class PreloadResult(NamedTuple):
     factorisations: int = 0           # LU factorisations of the Jacobian (the first included)
     update_columns: int = 0           # columns J_f⁻¹ a_q of the low-rank updates (fe.kept_factorisation)
     krylov_iterations: int = 0        # GMRES iterations of the steps preconditioned by the kept factorisation
+    jacobian: str = ""                # how the steps were solved: "update", "refactorise", "symmetric"
 
 
 def changed_points(a: PreloadResult, b: PreloadResult, comm) -> int:
@@ -135,8 +136,8 @@ class NewtonFactor:
         scale, with J the Jacobian of the last Newton step (the kept factorisation and its last update;
         at a converged state, the state's own Jacobian).  None when nothing is kept or the update's
         residual check fails."""
-        if self.ksp is None:
-            return None
+        if self.ksp is None or (self.kept is not None and not self.kept.exact and not self.kept.has_update):
+            return None                             # (a preconditioner alone is no solve)
         b = ops.f.copy()
         bc = _owned_global_rows(ops.K, ops.V, ops.bc_dofs)
         b.setValues(bc, np.zeros(len(bc)))          # J's clamped rows are identity rows (as R's)
@@ -160,6 +161,20 @@ class NewtonFactor:
         self.J = self.ksp = self.kept = None
 
 
+#: Newton's linear solves (:func:`solve_preload`); "auto": :func:`auto_jacobian`
+JACOBIANS = ("auto", "update", "refactorise", "symmetric")
+
+
+def auto_jacobian(prefix: str = "preload_", options: dict | None = None) -> str:
+    """"symmetric" where the Jacobian's LU would keep its factors in files (the run's memory model chose
+    out of core, or the user's ``<prefix>mat_mumps_icntl_22``), else "update".  Out of core every solve
+    reads the whole factor back: the brake corner at 1,323,816 DOFs on one rank took 937.7 s for its
+    preload by "update" (2 LUs of 327 and 317 s, 8 GMRES iterations and 114 Woodbury columns at about 20 s
+    a solve) and 303.5 s by "symmetric" (one in-core Cholesky, 166 s with its first solve, 60 GMRES
+    iterations of 2.3 s), the same state to 1e-12 (docs/validation.md)."""
+    return "symmetric" if factors_in_files(prefix, options) else "update"
+
+
 def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol: float = 1e-9,
                   max_iterations: int = 25, options: dict | None = None,
                   prefix: str = "preload_", jacobian: str = "update",
@@ -180,11 +195,18 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     and solves the later steps by low-rank updates of it (the points whose stiffness changed) or by
     GMRES preconditioned by it (:mod:`fem_squeal.fe.kept_factorisation`), refactorising when the
     measured cost says it is cheaper, at most ``max_factorisations`` times (unless an update fails its
-    residual check).  Both are Newton with exact steps: the same iterates, to round-off (Woodbury) or
-    to GMRES's 1e-11 relative residual.  ``progress`` (if given) receives
+    residual check); "symmetric" factorises the frictionless Jacobian P = K + Σ G_nᵀ diag(w σ') G_n (+ the
+    tangential penalty) by Cholesky (:func:`~fem_squeal.fe.factorisation.symmetric_solver`: half an LU's
+    factor, so it stays in core where the LU would not) and solves every step, the first included, by
+    GMRES on J preconditioned by it (J − P is the friction term μ G_t₁ᵀ diag(w σ') G_n and the points
+    changed since), refactorising as "update" does; where GMRES does not converge on a fresh factorisation
+    the solve goes on with LUs of J.  "auto": :func:`auto_jacobian`.  All are Newton with exact steps: the
+    same iterates, to round-off (Woodbury) or to GMRES's 1e-11 relative residual.  ``progress`` (if given) receives
     one line per Newton iteration: closed points, ‖R‖/‖f‖, how the step was solved and its seconds."""
-    if jacobian not in ("update", "refactorise"):
-        raise ModelError(f"preload.jacobian: must be 'update' or 'refactorise' (got {jacobian!r})")
+    if jacobian not in JACOBIANS:
+        raise ModelError(f"preload.jacobian: must be one of {', '.join(map(repr, JACOBIANS))} (got {jacobian!r})")
+    if jacobian == "auto":
+        jacobian = auto_jacobian(prefix, options)
     if ops.f is None:
         raise ModelError("loads: the preload needs a load (e.g. loads.pressure on the piston)")
     comm = ops.K.getComm().tompi4py()
@@ -214,6 +236,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     if kept is not None:
         kept.new_solve()
     cold = start is None               # the first step closes the touching points (else: the state's own)
+    symmetric = jacobian == "symmetric" and (kept is None or not kept.exact)
     factorisations = 0
     how, t_step = "", time.perf_counter()         # the last Newton step: how it was solved, when it began
     step_eta = KRYLOV_RTOL                        # ... and its GMRES's relative residual (forcing)
@@ -268,7 +291,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
                                f"(closed points, ‖R‖/‖f‖) per iteration: {history}")
         prev = closed
         R.scale(-1.0)
-        values = _family_values(ops, tangents) if jacobian == "update" else {}
+        values = _family_values(ops, tangents) if jacobian != "refactorise" else {}
         t_step = time.perf_counter()
         step_eta = KRYLOV_RTOL    # the step's GMRES residual (exact: a factorisation or Woodbury's update)
         # an inexact step while the closed set moves; once it (nearly) stays, an exact one, and GMRES then
@@ -282,22 +305,50 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
             step_eta = KRYLOV_RTOL if woodbury else kept.rtol
             how = f"update ({kept.columns_computed} columns)" if woodbury else \
                 f"GMRES on the kept factorisation ({kept.krylov_guess} iterations to {kept.rtol:.0e})"
-            kernels.note("newton_step", f"kept factorisation, {'Woodbury columns' if woodbury else 'GMRES'}")
+            kernels.note("newton_step", f"kept {'' if kept.exact else 'symmetric '}factorisation, "
+                         f"{'Woodbury columns' if woodbury else 'GMRES'}")
             continue
         # Jacobian and Newton step.  The contact matrices keep their sparsity whatever the closed
         # points (open ones carry explicit zeros), so J is built once and refilled: the LU then
         # reuses its symbolic analysis (ordering) and only refactorises numerically.
-        if J is None:                      # first step: J takes the union of the sparsity patterns
-            J = ops.K.copy()
-            pattern = PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN
+        Kc, Kf = contact_matrices(ops, tangents, friction)
+        if symmetric:                      # P = K + K_c, the frictionless Jacobian, factorised instead of J
+            P = _refilled(ksp.getOperators()[0] if ksp is not None else None, ops.K, Kc)
+            J = _refilled(J, P, Kf)
         else:
-            J.zeroEntries()
-            pattern = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
-            J.axpy(1.0, ops.K, structure=pattern)
-        for A in contact_matrices(ops, tangents, friction):
+            J = _refilled(J, ops.K, Kc, Kf)
+        for A in (Kc, Kf):
             if A is not None:
-                J.axpy(1.0, A, structure=pattern)
                 A.destroy()
+        if symmetric:
+            if progress is not None:
+                progress(f"preload: step {k} by factorisation {factorisations + 1} of the frictionless "
+                         f"Jacobian (Cholesky, {J.getSize()[0]} rows)")
+            t0 = time.perf_counter()
+            if ksp is None:
+                ksp, _ = symmetric_solver(P, prefix, options)
+                P.destroy()                # the solver holds it
+            else:
+                refactorise(ksp)
+            factorisations += 1
+            if kept is None:
+                kept = KeptFactorisation(ksp, J, bc_rows, _families(ops, friction),
+                                         max_factorisations=max_factorisations, options=options, exact=False)
+            kept.reset(values, comm.allreduce(time.perf_counter() - t0, op=MPI.MAX))
+            if kept.prepare(values, forcing([r for _, r in history], tol, settled), ahead) \
+                    and kept.solve(R, du):
+                u.axpy(1.0, du)
+                step_eta = kept.rtol
+                how = (f"factorisation {factorisations} (frictionless) and GMRES "
+                       f"({kept.krylov_guess} iterations to {kept.rtol:.0e})")
+                kernels.note("newton_step", f"symmetric factorisation ({ksp.getPC().getFactorSolverType()}), "
+                             "GMRES")
+                continue
+            # GMRES did not converge on the fresh frictionless factorisation: LU of J from here on
+            symmetric = False
+            for obj in (kept, ksp):
+                obj.destroy()
+            kept = ksp = None
         if progress is not None:           # the preload's longest silent phase (348k DOFs: 17-22 s)
             progress(f"preload: step {k} by factorisation {factorisations + 1} of the Jacobian "
                      f"({J.getSize()[0]} rows)")
@@ -307,7 +358,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         else:                              # J's new values, factorised now so that the cost rule sees
             refactorise(ksp)               # their seconds (not at the next solve, as KSPSetUp would)
         factorisations += 1
-        if jacobian == "update":
+        if jacobian != "refactorise":
             if kept is None:
                 kept = KeptFactorisation(ksp, J, bc_rows, _families(ops, friction),
                                          max_factorisations=max_factorisations, options=options)
@@ -344,7 +395,23 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         area[it.name] = comm.allreduce(float(op.weight @ (gaps[it.name] < 0)), op=MPI.SUM)
     active = {n: g < 0.0 for n, g in gaps.items()}
     return PreloadResult(u, active, gaps, pressure, normal, fric, area, len(history) - 1, history,
-                         factorisations, columns, krylov)
+                         factorisations, columns, krylov, jacobian if symmetric or jacobian != "symmetric" else
+                         "symmetric, then update")
+
+
+def _refilled(A: PETSc.Mat | None, *terms: PETSc.Mat | None) -> PETSc.Mat:
+    """Σ ``terms`` (None skipped) in ``A``, whose pattern holds theirs (kept from its first filling, so a
+    factorisation of it reuses its analysis); a new matrix where ``A`` is None."""
+    present = [T for T in terms if T is not None]
+    if A is None:
+        A = present[0].copy()
+        present, pattern = present[1:], PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN
+    else:
+        A.zeroEntries()
+        pattern = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
+    for T in present:
+        A.axpy(1.0, T, structure=pattern)
+    return A
 
 
 def _families(ops: Operators, friction: bool) -> list[RankOneFamily]:

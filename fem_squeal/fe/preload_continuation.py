@@ -121,11 +121,11 @@ def continue_preload(ops: Operators, scales: Sequence[float], *, start: tuple[fl
     doc), from ``start`` = (scale, converged state) when given (e.g. the scene's own preload, solved with
     ``factor`` so that its factorisation is kept), else from the smallest scale solved cold.  ``settings``:
     those of :func:`~fem_squeal.fe.preload.solve_preload` (friction, k3, tol, max_iterations, options,
-    jacobian, max_factorisations).  ``factor`` (None: a new one with jacobian = "update") is destroyed at
+    jacobian, max_factorisations).  ``factor`` (None: a new one unless jacobian = "refactorise") is destroyed at
     the end; the caller destroys the states' ``u``."""
     s = check_scales(scales)
     comm = ops.K.getComm().tompi4py()
-    if factor is None and settings.get("jacobian", "update") == "update":
+    if factor is None and settings.get("jacobian", "auto") != "refactorise":
         factor = NewtonFactor()
     out: dict[int, PressureState] = {}
     rates: list[PETSc.Vec] = []               # du/ds of the states continued from (destroyed at the end)

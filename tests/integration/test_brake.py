@@ -167,6 +167,59 @@ def test_preload_newton_reuses_the_lu_ordering_and_its_updates_reach_the_same_st
     assert du.norm() <= 1e-10 * pre.u.norm()
 
 
+def test_the_frictionless_cholesky_preconditions_every_step_to_the_same_state():
+    """preload.jacobian = "symmetric" (issue #36, the preload where an LU would go out of core) factorises
+    the frictionless Jacobian K + K_c by Cholesky (CHOLMOD on one rank) and solves every Newton step by
+    GMRES on the full J = K + K_c + K_f preconditioned by it: no LU at all, and the state of the default
+    path (LU, Woodbury and GMRES on it) within the issue's 1e-10 relative in displacement (both exact
+    to GMRES's 1e-11 or round-off in their last step).  Where GMRES cannot converge on a fresh Cholesky
+    (here forced by one GMRES iteration allowed) the solve goes on with LUs of J, to the same state."""
+    from petsc4py import PETSc
+
+    from fem_squeal.fe import kernels
+    from fem_squeal.fe.preload import solve_preload
+
+    _, _, _, ops = model()
+    up = preloaded()
+    PETSc.Log.begin()
+    chol, lu = (PETSc.Log.Event(n) for n in ("MatCholFctrNum", "MatLUFactorNum"))
+    c0, l0 = chol.getPerfInfo()["count"], lu.getPerfInfo()["count"]
+    kernels.tally(reset=True)
+    pre = solve_preload(ops, friction=True, jacobian="symmetric")
+    paths = kernels.tally()["newton_step"]
+    assert pre.jacobian == "symmetric" and lu.getPerfInfo()["count"] == l0
+    assert 1 <= chol.getPerfInfo()["count"] - c0 == pre.factorisations <= 2
+    assert paths.get("symmetric factorisation (cholmod), GMRES") == pre.factorisations, paths
+    assert pre.krylov_iterations > 0 and pre.update_columns == 0
+    for other in (pre, solve_preload(ops, friction=True, jacobian="symmetric",
+                                     options={"preload_krylov_ksp_max_it": 1})):
+        assert other.history[-1][0] == up.history[-1][0] and other.history[-1][1] <= 1e-9
+        assert all(np.array_equal(up.active[n], a) for n, a in other.active.items())
+        du = other.u.copy()
+        du.axpy(-1.0, up.u)
+        assert du.norm() <= 1e-10 * up.u.norm()
+        du.destroy()
+    assert other.jacobian == "symmetric, then update" and lu.getPerfInfo()["count"] > l0
+    for p in (pre, other):
+        p.u.destroy()
+
+
+def test_the_preload_is_symmetric_where_the_lu_goes_out_of_core(tmp_path):
+    """preload.jacobian = "auto" (the default): "symmetric" inside the run's out-of-core context or with
+    the user's preload_mat_mumps_icntl_22 = 1, "update" otherwise (also where the user keeps the LU in
+    core inside the context)."""
+    from fem_squeal.fe.factorisation import factors_out_of_core
+    from fem_squeal.fe.preload import auto_jacobian
+
+    assert auto_jacobian() == "update"
+    assert auto_jacobian("preload_", {"preload_mat_mumps_icntl_22": 1}) == "symmetric"
+    assert auto_jacobian("preload_", {"cea_st_mat_mumps_icntl_22": 1}) == "update"
+    with factors_out_of_core(str(tmp_path)):
+        assert auto_jacobian() == "symmetric"
+        assert auto_jacobian("preload_", {"preload_mat_mumps_icntl_22": 0}) == "update"
+    assert auto_jacobian() == "update"
+
+
 def test_without_friction_the_modes_are_neutral():
     """μ = 0 makes the operator symmetric: λ = ±iω with Re λ at round-off level."""
     _, cm = cea("interfaces.pad_inner.mu=0.0", "interfaces.pad_outer.mu=0.0")

@@ -191,7 +191,7 @@ def _numbers(obj, path=""):
 
 
 # ".solver": which paths ran (the compiled kernels serve one rank; on two, PETSc's own), not a result
-IGNORED = (".solver.", "timings_s", "seconds", "started", "residual", "backward_error", "ranks",
+IGNORED = (".solver.", "timings_s", "seconds", "started", "residual", "backward_error", "ranks", "blas_threads",
            "lifted_residuals", "full_cea_s", "files", "estimated_error", "change", "stages",
            # diagnostics of the tracking walk: the SLEPc vectors of the ring's double eigenvalues are
            # any basis of their eigenspace (different per rank count), so the walk may take other

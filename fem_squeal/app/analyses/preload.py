@@ -132,7 +132,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
                 more = pressure_continuation.run(ctx, ops, pre, factor, work, settings)
                 timings["preload_continuation"] = time.perf_counter() - t
             out["preload"] = {"mode": "nonlinear", "iterations": pre.iterations, "history": pre.history,
-                              "jacobian": pl["jacobian"], "factorisations": pre.factorisations,
+                              "jacobian": pre.jacobian, "factorisations": pre.factorisations,
                               "update_columns": pre.update_columns, "krylov_iterations": pre.krylov_iterations,
                               "interfaces": _preload_outputs(ctx.comm, work, ops, pre,
                                                              ctx.scene.title, ctx.keep_files)}

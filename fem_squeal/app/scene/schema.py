@@ -219,13 +219,18 @@ SECTIONS = {
         "friction": Field(bool, True, None, "sliding friction in the static step"),
         "tol": Field(REAL, 1e-9, positive, "Newton tolerance on ‖R‖/‖f‖"),
         "max_iterations": Field(int, 25, positive),
-        "jacobian": Field(str, "update", one_of("update", "refactorise"),
+        "jacobian": Field(str, "auto", one_of("auto", "update", "refactorise", "symmetric"),
                           "Newton's linear solves: 'update' keeps a factorisation and solves later steps by "
                           "low-rank (Woodbury) updates for the points that opened or closed, or by GMRES "
                           "preconditioned by the kept factorisation (PETSc options under preload_krylov_), "
                           "refactorising when the measured cost says so (fem_squeal.fe.kept_factorisation); "
-                          "'refactorise' factorises every step.  Both exact Newton steps: the same state to "
-                          "round-off (GMRES: to its 1e-11 relative residual)"),
+                          "'refactorise' factorises every step; 'symmetric' factorises the frictionless "
+                          "Jacobian by Cholesky (CHOLMOD on one rank, MUMPS LDLᵀ on more: half an LU's "
+                          "factor) and solves every step by GMRES on the Jacobian preconditioned by it; "
+                          "'auto': 'symmetric' where the LU's factors would go out of core (the memory "
+                          "model's choice or preload_mat_mumps_icntl_22), else 'update' "
+                          "(fem_squeal.fe.preload.auto_jacobian).  All exact Newton steps: the same state "
+                          "to round-off (GMRES: to its 1e-11 relative residual)"),
         "max_factorisations": Field(int, 2, positive, "at most this many factorisations with 'update' "
                                     "(more only when an update fails its residual check or GMRES does not "
                                     "converge)"),

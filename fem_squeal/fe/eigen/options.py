@@ -13,7 +13,7 @@ from slepc4py import SLEPc
 
 from fem_squeal.fe.csr import drop_zeros  # noqa: F401  (its former home: fe.eigen.options.drop_zeros)
 from fem_squeal.fe.eigen.block_krylov import block_size
-from fem_squeal.fe.factorisation import CHOLESKY, Factorisation
+from fem_squeal.fe.factorisation import CHOLESKY, QUIET_CHOLMOD, Factorisation
 from fem_squeal.util.progress import ProgressBar
 
 # Scalar scaling of λ balances |λ|²‖M‖ against ‖K‖ (stiff bonded/contact penalties make ‖K‖
@@ -36,7 +36,7 @@ REAL_MODE_TOL_FALLBACK = 1e-10   # the continuation when a pair misses the resid
 REAL_MODE_EPS = {"eps_purify": "false"}
 #: The real modes' factorisation of K − σM (the package is chosen per solve: CHOLMOD, then MUMPS);
 #: CHOLMOD's own "not positive definite" line is silenced: MUMPS takes over.
-REAL_MODE_FACTOR = CHOLESKY.with_(package="", extra={"mat_cholmod_print": "0"})
+REAL_MODE_FACTOR = CHOLESKY.with_(package="", extra=QUIET_CHOLMOD)
 
 
 def eps_defaults(prefix: str, factorisation: Factorisation, eps: Mapping[str, str] | None = None

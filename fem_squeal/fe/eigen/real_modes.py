@@ -29,7 +29,7 @@ from fem_squeal.fe.eigen.options import (
     eps_defaults,
 )
 from fem_squeal.fe.eigen.results import TWO_PI, RealModes, _check, _norm_inf
-from fem_squeal.fe.factorisation import scoped_options, user_option
+from fem_squeal.fe.factorisation import scoped_options, symmetric_packages, user_option
 from fem_squeal.fe.ordering import ORDERINGS, fill_reducing_order, node_block_size, permuted
 from fem_squeal.fe.substructured import SubstructuredCholesky, Unavailable
 from fem_squeal.util.blas import serial_openmp
@@ -340,12 +340,7 @@ def _real_solvers(K: PETSc.Mat, prefix: str, definite: bool) -> list[str]:
     """The factorisations to try for K − σM, in order: the user's choice
     (``<prefix>st_pc_factor_mat_solver_type``), else CHOLMOD on one rank (MUMPS LDLᵀ after it, for
     K − σM not positive definite; MUMPS alone where ``definite`` is False) and MUMPS on more ranks."""
-    chosen = user_option(f"{prefix}st_pc_factor_mat_solver_type")
-    if chosen:
-        return [chosen]
-    if K.getComm().getSize() == 1 and PETSc.Sys.hasExternalPackage("suitesparse") and definite:
-        return ["cholmod", "mumps"]
-    return ["mumps"]
+    return symmetric_packages(K.getComm().getSize(), f"{prefix}st_", definite)
 
 
 def _factorised_eps(K: PETSc.Mat, M: PETSc.Mat, nev: int, shift: float, tol: float, prefix: str,

@@ -20,6 +20,10 @@ frequencies equal to the in-core run's to 2e-11): 4.214 GiB at 347,853 DOFs and 
 1.080 GiB at 88,869 and the 347,853 point, had b ≈ 0 (12.8 KB per DOF) and predicted 15.8 GiB for
 the 1.32M run: 14 % low, as the factorisation's in-core fronts grow; the fit through the two larger
 points gives 0.97 and 2.12 GiB at 88,869 and 184,506 DOFs (measured 1.080 and 2.31).
+symmetric (the preload stage's peak where preload.jacobian is "symmetric": the frictionless Jacobian's
+Cholesky in core, CHOLMOD on one rank; results.json stages[].peak_rss_gib): 4.716 GiB at 347,853 DOFs
+and 23.12 GiB at 1,323,816 (one rank, 2026-11-29), beside the ooc run's 18.42: the in-core Cholesky
+holds more than the out-of-core LU's fronts.  "auto" takes it only where it fits (:func:`preload_jacobian`).
 blr (ICNTL(35) = 2, CNTL(7) = 1e-8, one refinement step: frequencies within 1e-11) lowered no peak:
 1.60 against 1.57 GiB at 88,869 DOFs, and above the in-core 7.46 GiB at 347,853 (MUMPS still touches
 its full-rank workspace), so it uses the exact fit.
@@ -81,7 +85,8 @@ def dofs_per_cell(cells: float, degree: int) -> float:
 
 REFUSE_SHARE, WARN_SHARE = 0.9, 0.6
 #: one-rank peak memory [GiB] measured at two sizes (DOFs) per factorisation kind (benchmarks/memory_model.py)
-MEMORY_POINTS = {"exact": ((88_869, 1.568), (347_853, 7.456)), "ooc": ((347_853, 4.214), (1_323_816, 18.42))}
+MEMORY_POINTS = {"exact": ((88_869, 1.568), (347_853, 7.456)), "ooc": ((347_853, 4.214), (1_323_816, 18.42)),
+                 "symmetric": ((347_853, 4.716), (1_323_816, 23.12))}
 #: memory ∝ ranks^γ at a fixed size: 9.0 GiB on 2 ranks against 7.456 GiB on 1 at 347,853 DOFs
 RANK_EXPONENT = math.log2(9.0 / 7.456)
 FILL_EXPONENT = 4.0 / 3.0
@@ -244,10 +249,34 @@ def _free_bytes(folder: str) -> float | None:
     return float(free_bytes(folder)) if os.path.isdir(folder) else None
 
 
+def machines_of(comm) -> int:
+    """How many machines the ranks of ``comm`` run on (collective)."""
+    return len(set(comm.allgather(socket.gethostname())))
+
+
+def preload_jacobian(jacobian: str, dofs: float, ranks: int, machines: int, out_of_core: bool
+                     ) -> tuple[str, str | None]:
+    """The preload's Jacobian (``preload.jacobian``) for an N-DOF model on ``ranks`` ranks over ``machines``
+    machines like this one: "auto" is "symmetric" where the LU's factors go to files (``out_of_core``: the
+    memory model's choice or the user's ICNTL(22)) and the preload's peak with the Cholesky in core (kind
+    ``symmetric``) fits in :data:`REFUSE_SHARE` of the memory, else "update"; the others stay.  Returns it
+    and a warning where "symmetric" is asked for and its peak is not predicted to fit."""
+    need = solve_memory(dofs, ranks, "symmetric")
+    usable = REFUSE_SHARE * machines * machine_memory()
+    if jacobian == "auto":
+        return ("symmetric" if out_of_core and need <= usable else "update"), None
+    if jacobian == "symmetric" and need > usable:
+        return jacobian, (f"preload.jacobian: 'symmetric' keeps the frictionless Jacobian's Cholesky in core, "
+                          f"about {need / GIB:.3g} GiB at its peak on {ranks} rank(s) for {dofs:.3g} DOFs, more "
+                          f"than {100 * REFUSE_SHARE:.0f} % of the {machines * machine_memory() / GIB:.3g} GiB "
+                          f"of this run; 'auto' would take 'update' here")
+    return jacobian, None
+
+
 def check_resources(scene: dict, comm) -> tuple[Estimate | None, list[str]]:
     """:func:`estimate` on the machines of ``comm``; raises :class:`ResourceError` naming the mesh size
     when the largest solve cannot fit, returns warnings when it is close."""
-    nodes = len(set(comm.allgather(socket.gethostname())))
+    nodes = machines_of(comm)
     est = comm.bcast(estimate(scene, nodes) if comm.rank == 0 else None, root=0)
     if est is None:
         return None, []

@@ -97,3 +97,31 @@ def test_out_of_core_refused_where_its_files_do_not_fit(tmp_path, monkeypatch):
     monkeypatch.setenv("MUMPS_OOC_TMPDIR", str(tmp_path / "missing"))
     with pytest.raises(ResourceError, match=r"MUMPS_OOC_TMPDIR=.*missing: not a folder"):
         resources.check_resources(scene, MPI.COMM_SELF)
+
+
+def test_out_of_core_the_preload_preconditions_with_the_frictionless_cholesky(tmp_path, monkeypatch):
+    """The brake corner (coarse) on a machine faked to hold its out-of-core but not its in-core factors:
+    preload.jacobian "auto" takes "symmetric" there (its in-core Cholesky fits: fem_squeal.app.resources.
+    preload_jacobian), so the preload factorises no LU (CHOLMOD of the frictionless Jacobian, GMRES on the
+    Jacobian), and results.json says so.  The state is the default path's within 1e-10 (tests/integration/
+    test_brake.py), so the CEA on the out-of-core LU gives the in-core run's pairs to the eigensolves'
+    tolerance (1e-9 relative, as above) and the same unstable set."""
+    sets = ["geometry.mesh_size=0.016", "analyses.cea.band_hz=[0.0, 6000.0]", "analyses.cea.n_modes=20",
+            "analyses.cea.coupling=false"]
+    scene = load_scene(RING.parent / "brake_corner_cea.toml", sets)
+    dofs = resources.estimate(scene).dofs
+    exact, ooc = resources.solve_memory(dofs), resources.solve_memory(dofs, kind="ooc")
+    assert resources.solve_memory(dofs, kind="symmetric") < 0.5 * (exact + ooc)
+    monkeypatch.setenv("MUMPS_OOC_TMPDIR", str(tmp_path))
+    ref = run_scene(scene, tmp_path / "ref", MPI.COMM_SELF, write_fields=False, report=False,
+                    log=lambda *a, **k: None)
+    monkeypatch.setattr(resources, "machine_memory", lambda: 0.5 * (exact + ooc) / resources.REFUSE_SHARE)
+    out = run_scene(scene, tmp_path / "out", MPI.COMM_SELF, write_fields=False, report=False,
+                    log=lambda *a, **k: None)
+    assert ref["solver"]["factors"] == "in core" and ref["preload"]["jacobian"] == "update"
+    assert out["solver"]["factors"] == "out of core (memory model)" and out["preload"]["jacobian"] == "symmetric"
+    steps = out["solver"]["paths"]["preload"]["newton_step"]
+    assert "symmetric factorisation (cholmod), GMRES" in steps and "factorisation" not in steps, steps
+    a, b = _eigenvalues(out), _eigenvalues(ref)
+    assert len(a) == len(b) > 0 and out["n_unstable"] == ref["n_unstable"]
+    assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max()

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
-from fem_squeal.app import plots
+from fem_squeal.app import plots, resources
 from fem_squeal.app.analyses import pressure_continuation
 from fem_squeal.app.html import table as _table
 from fem_squeal.app.stage import Context, Stage
@@ -105,6 +105,21 @@ def operating(ctx: Context):
     return ctx.products["operating"]
 
 
+def _jacobian(ctx: Context, ops) -> str:
+    """preload.jacobian with "auto" resolved by the memory model (:func:`fem_squeal.app.resources.
+    preload_jacobian`: "symmetric" where the LU's factors go out of core and the Cholesky fits in core),
+    warning where an explicit "symmetric" is predicted not to fit."""
+    from fem_squeal.fe.factorisation import factors_in_files  # heavy: FE stack
+
+    options = ctx.scene.solver.petsc_options
+    jacobian, warning = resources.preload_jacobian(ctx.scene.preload["jacobian"], ops.K.getSize()[0],
+                                                   ctx.comm.size, resources.machines_of(ctx.comm),
+                                                   factors_in_files("preload_", options))
+    if warning:
+        ctx.say(f"[fem_squeal] warning: {warning}")
+    return jacobian
+
+
 def run(ctx: Context, work: Path, timings: dict) -> dict:
     """Static contact state (nonlinear, or every point closed) and the linearisation about it."""
     from fem_squeal.fe.assembly import linearise  # heavy: FE stack
@@ -119,7 +134,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
             from fem_squeal.fe.preload import NewtonFactor, solve_preload  # heavy: FE stack
 
             settings = dict(friction=pl["friction"], tol=pl["tol"], max_iterations=pl["max_iterations"],
-                            options=ctx.scene.solver.petsc_options, jacobian=pl["jacobian"],
+                            options=ctx.scene.solver.petsc_options, jacobian=_jacobian(ctx, ops),
                             max_factorisations=pl["max_factorisations"])
             other = pressure_continuation.scales(ctx.scene)    # the operating matrix's other pressures
             factor = NewtonFactor() if other else None

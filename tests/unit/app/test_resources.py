@@ -219,6 +219,30 @@ def test_out_of_core_is_chosen_only_where_in_core_does_not_fit(monkeypatch):
     assert not _what_fits(big, 2, 1, "exact").startswith("on 1 rank")
 
 
+def test_the_symmetric_preload_is_chosen_where_its_cholesky_fits(monkeypatch):
+    """preload.jacobian "auto" (issue 36): "symmetric" only where the LU's factors go out of core and the
+    preload's peak with its Cholesky in core (the "symmetric" fit through the measured 4.716 GiB at 347,853
+    DOFs and 23.12 GiB at 1,323,816) fits in 90 % of the machines' memory; "update" elsewhere.  On this
+    project's 23.5 GiB machine the 1.32M brake's 23.12 GiB does not (one rank), its 711k (11.0 GiB) does.
+    An explicit "symmetric" stays, with a warning where it is not predicted to fit."""
+    from fem_squeal.app import resources
+    from fem_squeal.app.resources import REFUSE_SHARE, preload_jacobian
+
+    assert solve_memory(1_323_816, 1, "symmetric") / GIB == pytest.approx(23.12, rel=1e-12)
+    assert solve_memory(711_351, 1, "symmetric") / GIB == pytest.approx(10.98, rel=1e-3)
+    monkeypatch.setattr(resources, "machine_memory", lambda: 23.54 * GIB)
+    assert preload_jacobian("auto", 1_323_816, 1, 1, True) == ("update", None)
+    assert preload_jacobian("auto", 711_351, 1, 1, True) == ("symmetric", None)
+    assert preload_jacobian("auto", 711_351, 1, 1, False) == ("update", None)
+    assert preload_jacobian("auto", 1_323_816, 1, 2, True) == ("symmetric", None)        # two machines
+    assert preload_jacobian("refactorise", 1_323_816, 1, 1, True) == ("refactorise", None)
+    jacobian, warning = preload_jacobian("symmetric", 1_323_816, 1, 1, False)
+    assert jacobian == "symmetric" and "23.1 GiB" in warning and warning.startswith("preload.jacobian:")
+    monkeypatch.setattr(resources, "machine_memory", lambda: 23.12 * GIB / REFUSE_SHARE)
+    assert preload_jacobian("auto", 1_323_816, 1, 1, True)[0] == "symmetric"
+    assert preload_jacobian("symmetric", 1_323_816, 1, 1, True) == ("symmetric", None)
+
+
 def test_factor_files_estimate_against_measured_runs():
     """The out-of-core files' bytes (the power through the two runs' measured folders, 10.60 GB at 711,351
     DOFs and 26.23 GB at 1,323,816) against a third measurement it was not fitted on: the preload's LU

@@ -121,14 +121,39 @@ def _progress(solver, total: int, label: str, enabled: bool):
             solver.cancelMonitor()
 
 
+#: Vectors a block Krylov solve of the brake builds per wanted pair (the progress line's ETA until the pairs
+#: converge, which they do late): block Arnoldi 288 for 93 pairs at 1,323,816 DOFs and 390 for 120 at
+#: 711,351; block Lanczos 400 for 125 real modes at 711,351 (docs/validation.md)
+VECTORS_PER_PAIR = 3.1
+
+
+def eta_seconds(elapsed: float, done: int, done_first: int, vectors: int, vectors_first: int, wanted: int,
+                asked: int = 0) -> float:
+    """The seconds a block Krylov solve has left, ``elapsed`` after its first block (``done_first``
+    converged pairs and ``vectors_first`` vectors then; ``done`` and ``vectors`` now, of ``wanted``
+    pairs; ``asked``: the pairs asked for, nev, which the band's count only reaches as its Ritz values
+    come in): the pairs' own rate, which counts the pairs that converge late as never coming, and, while
+    the space is below :data:`VECTORS_PER_PAIR` × max(``wanted``, ``asked``), the vectors still to build at
+    their rate, whichever is less.  NaN before either can be measured.  Replayed on the 1.32M-DOF run out
+    of core (94 asked, 93 in the band; the ratio is that run's, and 3.25 at 711k): with 36 / 108 / 180 / 228
+    vectors built 386 / 287 / 177 / 104 s against 424 / 310 / 192 / 106 s that were left; the pairs' rate
+    alone said 8038 s at 96 vectors (330 s left)."""
+    by_pairs = elapsed * (wanted - done) / (done - done_first) if done > done_first else float("nan")
+    expected = VECTORS_PER_PAIR * max(wanted, asked)
+    if vectors > vectors_first and vectors < expected:
+        by_vectors = elapsed * (expected - vectors) / (vectors - vectors_first)
+        return by_vectors if by_pairs != by_pairs else min(by_pairs, by_vectors)
+    return by_pairs
+
+
 @contextmanager
 def block_progress(label: str, enabled: bool, comm, total: int, factor_seconds: float | None = None,
                    factorising: str = "factorising"):
     """A progress line of a block Krylov solve on rank 0 (the callback :func:`_block_lanczos` and
     :func:`_block_arnoldi` take, with (converged wanted pairs, vectors, wanted pairs); None when not
     ``enabled``): first ``factorising`` where the factorisation is still to come (``factor_seconds``
-    None), then the converged pairs, the vectors and the seconds left, estimated from the iterations'
-    own rate (the factorisation's seconds shown apart).  Drawn full where the solve converged, left
+    None), then the converged pairs, the vectors and the seconds left (:func:`eta_seconds`; the
+    factorisation's seconds shown apart).  Drawn full where the solve converged, left
     short where it stopped (issue 36: "120/120 pairs, 0.0 s" was drawn when block Arnoldi's memory rule
     refused it, before Krylov–Schur's minutes), with a line that says so where it had begun (its space
     spent: at 1.32M DOFs out of core the log was then silent for minutes of the solve that followed)."""
@@ -143,13 +168,13 @@ def block_progress(label: str, enabled: bool, comm, total: int, factor_seconds: 
     def step(done: int, k: int, wanted: int) -> None:
         now = time.perf_counter()
         if state["first"] is None:               # the first block: the factorisation is over
-            state["first"] = (now, done)
+            state["first"] = (now, done, k)
             if state["factor"] is None:
                 state["factor"] = now - bar.t0
-        t1, d1 = state["first"]
+        t1, d1, k1 = state["first"]
         bar.total = float(max(wanted, 1))        # the band's or the threshold's pairs, where not nev
         state["done"], state["last"] = done >= wanted, (done, k, wanted)
-        bar.update(done, eta=(now - t1) * (wanted - done) / (done - d1) if done > d1 else float("nan"),
+        bar.update(done, eta=eta_seconds(now - t1, done, d1, k, k1, wanted, total),
                    extra=f"{k} vectors, factorised in {state['factor']:.1f} s")
     try:
         yield step

@@ -36,14 +36,17 @@ def linearised_brake(comm, quick: bool):
     return scene, spec, linearise(ops, pre.active), pre
 
 
-def brake_args(mesh_size: float = 0.0056, repeats: int = 2, ranks: int = 2):
-    """The command line of a brake-corner benchmark: ``--mesh-size``, ``--repeats``, ``--ranks``."""
+def brake_args(mesh_size: float = 0.0056, repeats: int = 2, ranks: int = 2, more=None):
+    """The command line of a brake-corner benchmark: ``--mesh-size``, ``--repeats``, ``--ranks``, and what
+    ``more`` (a callable given the argparse parser) adds."""
     import argparse
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--mesh-size", type=float, default=mesh_size)
     ap.add_argument("--repeats", type=int, default=repeats)
     ap.add_argument("--ranks", type=int, default=ranks)
+    if more is not None:
+        more(ap)
     return ap.parse_args()
 
 

@@ -6,7 +6,12 @@ Cases:
 - ``exact``: every Newton step solved to 1e-11 (a factorisation, Woodbury's update or GMRES on the kept
   factorisation), as before 2026-11-29 (``fem_squeal.fe.preload.forcing`` replaced in that process);
 - ``inexact``: the default, GMRES to Eisenstat–Walker's forcing while the closed set still moves
-  (:func:`fem_squeal.fe.preload.forcing`).
+  (:func:`fem_squeal.fe.preload.forcing`);
+- ``symmetric``: ``jacobian="symmetric"``, the frictionless Jacobian's Cholesky (CHOLMOD on one rank,
+  MUMPS LDLᵀ on more) as GMRES's preconditioner at every step, the forcing as ``inexact``.
+
+``--cases`` picks them (``exact inexact`` unless given; the first is the reference of Δu), ``--blas-threads``
+the OpenBLAS threads of every rank (1 unless given; a run on one rank of a 2-core machine takes 2).
 
 Reported: seconds of ``solve_preload`` (the fastest of ``--repeats``, interleaved), Newton iterations,
 LU factorisations, GMRES iterations, the final ‖R‖/‖f‖, and the inexact state's distance from the exact
@@ -14,7 +19,8 @@ one, max|Δu|/max|u| and ‖Δu‖/‖u‖, with the nodes matched by their coor
 from process to process: :func:`matched`).  The issue's bound is
 1e-10 relative in displacement.
 
-    .venv/bin/python benchmarks/preload_forcing.py [--mesh-size 0.0056] [--repeats 2] [--ranks 2]
+    .venv/bin/python benchmarks/preload_forcing.py [--mesh-size 0.0056] [--repeats 2] [--ranks 2] \
+        [--cases exact inexact symmetric] [--blas-threads 1]
 """
 from __future__ import annotations
 
@@ -28,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import casework  # noqa: E402
 
 SCENE = Path(__file__).resolve().parent.parent / "scenes" / "brake_corner_cea.toml"
-CASES = ("exact", "inexact")
+CASES = ("exact", "inexact", "symmetric")
 
 
 def run_case(name: str, mesh_size: float, out: str) -> dict:
@@ -50,7 +56,7 @@ def run_case(name: str, mesh_size: float, out: str) -> dict:
         preload.forcing = lambda residuals, tol, settled: preload.KRYLOV_RTOL
     comm.barrier()
     t = time.perf_counter()
-    pre = preload.solve_preload(ops)
+    pre = preload.solve_preload(ops, jacobian="symmetric" if name == "symmetric" else "update")
     seconds = comm.allreduce(time.perf_counter() - t, op=MPI.MAX)
     n_owned = ops.V.dofmap.index_map.size_local
     x = comm.gather(dof_coordinates(ops.V)[:n_owned], root=0)
@@ -63,25 +69,27 @@ def run_case(name: str, mesh_size: float, out: str) -> dict:
             "final_residual": pre.history[-1][1], "closed": [n for n, _ in pre.history]}
 
 
-def run(mesh_size: float, repeats: int, ranks: int, workdir: Path) -> list[dict]:
-    """Every case ``repeats`` times, each in a fresh process (interleaved; the fastest kept), and the
-    inexact state against the exact one."""
+def run(mesh_size: float, repeats: int, ranks: int, workdir: Path, cases=CASES[:2], threads: int = 1
+        ) -> list[dict]:
+    """Every case of ``cases`` ``repeats`` times, each in a fresh process with ``threads`` BLAS threads per
+    rank (interleaved; the fastest kept), and every state against the first case's."""
     best: dict[str, dict] = {}
     for rep in range(repeats):
-        for name in CASES:
+        for name in cases:
             out = workdir / f"u_{name}_{rep}.npz"
             r = casework.spawn(__file__, [name, str(mesh_size), str(out)], ranks,
-                               env={"OPENBLAS_NUM_THREADS": "1"})
+                               env={"OPENBLAS_NUM_THREADS": str(threads)})
             r["u"] = str(out)
             print(f"#{rep} {name}: {r['seconds']:.2f} s", file=sys.stderr, flush=True)
             if name not in best or r["seconds"] < best[name]["seconds"]:
                 best[name] = r
-    ref = np.load(best["exact"]["u"])
+    ref = np.load(best[cases[0]]["u"])
     for r in best.values():
         du = matched(np.load(r.pop("u")), ref) - ref["u"]
         r["max_du"] = float(np.max(np.abs(du)) / np.max(np.abs(ref["u"])))
         r["norm_du"] = float(np.linalg.norm(du) / np.linalg.norm(ref["u"]))
-    return [best[n] for n in CASES]
+        r["blas_threads"] = threads
+    return [best[n] for n in cases]
 
 
 def matched(case, ref) -> np.ndarray:
@@ -103,9 +111,10 @@ def matched(case, ref) -> np.ndarray:
 
 
 def table(rows: list[dict]) -> list[str]:
-    out = [f"{rows[0]['dofs']} DOFs, {rows[0]['ranks']} rank(s)", "",
-           "| case | seconds | Newton iterations | LU | GMRES iterations | final ‖R‖/‖f‖ | closed points per "
-           "iteration | max\\|Δu\\|/max\\|u\\| | ‖Δu‖/‖u‖ |",
+    out = [f"{rows[0]['dofs']} DOFs, {rows[0]['ranks']} rank(s), {rows[0]['blas_threads']} BLAS thread(s) each; "
+           f"Δu against {rows[0]['case']}", "",
+           "| case | seconds | Newton iterations | factorisations | GMRES iterations | final ‖R‖/‖f‖ | "
+           "closed points per iteration | max\\|Δu\\|/max\\|u\\| | ‖Δu‖/‖u‖ |",
            "|---|---:|---:|---:|---:|---:|---|---:|---:|"]
     for r in rows:
         out.append(f"| {r['case']} | {r['seconds']:.1f} | {r['iterations']} | {r['factorisations']} | "
@@ -118,9 +127,12 @@ def main() -> None:
     if len(sys.argv) > 1 and sys.argv[1] == "--case":
         casework.report(run_case(sys.argv[2], float(sys.argv[3]), sys.argv[4]))
         return
-    a = casework.brake_args()
+    def more(ap):
+        ap.add_argument("--cases", nargs="+", choices=CASES, default=list(CASES[:2]))
+        ap.add_argument("--blas-threads", type=int, default=1)
+    a = casework.brake_args(more=more)
     with tempfile.TemporaryDirectory(prefix="preload_forcing_") as tmp:
-        rows = run(a.mesh_size, a.repeats, a.ranks, Path(tmp))
+        rows = run(a.mesh_size, a.repeats, a.ranks, Path(tmp), tuple(a.cases), a.blas_threads)
     casework.save("preload_forcing", table(rows), rows, a.ranks, False)
 
 

@@ -65,7 +65,8 @@ class PreloadResult(NamedTuple):
     contact_area: dict[str, float]    # closed area per interface (global)
     iterations: int
     history: list[tuple[int, float]]  # (closed points, ‖R‖/‖f‖) per iteration
-    factorisations: int = 0           # LU factorisations of the Jacobian (the first included)
+    factorisations: int = 0           # factorisations of the Jacobian, the first included (LU; "symmetric":
+    #                                   Cholesky of its frictionless part, and LU after a fallback)
     update_columns: int = 0           # columns J_f⁻¹ a_q of the low-rank updates (fe.kept_factorisation)
     krylov_iterations: int = 0        # GMRES iterations of the steps preconditioned by the kept factorisation
     jacobian: str = ""                # how the steps were solved: "update", "refactorise", "symmetric"
@@ -166,12 +167,13 @@ JACOBIANS = ("auto", "update", "refactorise", "symmetric")
 
 
 def auto_jacobian(prefix: str = "preload_", options: dict | None = None) -> str:
-    """"symmetric" where the Jacobian's LU would keep its factors in files (the run's memory model chose
-    out of core, or the user's ``<prefix>mat_mumps_icntl_22``), else "update".  Out of core every solve
-    reads the whole factor back: the brake corner at 1,323,816 DOFs on one rank took 937.7 s for its
-    preload by "update" (2 LUs of 327 and 317 s, 8 GMRES iterations and 114 Woodbury columns at about 20 s
-    a solve) and 303.5 s by "symmetric" (one in-core Cholesky, 166 s with its first solve, 60 GMRES
-    iterations of 2.3 s), the same state to 1e-12 (docs/validation.md)."""
+    """"symmetric" where the Jacobian's LU would keep its factors in files (the run's out-of-core context,
+    or the user's ``<prefix>mat_mumps_icntl_22``), else "update".  Out of core every solve reads the whole
+    factor back: the brake corner at 1,323,816 DOFs on one rank took 937.7 s for its preload by "update"
+    (2 LUs of 327 and 317 s, 8 GMRES iterations and 114 Woodbury columns at about 20 s a solve) and 216.6 s
+    by "symmetric" (one in-core CHOLMOD Cholesky, 132.5 s with its first step, 60 GMRES iterations of
+    1.4 s), the same state (docs/validation.md).  The pipeline resolves "auto" itself, with the memory
+    model's check that the Cholesky fits in core (:func:`fem_squeal.app.resources.preload_jacobian`)."""
     return "symmetric" if factors_in_files(prefix, options) else "update"
 
 

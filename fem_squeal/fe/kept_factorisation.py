@@ -35,6 +35,12 @@ Columns and factorisations serve the later steps too, a GMRES step only itself: 
 :data:`KRYLOV_STEPS_AHEAD` times (:data:`KRYLOV_STEPS_AHEAD_KEPT` where the factorisation serves the next
 pressures of a continuation).  Where GMRES does not converge (a cubic penalty, far from the
 state), the step takes the columns and GMRES is not tried again on that factorisation.
+
+A factor of another matrix than J_f (``exact=False``: the preload's "symmetric" Jacobian, the Cholesky
+of its frictionless part P_f, :func:`fem_squeal.fe.preload.solve_preload`) serves as GMRES's
+preconditioner only: J_k = J_f + A D Bᵀ is applied as above, P_f⁻¹ J_k − I has the rank of the friction
+term and the change, no Woodbury column is exact, and a GMRES that does not converge refuses the step
+(refactorise) instead of taking columns.
 """
 from __future__ import annotations
 

@@ -113,3 +113,25 @@ def test_bad_pressure_is_named_before_any_solve():
         continue_preload(blocks_ops(), [1.0, -1.0])
     with pytest.raises(ModelError, match=r"^preload: the load scale must be > 0"):
         solve_preload(blocks_ops(), scale=0.0)
+
+
+def test_a_symmetric_continuation_reaches_the_same_states():
+    """preload.jacobian "symmetric" through a continuation: the frictionless Cholesky of the first solve
+    preconditions the later pressures' GMRES steps too (kept in the continuation's factor; the cost rule may
+    still refactorise it, numerically), and every state is the cold "update" solve's (the cubic penalty:
+    Newton steps at every pressure), as the default's are."""
+    from fem_squeal.fe.preload import solve_preload
+    from fem_squeal.fe.preload_continuation import continue_preload
+
+    ops = blocks_ops()
+    states = continue_preload(ops, SCALES, k3=K3, jacobian="symmetric")
+    first = min(states, key=lambda st: st.scale)
+    assert 1 <= first.result.factorisations <= 2 and first.result.jacobian == "symmetric"
+    for st in states:
+        cold = solve_preload(ops, k3=K3, scale=st.scale)
+        assert rel(st.result.u, cold.u) < 1e-8
+        assert np.array_equal(st.result.active["pad"], cold.active["pad"])
+        if st is not first:
+            assert st.result.jacobian == "symmetric" and st.result.iterations >= 1
+            assert st.result.krylov_iterations > 0 and st.result.update_columns == 0
+        cold.u.destroy()

@@ -257,8 +257,9 @@ def machines_of(comm) -> int:
 def preload_jacobian(jacobian: str, dofs: float, ranks: int, machines: int, out_of_core: bool
                      ) -> tuple[str, str | None]:
     """The preload's Jacobian (``preload.jacobian``) for an N-DOF model on ``ranks`` ranks over ``machines``
-    machines like this one: "auto" is "symmetric" where the LU's factors go to files (``out_of_core``: the
-    memory model's choice or the user's ICNTL(22)) and the preload's peak with the Cholesky in core (kind
+    machines like this one: "auto" is "symmetric" where the LU's factors go to files by the memory model's
+    choice (``out_of_core``; an ICNTL(22) of the user's decides instead) and the preload's peak with the
+    Cholesky in core (kind
     ``symmetric``) fits in :data:`REFUSE_SHARE` of the memory, else "update"; the others stay.  Returns it
     and a warning where "symmetric" is asked for and its peak is not predicted to fit."""
     need = solve_memory(dofs, ranks, "symmetric")

@@ -148,15 +148,14 @@ def factor_solver(A: PETSc.Mat, factorisation: Factorisation, prefix: str, optio
     return ksp
 
 
-def factors_in_files(prefix: str, options: Options | None = None) -> bool:
-    """Whether a MUMPS factorisation under ``prefix`` keeps its factors in files: the user's ICNTL(22)
-    (the scene's ``options``, then the command line) where given, else whether the run is inside
-    :func:`factors_out_of_core`."""
+def out_of_core_by_the_model(prefix: str, options: Options | None = None) -> bool:
+    """Whether a MUMPS factorisation under ``prefix`` goes out of core by the run's choice: inside
+    :func:`factors_out_of_core` (the memory model's) with no ICNTL(22) of the user's under ``prefix`` (the
+    scene's ``options``, then the command line), which would decide instead."""
+    if out_of_core_folder() is None:
+        return False
     with scoped_options({}, options):
-        given = user_option(f"{prefix}mat_mumps_icntl_22")
-    if given is not None:
-        return given.strip().lower() not in ("0", "false", "no")
-    return _OUT_OF_CORE.get() is not None
+        return user_option(f"{prefix}mat_mumps_icntl_22") is None
 
 
 def symmetric_packages(ranks: int, prefix: str, definite: bool = True) -> list[str]:
@@ -174,7 +173,9 @@ def symmetric_packages(ranks: int, prefix: str, definite: bool = True) -> list[s
 
 def symmetric_solver(A: PETSc.Mat, prefix: str, options: Options | None = None) -> tuple[PETSc.KSP, str]:
     """A KSP that solves with a Cholesky factorisation of the symmetric ``A`` (:func:`factor_solver`; the
-    first of :func:`symmetric_packages` that factorises it), set up here.  Returns it and the package.
+    first of :func:`symmetric_packages` that factorises it), set up here, in core also inside
+    :func:`factors_out_of_core` (MUMPS's ICNTL(22) = 0 unless the user's option says otherwise: the
+    preload takes it where the LU would go out of core and it fits).  Returns it and the package.
     Half the factor of an LU: CHOLMOD's 0.19 s solves and 2.1 GiB peak against MUMPS LDLᵀ's 0.36 s and
     more than 4 GiB, and MUMPS LU's 24 s factorisation against 12 s (the brake corner's frictionless
     Jacobian at 347,853 DOFs, one rank, 2026-11-29)."""
@@ -183,8 +184,8 @@ def symmetric_solver(A: PETSc.Mat, prefix: str, options: Options | None = None) 
     for k, package in enumerate(packages):
         try:
             with serial_openmp():           # CHOLMOD's OpenMP loops (fem_squeal.util.blas); nothing for MUMPS
-                return factor_solver(A, CHOLESKY.with_(package=package, extra=QUIET_CHOLMOD), prefix,
-                                     options), package
+                factor = CHOLESKY.with_(package=package, extra=QUIET_CHOLMOD, icntl={22: 0})
+                return factor_solver(A, factor, prefix, options), package
         except PETSc.Error:
             if k + 1 == len(packages):
                 raise

@@ -42,7 +42,7 @@ from fem_squeal.fe.assembly import (
     plate_friction_fields,
 )
 from fem_squeal.fe.assembly import static_displacement as assembly_static_displacement
-from fem_squeal.fe.factorisation import factors_in_files, refactorise, symmetric_solver
+from fem_squeal.fe.factorisation import out_of_core_by_the_model, refactorise, symmetric_solver
 from fem_squeal.fe.kept_factorisation import (
     KRYLOV_RTOL,
     KRYLOV_STEPS_AHEAD,
@@ -167,14 +167,15 @@ JACOBIANS = ("auto", "update", "refactorise", "symmetric")
 
 
 def auto_jacobian(prefix: str = "preload_", options: dict | None = None) -> str:
-    """"symmetric" where the Jacobian's LU would keep its factors in files (the run's out-of-core context,
-    or the user's ``<prefix>mat_mumps_icntl_22``), else "update".  Out of core every solve reads the whole
-    factor back: the brake corner at 1,323,816 DOFs on one rank took 937.7 s for its preload by "update"
-    (2 LUs of 327 and 317 s, 8 GMRES iterations and 114 Woodbury columns at about 20 s a solve) and 216.6 s
-    by "symmetric" (one in-core CHOLMOD Cholesky, 132.5 s with its first step, 60 GMRES iterations of
-    1.4 s), the same state (docs/validation.md).  The pipeline resolves "auto" itself, with the memory
+    """"symmetric" where the Jacobian's LU would keep its factors in files by the run's choice (its
+    out-of-core context, no ``<prefix>mat_mumps_icntl_22`` of the user's: that decides, and out of core
+    the Cholesky is slower than the LU's updates, docs/validation.md), else "update".  Out of core every
+    solve reads the whole factor back: the brake corner at 1,323,816 DOFs on one rank took 937.7 s for its
+    preload by "update" (2 LUs of 327 and 317 s, 8 GMRES iterations and 114 Woodbury columns at about 20 s
+    a solve) and 216.6 s by "symmetric" (one in-core CHOLMOD Cholesky, 132.5 s with its first step, 60 GMRES
+    iterations of 1.4 s), the same state.  The pipeline resolves "auto" itself, with the memory
     model's check that the Cholesky fits in core (:func:`fem_squeal.app.resources.preload_jacobian`)."""
-    return "symmetric" if factors_in_files(prefix, options) else "update"
+    return "symmetric" if out_of_core_by_the_model(prefix, options) else "update"
 
 
 def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol: float = 1e-9,

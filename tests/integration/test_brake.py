@@ -205,18 +205,31 @@ def test_the_frictionless_cholesky_preconditions_every_step_to_the_same_state():
 
 
 def test_the_preload_is_symmetric_where_the_lu_goes_out_of_core(tmp_path):
-    """preload.jacobian = "auto" (the default): "symmetric" inside the run's out-of-core context or with
-    the user's preload_mat_mumps_icntl_22 = 1, "update" otherwise (also where the user keeps the LU in
-    core inside the context)."""
-    from fem_squeal.fe.factorisation import factors_out_of_core
+    """preload.jacobian = "auto" (the default, in fem_squeal.fe): "symmetric" inside the run's out-of-core
+    context (the memory model's choice), "update" otherwise, and where the user's preload_mat_mumps_icntl_22
+    decides (0: the LU in core; 1: out of core, where the Cholesky's GMRES steps would read its files too,
+    slower than the LU's updates).  The Cholesky stays in core inside the context (ICNTL(22) = 0 unless the
+    user says otherwise): MUMPS LDLᵀ asked for by option on this one rank writes no file there."""
+    from fem_squeal.fe.factorisation import factors_out_of_core, symmetric_solver
     from fem_squeal.fe.preload import auto_jacobian
 
+    _, _, _, ops = model()
     assert auto_jacobian() == "update"
-    assert auto_jacobian("preload_", {"preload_mat_mumps_icntl_22": 1}) == "symmetric"
-    assert auto_jacobian("preload_", {"cea_st_mat_mumps_icntl_22": 1}) == "update"
+    assert auto_jacobian("preload_", {"preload_mat_mumps_icntl_22": 1}) == "update"
     with factors_out_of_core(str(tmp_path)):
         assert auto_jacobian() == "symmetric"
-        assert auto_jacobian("preload_", {"preload_mat_mumps_icntl_22": 0}) == "update"
+        assert auto_jacobian("preload_", {"cea_st_mat_mumps_icntl_22": 0}) == "symmetric"
+        for given in (0, 1):
+            assert auto_jacobian("preload_", {"preload_mat_mumps_icntl_22": given}) == "update"
+        for icntl, files in ((None, False), (1, True)):
+            options = {"preload_pc_factor_mat_solver_type": "mumps"}
+            if icntl is not None:
+                options["preload_mat_mumps_icntl_22"] = icntl
+            ksp, package = symmetric_solver(ops.K, "preload_", options)
+            F = ksp.getPC().getFactorMatrix()
+            assert package == "mumps" and F.getMumpsIcntl(22) == (icntl or 0)
+            assert any(tmp_path.iterdir()) == files
+            ksp.destroy()
     assert auto_jacobian() == "update"
 
 

@@ -107,14 +107,15 @@ def operating(ctx: Context):
 
 def _jacobian(ctx: Context, ops) -> str:
     """preload.jacobian with "auto" resolved by the memory model (:func:`fem_squeal.app.resources.
-    preload_jacobian`: "symmetric" where the LU's factors go out of core and the Cholesky fits in core),
+    preload_jacobian`: "symmetric" where the model put the LU's factors out of core and the Cholesky fits
+    in core),
     warning where an explicit "symmetric" is predicted not to fit."""
-    from fem_squeal.fe.factorisation import factors_in_files  # heavy: FE stack
+    from fem_squeal.fe.factorisation import out_of_core_by_the_model  # heavy: FE stack
 
     options = ctx.scene.solver.petsc_options
     jacobian, warning = resources.preload_jacobian(ctx.scene.preload["jacobian"], ops.K.getSize()[0],
                                                    ctx.comm.size, resources.machines_of(ctx.comm),
-                                                   factors_in_files("preload_", options))
+                                                   out_of_core_by_the_model("preload_", options))
     if warning:
         ctx.say(f"[fem_squeal] warning: {warning}")
     return jacobian

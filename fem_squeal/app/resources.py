@@ -259,9 +259,9 @@ def preload_jacobian(jacobian: str, dofs: float, ranks: int, machines: int, out_
     """The preload's Jacobian (``preload.jacobian``) for an N-DOF model on ``ranks`` ranks over ``machines``
     machines like this one: "auto" is "symmetric" where the LU's factors go to files by the memory model's
     choice (``out_of_core``; an ICNTL(22) of the user's decides instead) and the preload's peak with the
-    Cholesky in core (kind
-    ``symmetric``) fits in :data:`REFUSE_SHARE` of the memory, else "update"; the others stay.  Returns it
-    and a warning where "symmetric" is asked for and its peak is not predicted to fit."""
+    Cholesky in core (kind ``symmetric``) fits in :data:`REFUSE_SHARE` of the memory, else "update"; the
+    others stay.  Returns it and a warning where "symmetric" is asked for and its peak is not predicted to
+    fit."""
     need = solve_memory(dofs, ranks, "symmetric")
     usable = REFUSE_SHARE * machines * machine_memory()
     if jacobian == "auto":

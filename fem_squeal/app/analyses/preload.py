@@ -108,8 +108,7 @@ def operating(ctx: Context):
 def _jacobian(ctx: Context, ops) -> str:
     """preload.jacobian with "auto" resolved by the memory model (:func:`fem_squeal.app.resources.
     preload_jacobian`: "symmetric" where the model put the LU's factors out of core and the Cholesky fits
-    in core),
-    warning where an explicit "symmetric" is predicted not to fit."""
+    in core), warning where an explicit "symmetric" is predicted not to fit."""
     from fem_squeal.fe.factorisation import out_of_core_by_the_model  # heavy: FE stack
 
     options = ctx.scene.solver.petsc_options

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mpi4py import MPI
+from support.memory import between_the_fits
 
 from fem_squeal.app import resources
 from fem_squeal.app.run import run_scene
@@ -33,8 +34,7 @@ def test_a_run_that_does_not_fit_in_core_goes_out_of_core(tmp_path, monkeypatch)
     the two runs' eigenvalues differ by rounding of their solves only: 1e-9 relative allows both runs'
     tolerance twice over; the same unstable set."""
     scene = load_scene(RING, ["geometry.mesh_size=0.003"])
-    dofs = resources.estimate(scene).dofs
-    exact, ooc = resources.solve_memory(dofs), resources.solve_memory(dofs, kind="ooc")
+    _, _, machine = between_the_fits(scene)
     folder = tmp_path / "ooc"
     folder.mkdir()
     monkeypatch.setenv("MUMPS_OOC_TMPDIR", str(folder))
@@ -48,7 +48,7 @@ def test_a_run_that_does_not_fit_in_core_goes_out_of_core(tmp_path, monkeypatch)
         d.mkdir()
         (d / "mumps_0_x").write_bytes(b"0" * 1000)
     with monkeypatch.context() as m:
-        m.setattr(resources, "machine_memory", lambda: 0.5 * (exact + ooc) / resources.REFUSE_SHARE)
+        m.setattr(resources, "machine_memory", lambda: machine)
         seen, done = set(), threading.Event()
 
         def poll():
@@ -85,9 +85,8 @@ def test_out_of_core_refused_where_its_files_do_not_fit(tmp_path, monkeypatch):
     from fem_squeal.util.errors import ResourceError
 
     scene = load_scene(RING, ["geometry.mesh_size=0.003"])
-    dofs = resources.estimate(scene).dofs
-    exact, ooc = resources.solve_memory(dofs), resources.solve_memory(dofs, kind="ooc")
-    monkeypatch.setattr(resources, "machine_memory", lambda: 0.5 * (exact + ooc) / resources.REFUSE_SHARE)
+    _, ooc, machine = between_the_fits(scene)
+    monkeypatch.setattr(resources, "machine_memory", lambda: machine)
     monkeypatch.setenv("MUMPS_OOC_TMPDIR", str(tmp_path))
     est, notes = resources.check_resources(scene, MPI.COMM_SELF)
     assert est.factors == "out of core (memory model)" and est.memory_gib == pytest.approx(ooc / resources.GIB)
@@ -109,13 +108,12 @@ def test_out_of_core_the_preload_preconditions_with_the_frictionless_cholesky(tm
     sets = ["geometry.mesh_size=0.016", "analyses.cea.band_hz=[0.0, 6000.0]", "analyses.cea.n_modes=20",
             "analyses.cea.coupling=false"]
     scene = load_scene(RING.parent / "brake_corner_cea.toml", sets)
-    dofs = resources.estimate(scene).dofs
-    exact, ooc = resources.solve_memory(dofs), resources.solve_memory(dofs, kind="ooc")
-    assert resources.solve_memory(dofs, kind="symmetric") < 0.5 * (exact + ooc)
+    exact, ooc, machine = between_the_fits(scene)
+    assert resources.solve_memory(resources.estimate(scene).dofs, kind="symmetric") < 0.5 * (exact + ooc)
     monkeypatch.setenv("MUMPS_OOC_TMPDIR", str(tmp_path))
     ref = run_scene(scene, tmp_path / "ref", MPI.COMM_SELF, write_fields=False, report=False,
                     log=lambda *a, **k: None)
-    monkeypatch.setattr(resources, "machine_memory", lambda: 0.5 * (exact + ooc) / resources.REFUSE_SHARE)
+    monkeypatch.setattr(resources, "machine_memory", lambda: machine)
     out = run_scene(scene, tmp_path / "out", MPI.COMM_SELF, write_fields=False, report=False,
                     log=lambda *a, **k: None)
     assert ref["solver"]["factors"] == "in core" and ref["preload"]["jacobian"] == "update"

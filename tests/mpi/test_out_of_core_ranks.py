@@ -4,6 +4,7 @@ eigenvalues are those of one rank in core."""
 from __future__ import annotations
 
 import numpy as np
+from support.memory import between_the_fits
 from support.ranks import assert_same_spectrum, two_rank_signature
 
 SETS = ["geometry.mesh_size=0.003"]
@@ -18,9 +19,8 @@ def _ring_run(comm, outdir, memory=None) -> dict:
 
     scene = load_scene(ROOT / "scenes" / "ryzhik_ring.toml", SETS)
     if memory is not None:      # a machine too small for the in-core factors on comm.size ranks
-        dofs = resources.estimate(scene).dofs
-        exact, ooc = (resources.solve_memory(dofs, comm.size, k) for k in ("exact", "ooc"))
-        resources.machine_memory = lambda: 0.5 * (exact + ooc) / resources.REFUSE_SHARE
+        machine = between_the_fits(scene, comm.size)[2]
+        resources.machine_memory = lambda: machine
     res = run_scene(scene, outdir, comm, write_fields=False, report=False, log=lambda *a, **k: None)
     lam = np.array([m["real_part"] + 2j * np.pi * m["freq_hz"] for m in res["complex_modes"]])
     return {"factors": res["solver"]["factors"], "cea_re": lam.real.tolist(), "cea_im": lam.imag.tolist()}

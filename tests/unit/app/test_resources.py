@@ -8,6 +8,7 @@ import sys
 
 import pytest
 from mpi4py import MPI
+from support.memory import between_the_fits
 from support.paths import ROOT
 from support.processes import clean_env
 
@@ -193,12 +194,11 @@ def test_out_of_core_is_chosen_only_where_in_core_does_not_fit(monkeypatch):
 
     sets = ["geometry.mesh_size=0.012"]
     scene = load_scene(ROOT / "scenes" / "brake_corner_cea.toml", sets)
-    dofs = resources.estimate(scene).dofs
-    exact, ooc = solve_memory(dofs), solve_memory(dofs, kind="ooc")
+    exact, ooc, machine = between_the_fits(scene)
     assert ooc < exact
     est, _ = check_resources(scene, MPI.COMM_SELF)
     assert est.factors == "in core"
-    monkeypatch.setattr(resources, "machine_memory", lambda: 0.5 * (exact + ooc) / REFUSE_SHARE)
+    monkeypatch.setattr(resources, "machine_memory", lambda: machine)
     est, notes = check_resources(scene, MPI.COMM_SELF)
     assert est.factors == "out of core (memory model)" and est.memory_gib == pytest.approx(ooc / GIB)
     assert any(n.startswith("the factors go out of core") for n in notes)

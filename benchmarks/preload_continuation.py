@@ -9,7 +9,7 @@ pressure (solved cold, as a run does), the 10 pressures' seconds by continuation
 ≤ 3), the Newton iterations, factorisations and update columns per pressure, and the relative difference
 of the continued states from cold solves at two pressures (between samples and the largest).
 
-    .venv/bin/python benchmarks/preload_continuation.py [--mesh-size 0.016] [--k3 1e23]
+    .venv/bin/python benchmarks/preload_continuation.py [--mesh-size 0.016] [--k3 1e23] [--jacobian symmetric]
     mpirun -n 2 .venv/bin/python benchmarks/preload_continuation.py --mesh-size 0.012
 
 Writes benchmarks/out/preload_continuation_<ranks>ranks.md and .json.
@@ -30,7 +30,7 @@ SCENE = Path(__file__).resolve().parents[1] / "scenes" / "brake_corner_cea.toml"
 SCALES = np.linspace(0.25, 2.5, 10).round(6).tolist()       # × loads.pressure
 
 
-def row(ops, friction: bool, k3: float, check: bool) -> dict:
+def row(ops, friction: bool, k3: float, check: bool, jacobian: str = "update") -> dict:
     from mpi4py import MPI
 
     from fem_squeal.fe.preload import solve_preload
@@ -39,11 +39,11 @@ def row(ops, friction: bool, k3: float, check: bool) -> dict:
     comm = MPI.COMM_WORLD
     comm.Barrier()
     t = time.perf_counter()
-    one = solve_preload(ops, friction=friction, k3=k3)
+    one = solve_preload(ops, friction=friction, k3=k3, jacobian=jacobian)
     single = comm.allreduce(time.perf_counter() - t, op=MPI.MAX)
     comm.Barrier()
     t = time.perf_counter()
-    states = continue_preload(ops, SCALES, friction=friction, k3=k3)
+    states = continue_preload(ops, SCALES, friction=friction, k3=k3, jacobian=jacobian)
     total = comm.allreduce(time.perf_counter() - t, op=MPI.MAX)
     out = {"k3": k3, "single_s": single, "single_iterations": one.iterations,
            "single_factorisations": one.factorisations, "continuation_s": total, "ratio": total / single,
@@ -75,6 +75,8 @@ def main() -> None:
     ap.add_argument("--taper", type=float, default=None,
                     help="both pads' taper wear: initial_gap gradient [m/m] along y, so that the contact set "
                          "changes with the pressure")
+    ap.add_argument("--jacobian", default="update", choices=("update", "refactorise", "symmetric"),
+                    help="the Newton steps' linear solves (fem_squeal.fe.preload.solve_preload)")
     a = ap.parse_args()
     from mpi4py import MPI
 
@@ -88,12 +90,12 @@ def main() -> None:
     scene = load_scene(SCENE, [f"geometry.mesh_size={a.mesh_size}", *taper])
     ops = assemble_operators(build_mesh(comm, scene), model_spec(scene), parts=False)
     dofs = ops.K.getSize()[0]
-    rows = [{"dofs": dofs, "ranks": comm.size, **row(ops, scene["preload"]["friction"], k3, not a.no_check)}
-            for k3 in a.k3]
+    rows = [{"dofs": dofs, "ranks": comm.size, "jacobian": a.jacobian,
+             **row(ops, scene["preload"]["friction"], k3, not a.no_check, a.jacobian)} for k3 in a.k3]
     if comm.rank:
         return
-    lines = [f"# Preload pressure continuation, brake corner ({dofs} DOFs, {comm.size} ranks), "
-             f"{len(SCALES)} pressures × {SCALES[0]:g}..{SCALES[-1]:g} loads.pressure", "",
+    lines = [f"# Preload pressure continuation, brake corner ({dofs} DOFs, {comm.size} ranks, jacobian "
+             f"{a.jacobian}), {len(SCALES)} pressures × {SCALES[0]:g}..{SCALES[-1]:g} loads.pressure", "",
              "| k₃ | single preload [s] (its, LU) | 10 pressures [s] | ratio (≤ 3) | its per pressure | "
              "LU per pressure | closed points | max rel. diff. from cold |", "|---|---|---|---|---|---|---|---|"]
     for r in rows:

@@ -204,6 +204,31 @@ def test_the_frictionless_cholesky_preconditions_every_step_to_the_same_state():
         p.u.destroy()
 
 
+def test_the_symmetric_preload_converges_on_a_cubic_penalty_far_from_equilibrium():
+    """Tapered pads (interference up to 1.5e-4 m/m along y) with a cubic penalty (k₃ = 1e23 N/m⁵) at a
+    quarter of the pressure: ‖R‖/‖f‖ = 141 at u = 0, the cold start of a pressure continuation (its kept
+    factor: a refactorisation is weighed against 10 steps, so one comes at the second step).  "symmetric"
+    solves the step on a fresh Cholesky exactly, as an LU would; GMRES stopped at the inexact forcing
+    there (0.1) overshot without bound (‖R‖/‖f‖ 141 → 9.9e4 → 2.9e11, no convergence in 25 Newton
+    iterations).  The state is the LU path's within 1e-10."""
+    from fem_squeal.fe.preload import NewtonFactor, solve_preload
+
+    taper = tuple(f"interfaces.{pad}.initial_gap={{gradient = [0.0, 1.5e-4, 0.0]}}"
+                  for pad in ("pad_inner", "pad_outer"))
+    _, _, _, ops = model(*taper)
+    ref = solve_preload(ops, k3=1e23, scale=0.25, jacobian="update")
+    factor = NewtonFactor()
+    sym = solve_preload(ops, k3=1e23, scale=0.25, jacobian="symmetric", factor=factor)
+    factor.destroy()
+    assert ref.history[0][1] > 100 and sym.jacobian == "symmetric" and sym.history[-1][1] <= 1e-9
+    assert all(np.array_equal(ref.active[n], a) for n, a in sym.active.items())
+    du = sym.u.copy()
+    du.axpy(-1.0, ref.u)
+    assert du.norm() <= 1e-10 * ref.u.norm()
+    for v in (du, sym.u, ref.u):
+        v.destroy()
+
+
 def test_the_preload_is_symmetric_where_the_lu_goes_out_of_core(tmp_path):
     """preload.jacobian = "auto" (the default, in fem_squeal.fe): "symmetric" inside the run's out-of-core
     context (the memory model's choice), "update" otherwise, and where the user's preload_mat_mumps_icntl_22

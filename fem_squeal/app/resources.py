@@ -254,18 +254,20 @@ def machines_of(comm) -> int:
     return len(set(comm.allgather(socket.gethostname())))
 
 
-def preload_jacobian(jacobian: str, dofs: float, ranks: int, machines: int, out_of_core: bool
-                     ) -> tuple[str, str | None]:
+def preload_jacobian(jacobian: str, dofs: float, ranks: int, machines: int, out_of_core: bool,
+                     continued: bool = False) -> tuple[str, str | None]:
     """The preload's Jacobian (``preload.jacobian``) for an N-DOF model on ``ranks`` ranks over ``machines``
     machines like this one: "auto" is "symmetric" where the LU's factors go to files by the memory model's
     choice (``out_of_core``; an ICNTL(22) of the user's decides instead) and the preload's peak with the
-    Cholesky in core (kind ``symmetric``) fits in :data:`REFUSE_SHARE` of the memory, else "update"; the
-    others stay.  Returns it and a warning where "symmetric" is asked for and its peak is not predicted to
-    fit."""
+    Cholesky in core (kind ``symmetric``) fits in :data:`REFUSE_SHARE` of the memory, and no pressure
+    continuation follows (``continued``: there the LU's Woodbury columns serve the later pressures, and
+    GMRES on the Cholesky was 2.3× slower: the tapered brake at 78k DOFs, 10 pressures, 25.8 s against
+    11.2 s, ``benchmarks/preload_continuation.py``); else "update".  The others stay.  Returns it and a
+    warning where "symmetric" is asked for and its peak is not predicted to fit."""
     need = solve_memory(dofs, ranks, "symmetric")
     usable = REFUSE_SHARE * machines * machine_memory()
     if jacobian == "auto":
-        return ("symmetric" if out_of_core and need <= usable else "update"), None
+        return ("symmetric" if out_of_core and need <= usable and not continued else "update"), None
     if jacobian == "symmetric" and need > usable:
         return jacobian, (f"preload.jacobian: 'symmetric' keeps the frictionless Jacobian's Cholesky in core, "
                           f"about {need / GIB:.3g} GiB at its peak on {ranks} rank(s) for {dofs:.3g} DOFs, more "

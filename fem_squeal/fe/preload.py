@@ -202,8 +202,9 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     tangential penalty) by Cholesky (:func:`~fem_squeal.fe.factorisation.symmetric_solver`: half an LU's
     factor, so it stays in core where the LU would not) and solves every step, the first included, by
     GMRES on J preconditioned by it (J − P is the friction term μ G_t₁ᵀ diag(w σ') G_n and the points
-    changed since), refactorising as "update" does; where GMRES does not converge on a fresh factorisation
-    the solve goes on with LUs of J.  "auto": :func:`auto_jacobian`.  All are Newton with exact steps: the
+    changed since; the step on a fresh factorisation exact, the later ones to the forcing), refactorising
+    as "update" does; where GMRES does not converge on a fresh factorisation the solve goes on with LUs
+    of J.  "auto": :func:`auto_jacobian`.  All are Newton with exact steps: the
     same iterates, to round-off (Woodbury) or to GMRES's 1e-11 relative residual.  ``progress`` (if given) receives
     one line per Newton iteration: closed points, ‖R‖/‖f‖, how the step was solved and its seconds."""
     if jacobian not in JACOBIANS:

@@ -114,7 +114,8 @@ def _jacobian(ctx: Context, ops) -> str:
     options = ctx.scene.solver.petsc_options
     jacobian, warning = resources.preload_jacobian(ctx.scene.preload["jacobian"], ops.K.getSize()[0],
                                                    ctx.comm.size, resources.machines_of(ctx.comm),
-                                                   out_of_core_by_the_model("preload_", options))
+                                                   out_of_core_by_the_model("preload_", options),
+                                                   bool(pressure_continuation.scales(ctx.scene)))
     if warning:
         ctx.say(f"[fem_squeal] warning: {warning}")
     return jacobian

@@ -228,8 +228,8 @@ SECTIONS = {
                           "Jacobian by Cholesky (CHOLMOD on one rank, MUMPS LDLᵀ on more: half an LU's "
                           "factor) and solves every step by GMRES on the Jacobian preconditioned by it; "
                           "'auto': 'symmetric' where the LU's factors would go out of core (the memory "
-                          "model's choice, where the Cholesky fits in core; a preload_mat_mumps_icntl_22 of the "
-                          "user's decides instead), else 'update' "
+                          "model's choice, where the Cholesky fits in core and no pressure continuation "
+                          "follows; a preload_mat_mumps_icntl_22 of the user's decides instead), else 'update' "
                           "(fem_squeal.app.resources.preload_jacobian).  All exact Newton steps: the same state "
                           "to round-off (GMRES: to its 1e-11 relative residual)"),
         "max_factorisations": Field(int, 2, positive, "at most this many factorisations with 'update' "

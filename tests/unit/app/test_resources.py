@@ -224,7 +224,8 @@ def test_the_symmetric_preload_is_chosen_where_its_cholesky_fits(monkeypatch):
     preload's peak with its Cholesky in core (the "symmetric" fit through the measured 4.716 GiB at 347,853
     DOFs and 23.12 GiB at 1,323,816) fits in 90 % of the machines' memory; "update" elsewhere.  On this
     project's 23.5 GiB machine the 1.32M brake's 23.12 GiB does not (one rank), its 711k (11.0 GiB) does.
-    An explicit "symmetric" stays, with a warning where it is not predicted to fit."""
+    A pressure continuation keeps "update" (its Woodbury columns serve the later pressures).  An explicit
+    "symmetric" stays, with a warning where it is not predicted to fit."""
     from fem_squeal.app import resources
     from fem_squeal.app.resources import REFUSE_SHARE, preload_jacobian
 
@@ -234,6 +235,7 @@ def test_the_symmetric_preload_is_chosen_where_its_cholesky_fits(monkeypatch):
     assert preload_jacobian("auto", 1_323_816, 1, 1, True) == ("update", None)
     assert preload_jacobian("auto", 711_351, 1, 1, True) == ("symmetric", None)
     assert preload_jacobian("auto", 711_351, 1, 1, False) == ("update", None)
+    assert preload_jacobian("auto", 711_351, 1, 1, True, continued=True) == ("update", None)
     assert preload_jacobian("auto", 1_323_816, 1, 2, True) == ("symmetric", None)        # two machines
     assert preload_jacobian("refactorise", 1_323_816, 1, 1, True) == ("refactorise", None)
     jacobian, warning = preload_jacobian("symmetric", 1_323_816, 1, 1, False)

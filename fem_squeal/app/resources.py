@@ -264,15 +264,15 @@ def preload_jacobian(jacobian: str, dofs: float, ranks: int, machines: int, out_
     GMRES on the Cholesky was 2.3× slower: the tapered brake at 78k DOFs, 10 pressures, 25.8 s against
     11.2 s, ``benchmarks/preload_continuation.py``); else "update".  The others stay.  Returns it and a
     warning where "symmetric" is asked for and its peak is not predicted to fit."""
-    need = solve_memory(dofs, ranks, "symmetric")
-    usable = REFUSE_SHARE * machines * machine_memory()
+    need, memory = solve_memory(dofs, ranks, "symmetric"), machines * machine_memory()
+    fits = need <= REFUSE_SHARE * memory
     if jacobian == "auto":
-        return ("symmetric" if out_of_core and need <= usable and not continued else "update"), None
-    if jacobian == "symmetric" and need > usable:
+        return ("symmetric" if out_of_core and fits and not continued else "update"), None
+    if jacobian == "symmetric" and not fits:
         return jacobian, (f"preload.jacobian: 'symmetric' keeps the frictionless Jacobian's Cholesky in core, "
                           f"about {need / GIB:.3g} GiB at its peak on {ranks} rank(s) for {dofs:.3g} DOFs, more "
-                          f"than {100 * REFUSE_SHARE:.0f} % of the {machines * machine_memory() / GIB:.3g} GiB "
-                          f"of this run; 'auto' would take 'update' here")
+                          f"than {100 * REFUSE_SHARE:.0f} % of the {memory / GIB:.3g} GiB of this run; 'auto' "
+                          "would take 'update' here")
     return jacobian, None
 
 

@@ -171,11 +171,12 @@ def symmetric_packages(ranks: int, prefix: str, definite: bool = True) -> list[s
     return ["mumps"]
 
 
-def symmetric_solver(A: PETSc.Mat, prefix: str, options: Options | None = None) -> tuple[PETSc.KSP, str]:
+def symmetric_solver(A: PETSc.Mat, prefix: str, options: Options | None = None) -> PETSc.KSP:
     """A KSP that solves with a Cholesky factorisation of the symmetric ``A`` (:func:`factor_solver`; the
     first of :func:`symmetric_packages` that factorises it), set up here, in core also inside
     :func:`factors_out_of_core` (MUMPS's ICNTL(22) = 0 unless the user's option says otherwise: the
-    preload takes it where the LU would go out of core and it fits).  Returns it and the package.
+    preload takes it where the LU would go out of core and it fits); its package is the KSP's factor
+    solver type.
     Half the factor of an LU: CHOLMOD's 0.19 s solves and 2.1 GiB peak against MUMPS LDLᵀ's 0.36 s and
     more than 4 GiB, and MUMPS LU's 24 s factorisation against 12 s (the brake corner's frictionless
     Jacobian at 347,853 DOFs, one rank, 2026-11-29)."""
@@ -185,7 +186,7 @@ def symmetric_solver(A: PETSc.Mat, prefix: str, options: Options | None = None) 
         try:
             with serial_openmp():           # CHOLMOD's OpenMP loops (fem_squeal.util.blas); nothing for MUMPS
                 factor = CHOLESKY.with_(package=package, extra=QUIET_CHOLMOD, icntl={22: 0})
-                return factor_solver(A, factor, prefix, options), package
+                return factor_solver(A, factor, prefix, options)
         except PETSc.Error:
             if k + 1 == len(packages):
                 raise

@@ -42,7 +42,7 @@ from fem_squeal.fe.assembly import (
     plate_friction_fields,
 )
 from fem_squeal.fe.assembly import static_displacement as assembly_static_displacement
-from fem_squeal.fe.factorisation import out_of_core_by_the_model, refactorise, symmetric_solver
+from fem_squeal.fe.factorisation import refactorise, symmetric_solver
 from fem_squeal.fe.kept_factorisation import (
     KRYLOV_RTOL,
     KRYLOV_STEPS_AHEAD,
@@ -162,20 +162,9 @@ class NewtonFactor:
         self.J = self.ksp = self.kept = None
 
 
-#: Newton's linear solves (:func:`solve_preload`); "auto": :func:`auto_jacobian`
-JACOBIANS = ("auto", "update", "refactorise", "symmetric")
-
-
-def auto_jacobian(prefix: str = "preload_", options: dict | None = None) -> str:
-    """"symmetric" where the Jacobian's LU would keep its factors in files by the run's choice (its
-    out-of-core context, no ``<prefix>mat_mumps_icntl_22`` of the user's: that decides, and out of core
-    the Cholesky is slower than the LU's updates, docs/validation.md), else "update".  Out of core every
-    solve reads the whole factor back: the brake corner at 1,323,816 DOFs on one rank took 937.7 s for its
-    preload by "update" (2 LUs of 327 and 317 s, 8 GMRES iterations and 114 Woodbury columns at about 20 s
-    a solve) and 216.6 s by "symmetric" (one in-core CHOLMOD Cholesky, 132.5 s with its first step, 60 GMRES
-    iterations of 1.4 s), the same state.  The pipeline resolves "auto" itself, with the memory
-    model's check that the Cholesky fits in core (:func:`fem_squeal.app.resources.preload_jacobian`)."""
-    return "symmetric" if out_of_core_by_the_model(prefix, options) else "update"
+#: Newton's linear solves (:func:`solve_preload`).  The scene's "auto" is resolved by the pipeline
+#: (:func:`fem_squeal.app.resources.preload_jacobian`: the memory model decides).
+JACOBIANS = ("update", "refactorise", "symmetric")
 
 
 def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol: float = 1e-9,
@@ -204,13 +193,14 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     GMRES on J preconditioned by it (J − P is the friction term μ G_t₁ᵀ diag(w σ') G_n and the points
     changed since; the step on a fresh factorisation exact, the later ones to the forcing), refactorising
     as "update" does; where GMRES does not converge on a fresh factorisation the solve goes on with LUs
-    of J.  "auto": :func:`auto_jacobian`.  All are Newton with exact steps: the
-    same iterates, to round-off (Woodbury) or to GMRES's 1e-11 relative residual.  ``progress`` (if given) receives
-    one line per Newton iteration: closed points, ‖R‖/‖f‖, how the step was solved and its seconds."""
+    of J.  Out of core at 1,323,816 DOFs on one rank the preload took 937.7 s by "update" (2 LUs of 327
+    and 317 s, every further solve reading the factor back, about 20 s) and 216.6 s by "symmetric" (one
+    in-core CHOLMOD Cholesky, 60 GMRES iterations of 1.4 s), the same state (docs/validation.md).  All
+    are Newton with exact steps: the same iterates, to round-off (Woodbury) or to GMRES's 1e-11 relative
+    residual.  ``progress`` (if given) receives one line per Newton iteration: closed points, ‖R‖/‖f‖,
+    how the step was solved and its seconds."""
     if jacobian not in JACOBIANS:
         raise ModelError(f"preload.jacobian: must be one of {', '.join(map(repr, JACOBIANS))} (got {jacobian!r})")
-    if jacobian == "auto":
-        jacobian = auto_jacobian(prefix, options)
     if ops.f is None:
         raise ModelError("loads: the preload needs a load (e.g. loads.pressure on the piston)")
     comm = ops.K.getComm().tompi4py()
@@ -330,7 +320,7 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
                          f"Jacobian (Cholesky, {J.getSize()[0]} rows)")
             t0 = time.perf_counter()
             if ksp is None:
-                ksp, _ = symmetric_solver(P, prefix, options)
+                ksp = symmetric_solver(P, prefix, options)
                 P.destroy()                # the solver holds it
             else:
                 refactorise(ksp)

@@ -125,7 +125,7 @@ def continue_preload(ops: Operators, scales: Sequence[float], *, start: tuple[fl
     the end; the caller destroys the states' ``u``."""
     s = check_scales(scales)
     comm = ops.K.getComm().tompi4py()
-    if factor is None and settings.get("jacobian", "auto") != "refactorise":
+    if factor is None and settings.get("jacobian", "update") != "refactorise":
         factor = NewtonFactor()
     out: dict[int, PressureState] = {}
     rates: list[PETSc.Vec] = []               # du/ds of the states continued from (destroyed at the end)

@@ -230,32 +230,33 @@ def test_the_symmetric_preload_converges_on_a_cubic_penalty_far_from_equilibrium
 
 
 def test_the_preload_is_symmetric_where_the_lu_goes_out_of_core(tmp_path):
-    """preload.jacobian = "auto" (the default, in fem_squeal.fe): "symmetric" inside the run's out-of-core
-    context (the memory model's choice), "update" otherwise, and where the user's preload_mat_mumps_icntl_22
-    decides (0: the LU in core; 1: out of core, where the Cholesky's GMRES steps would read its files too,
-    slower than the LU's updates).  The Cholesky stays in core inside the context (ICNTL(22) = 0 unless the
-    user says otherwise): MUMPS LDLᵀ asked for by option on this one rank writes no file there."""
-    from fem_squeal.fe.factorisation import factors_out_of_core, symmetric_solver
-    from fem_squeal.fe.preload import auto_jacobian
+    """preload.jacobian = "auto" (the default) takes "symmetric" only where the LU goes out of core by the
+    run's choice (fem_squeal.app.resources.preload_jacobian, given fem_squeal.fe.factorisation.
+    out_of_core_by_the_model): inside the out-of-core context (the memory model's choice), not outside it,
+    and not where the user's preload_mat_mumps_icntl_22 decides (0: the LU in core; 1: out of core, where
+    the Cholesky's GMRES steps would read its files too, slower than the LU's updates).  The Cholesky
+    stays in core inside the context (ICNTL(22) = 0 unless the user says otherwise): MUMPS LDLᵀ asked for
+    by option on this one rank writes no file there."""
+    from fem_squeal.fe.factorisation import factors_out_of_core, out_of_core_by_the_model, symmetric_solver
 
     _, _, _, ops = model()
-    assert auto_jacobian() == "update"
-    assert auto_jacobian("preload_", {"preload_mat_mumps_icntl_22": 1}) == "update"
+    assert not out_of_core_by_the_model("preload_")
+    assert not out_of_core_by_the_model("preload_", {"preload_mat_mumps_icntl_22": 1})
     with factors_out_of_core(str(tmp_path)):
-        assert auto_jacobian() == "symmetric"
-        assert auto_jacobian("preload_", {"cea_st_mat_mumps_icntl_22": 0}) == "symmetric"
+        assert out_of_core_by_the_model("preload_")
+        assert out_of_core_by_the_model("preload_", {"cea_st_mat_mumps_icntl_22": 0})
         for given in (0, 1):
-            assert auto_jacobian("preload_", {"preload_mat_mumps_icntl_22": given}) == "update"
+            assert not out_of_core_by_the_model("preload_", {"preload_mat_mumps_icntl_22": given})
         for icntl, files in ((None, False), (1, True)):
             options = {"preload_pc_factor_mat_solver_type": "mumps"}
             if icntl is not None:
                 options["preload_mat_mumps_icntl_22"] = icntl
-            ksp, package = symmetric_solver(ops.K, "preload_", options)
+            ksp = symmetric_solver(ops.K, "preload_", options)
             F = ksp.getPC().getFactorMatrix()
-            assert package == "mumps" and F.getMumpsIcntl(22) == (icntl or 0)
+            assert ksp.getPC().getFactorSolverType() == "mumps" and F.getMumpsIcntl(22) == (icntl or 0)
             assert any(tmp_path.iterdir()) == files
             ksp.destroy()
-    assert auto_jacobian() == "update"
+    assert not out_of_core_by_the_model("preload_")
 
 
 def test_without_friction_the_modes_are_neutral():

@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 from petsc4py import PETSc
 
 from fem_squeal.util.blas import serial_openmp
+from fem_squeal.util.memory import release_freed_memory
 
 Options = Mapping[str, object]     # PETSc options with their full prefix, e.g. the scene's petsc_options
 
@@ -138,6 +139,7 @@ def factor_solver(A: PETSc.Mat, factorisation: Factorisation, prefix: str, optio
     ksp = PETSc.KSP().create(A.getComm())
     ksp.setOptionsPrefix(prefix)
     ksp.setOperators(A)
+    release_freed_memory()
     try:
         with scoped_options(factorisation.options(prefix), options):
             ksp.setFromOptions()
@@ -197,5 +199,6 @@ def refactorise(ksp: PETSc.KSP) -> None:
     """Factorise ``ksp``'s operator anew, now, after its values changed (same pattern: numerically only,
     with the kept ordering).  Once a KSP has been set up, KSPSetUp leaves the new factorisation to the
     next solve; PCSetUp sees the operator's new state and performs it here, so that it can be timed."""
+    release_freed_memory()
     with serial_openmp():                   # CHOLMOD's OpenMP loops (fem_squeal.util.blas); nothing for MUMPS
         ksp.getPC().setUp()

@@ -308,22 +308,22 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
         Kc, Kf = contact_matrices(ops, tangents, friction)
         if symmetric:                      # P = K + K_c, the frictionless Jacobian, factorised instead of J
             P = _refilled(ksp.getOperators()[0] if ksp is not None else None, ops.K, Kc)
-            J = _refilled(J, P, Kf)
         else:
             J = _refilled(J, ops.K, Kc, Kf)
-        for A in (Kc, Kf):
+        for A in ((Kc,) if symmetric else (Kc, Kf)):
             if A is not None:
                 A.destroy()
         if symmetric:
             if progress is not None:
                 progress(f"preload: step {k} by factorisation {factorisations + 1} of the frictionless "
-                         f"Jacobian (Cholesky, {J.getSize()[0]} rows)")
+                         f"Jacobian (Cholesky, {P.getSize()[0]} rows)")
             t0 = time.perf_counter()
             if ksp is None:
                 ksp = symmetric_solver(P, prefix, options)
-                P.destroy()                # the solver holds it
             else:
                 refactorise(ksp)
+            J = _friction_added(J, ksp, Kf)    # J = P + K_f as products (it takes K_f)
+            P.destroy()                    # the solver and J hold it
             factorisations += 1
             if kept is None:
                 kept = KeptFactorisation(ksp, J, bc_rows, _families(ops, friction),
@@ -341,9 +341,12 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
                 continue
             # GMRES did not converge on the fresh frictionless factorisation: LU of J from here on
             symmetric = False
-            for obj in (kept, ksp):
+            P, Kf = J.getPythonContext().terms
+            explicit = _refilled(None, P, Kf)
+            for obj in (kept, ksp, J):
                 obj.destroy()
             kept = ksp = None
+            J = explicit
         if progress is not None:           # the preload's longest silent phase (348k DOFs: 17-22 s)
             progress(f"preload: step {k} by factorisation {factorisations + 1} of the Jacobian "
                      f"({J.getSize()[0]} rows)")
@@ -392,6 +395,45 @@ def solve_preload(ops: Operators, *, friction: bool = True, k3: float = 0.0, tol
     return PreloadResult(u, active, gaps, pressure, normal, fric, area, len(history) - 1, history,
                          factorisations, columns, krylov, jacobian if symmetric or jacobian != "symmetric" else
                          "symmetric, then update")
+
+
+class _FrictionAdded:
+    """The "symmetric" preload's GMRES operator J = P + K_f as products (a PETSc ``python`` Mat context): P
+    the factorised frictionless Jacobian, K_f = μ G_t₁ᵀ diag(w σ') G_n its friction term, nonzero on the
+    contact rows only.  A third matrix of K's pattern is not held beside K and P (1.2 GiB at 1.32M DOFs,
+    where the preload's peak decides whether the Cholesky fits: ``app.resources.preload_jacobian``)."""
+
+    def __init__(self, P: PETSc.Mat, Kf: PETSc.Mat | None):
+        self.terms: tuple[PETSc.Mat, PETSc.Mat | None] = (P, Kf)
+
+    def replace(self, P: PETSc.Mat, Kf: PETSc.Mat | None) -> None:
+        self.destroy(None)
+        self.terms = (P, Kf)
+
+    def mult(self, _mat, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        P, Kf = self.terms
+        P.mult(x, y)
+        if Kf is not None:
+            Kf.multAdd(x, y, y)
+
+    def destroy(self, _mat) -> None:
+        for A in self.terms:
+            if A is not None:
+                A.destroy()
+        self.terms = (None, None)
+
+
+def _friction_added(J: PETSc.Mat | None, ksp: PETSc.KSP, Kf: PETSc.Mat | None) -> PETSc.Mat:
+    """J = P + ``Kf`` as products (:class:`_FrictionAdded`), P the operator ``ksp`` factorised; ``J`` given
+    the new terms where it is one already.  J holds a reference of its own to P and takes ``Kf`` (both
+    released with J or its next terms)."""
+    P = ksp.getOperators()[0]        # a new reference (petsc4py counts it)
+    if J is None:
+        J = PETSc.Mat().createPython(P.getSizes(), _FrictionAdded(P, Kf), comm=P.getComm())
+        J.setUp()
+    else:
+        J.getPythonContext().replace(P, Kf)
+    return J
 
 
 def _refilled(A: PETSc.Mat | None, *terms: PETSc.Mat | None) -> PETSc.Mat:

@@ -18,6 +18,7 @@ All sums are over owned DOFs and reduced over MPI, so they do not depend on the 
 """
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from typing import NamedTuple
 
 import numpy as np
@@ -143,19 +144,31 @@ def strain_energy_shares(K_parts: dict[str, PETSc.Mat], xr: PETSc.Vec, xi: PETSc
     return strain_energy_shares_all(K_parts, [(xr, xi)], groups)[0]
 
 
-def strain_energy_shares_all(K_parts: dict[str, PETSc.Mat], modes: list[tuple[PETSc.Vec, PETSc.Vec | None]],
-                             groups: dict[str, tuple[str, ...]] | None = None) -> list[dict[str, float]]:
-    """:func:`strain_energy_shares` of each mode, one K_p X product per part and block of modes."""
+def strain_energy_shares_all(K_parts: Mapping[str, PETSc.Mat] | Iterable[tuple[str, PETSc.Mat]],
+                             modes: list[tuple[PETSc.Vec, PETSc.Vec | None]],
+                             groups: dict[str, tuple[str, ...]] | None = None,
+                             release: bool = False) -> list[dict[str, float]]:
+    """:func:`strain_energy_shares` of each mode, one K_p X product per part and block of modes.  ``K_parts``:
+    part -> K_p, or (part, K_p) pairs taken one at a time (:func:`fem_squeal.fe.assembly.part_stiffnesses`),
+    each destroyed after its products where ``release``."""
+    energies: dict[str, np.ndarray] = {}
+    for part, Kp in (K_parts.items() if isinstance(K_parts, Mapping) else K_parts):
+        e = []
+        for j in range(0, len(modes), BLOCK_MODES):
+            X, _ = _dense_block(Kp, modes[j:j + BLOCK_MODES])
+            e.append(_products(Kp, X, keep=False)[1])
+            X.destroy()
+        energies[part] = np.concatenate(e) if e else np.zeros(0)
+        if release:
+            Kp.destroy()
     out = []
-    A = next(iter(K_parts.values()))
-    for j in range(0, len(modes), BLOCK_MODES):
-        X, cols = _dense_block(A, modes[j:j + BLOCK_MODES])
-        e = {part: _products(Kp, X, keep=False)[1] for part, Kp in K_parts.items()}
-        X.destroy()
-        for re, im in cols:
-            energy = {part: ep[re] + (ep[im] if im is not None else 0.0) for part, ep in e.items()}
-            total = sum(energy.values())
-            if groups:
-                energy = {g: sum(energy[p] for p in parts if p in energy) for g, parts in groups.items()}
-            out.append({k: (float(v / total) if total > 0 else 0.0) for k, v in energy.items()})
+    column = 0
+    for _, xi in modes:
+        re, im = column, (None if xi is None else column + 1)
+        column += 1 if xi is None else 2
+        energy = {part: ep[re] + (ep[im] if im is not None else 0.0) for part, ep in energies.items()}
+        total = sum(energy.values())
+        if groups:
+            energy = {g: sum(energy[p] for p in parts if p in energy) for g, parts in groups.items()}
+        out.append({k: (float(v / total) if total > 0 else 0.0) for k, v in energy.items()})
     return out

@@ -318,15 +318,27 @@ def test_stiffness_damping_moves_every_real_part_left():
 
 
 def test_energy_shares_add_up_and_name_the_components():
-    from fem_squeal.fe.descriptors import strain_energy_shares
+    """The shares add up to one over the named components, and the parts' stiffnesses assembled one at a
+    time after the CEA (a CEA alone: nothing else keeps them, ``keeps_part_stiffnesses``) give the same
+    shares, to the last bit, as the ones the operators keep."""
+    from fem_squeal.app.analyses.operators import keeps_part_stiffnesses
+    from fem_squeal.fe.assembly import part_stiffnesses
+    from fem_squeal.fe.descriptors import strain_energy_shares, strain_energy_shares_all
     from geometry.tags import BRAKE_CORNER_GROUPS
 
     lin, cm = cea()
-    for xr, xi in zip(cm.vectors_re[:5], cm.vectors_im[:5]):
+    modes = list(zip(cm.vectors_re[:5], cm.vectors_im[:5]))
+    for xr, xi in modes:
         shares = strain_energy_shares(lin.K_parts, xr, xi, BRAKE_CORNER_GROUPS)
         assert set(shares) == {"disc", "linings", "backplates", "caliper", "piston"}
         assert sum(shares.values()) == pytest.approx(1.0, abs=1e-12)
         assert min(shares.values()) >= -1e-12
+    _, md, spec, _ = model()
+    one_at_a_time = strain_energy_shares_all(part_stiffnesses(lin.V, md, spec), modes, BRAKE_CORNER_GROUPS,
+                                             release=True)
+    assert one_at_a_time == strain_energy_shares_all(lin.K_parts, modes, BRAKE_CORNER_GROUPS)
+    assert not keeps_part_stiffnesses({"cea": {}}, 7) and keeps_part_stiffnesses({"cea": {}, "reduced": {}}, 7)
+    assert not keeps_part_stiffnesses({"cea": {}, "reduced": {}}, 1)
 
 
 # The demo on 2 ranks, once per module: its own check, and the 2-rank side of the rank-count test.

@@ -86,7 +86,7 @@ def cea_target_hz(cea: dict) -> float:
 
 def run(ctx: Context, work: Path, timings: dict) -> dict:
     """Complex eigenvalues λ²M + λC + (K + K_f) in analyses.cea.band_hz, with their descriptors."""
-    from fem_squeal.fe.assembly import operating_operators  # heavy: FE stack
+    from fem_squeal.fe.assembly import operating_operators, part_stiffnesses  # heavy: FE stack
     from fem_squeal.fe.descriptors import strain_energy_shares_all  # heavy: FE stack
     from fem_squeal.fe.eigen import solve_complex_modes  # heavy: FE stack
     from fem_squeal.fe.output import write_modes_xdmf, write_vtu  # heavy: FE stack
@@ -122,7 +122,13 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     fields = list(zip(cm.vectors_re, cm.vectors_im))
     described = basis.describe_all(fields)
     groups = COMPONENT_GROUPS.get(scene.geometry.builder)
-    shares = strain_energy_shares_all(ops.K_parts, fields, groups) if ops.K_parts else [None] * len(fields)
+    if ops.K_parts:
+        shares = strain_energy_shares_all(ops.K_parts, fields, groups)
+    elif len(ctx.spec.materials) > 1:   # one part at a time (analyses.operators.keeps_part_stiffnesses)
+        shares = strain_energy_shares_all(part_stiffnesses(ops.V, ctx.products["mesh"], ctx.spec), fields, groups,
+                                          release=True)
+    else:
+        shares = [None] * len(fields)
     rows = []
     for g, f, re, zeta, r, d, e in zip(growing, cm.freqs_hz, cm.real_parts, cm.damping_ratios,
                                        cm.residuals, described, shares):

@@ -19,6 +19,14 @@ def describe_part(scene: dict, volumes: dict[str, int]) -> str | None:
     return "disc" if "disc" in volumes and len(volumes) > 1 else None
 
 
+def keeps_part_stiffnesses(analyses, materials: int) -> bool:
+    """Whether the operators keep each part's stiffness beside K for the CEA's strain-energy shares: where
+    another analysis runs too (it may read them).  A CEA alone takes them one at a time after its solve
+    (:func:`fem_squeal.fe.assembly.part_stiffnesses`): at 1.32M DOFs they are 1.2 GiB, which the preload's
+    peak then does not hold."""
+    return "cea" in analyses and materials > 1 and set(analyses) != {"cea"}
+
+
 def run(ctx: Context, work: Path, timings: dict) -> dict:
     """Function space, forms, K, M, C and the interface operators; penalty diagnostics."""
     from fem_squeal.fe.assembly import assemble_operators  # heavy: FE stack
@@ -32,7 +40,7 @@ def run(ctx: Context, work: Path, timings: dict) -> dict:
     part = describe_part(scene, md.volumes)
     sub: dict[str, float] = {}
     studies = {"reduced", "sweep", "map", "masa", "transient"} & set(ana)
-    ops = assemble_operators(md, spec, parts=bool(studies) or ("cea" in ana and len(spec.materials) > 1),
+    ops = assemble_operators(md, spec, parts=bool(studies) or keeps_part_stiffnesses(ana, len(spec.materials)),
                              describe_part=part, timings=sub)
     timings["assembly"] = time.perf_counter() - t
     if spec.interfaces:

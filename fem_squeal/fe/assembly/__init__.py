@@ -60,6 +60,7 @@ from fem_squeal.fe.assembly.operators import (  # noqa: F401
     build_interface,
     dirichlet_conditions,
     locking_warnings,
+    part_stiffnesses,
     plate_friction_fields,
     point_load_nodes,
 )

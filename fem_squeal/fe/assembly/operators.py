@@ -6,6 +6,7 @@ import functools
 import operator
 import time
 import warnings
+from collections.abc import Iterator
 from typing import NamedTuple
 
 import numpy as np
@@ -197,6 +198,27 @@ def _c3d8r_corrections(V, mesh_data, spec: ModelSpec) -> dict:
     return out
 
 
+def part_stiffnesses(V: fem.FunctionSpace, mesh_data, spec: ModelSpec, c3: dict | None = None
+                     ) -> Iterator[tuple[str, PETSc.Mat]]:
+    """Each part's elastic stiffness K_p = ∫_(part) ε(v) : D : ε(u) dx on ``V`` (no boundary-condition rows;
+    on C3D8R hexahedra with its hourglass correction), one part at a time: (part, K_p), K_p the caller's.
+    :func:`assemble_operators` keeps them all with ``parts=True``; the CEA's strain-energy shares take them
+    one after the other where nothing else needs them (at 1.32M DOFs they are 1.2 GiB, held otherwise from
+    the operators to the descriptors).  ``c3``: the C3D8R corrections where already computed."""
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    dx = ufl.Measure("dx", domain=V.mesh, subdomain_data=mesh_data.cell_tags)
+    qd = spec.quadrature_degree
+    if c3 is None:
+        c3 = _c3d8r_corrections(V, mesh_data, spec) if spec.c3d8r else {}
+    for part, mat in spec.materials.items():
+        a_p = forms.material_stiffness_form(u, v, mat, dx(mesh_data.volumes[part]), qd)
+        fp = _compile(hexahedra.with_cell_rule(a_p, c8r.ONE_POINT) if spec.c3d8r else a_p, qd)
+        Kp = _assemble(fp, fp, [], 0.0)
+        if part in c3:
+            c8r.add_cell_matrices(Kp, V, c3[part][0], c3[part][1], np.zeros(0, np.int32))
+        yield part, Kp
+
+
 def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
                        describe_part: str | None = None, timings: dict | None = None) -> Operators:
     """Build V = [P_degree]³ on the mesh (on hexahedra: :func:`fem_squeal.fe.hexahedra.displacement_space`)
@@ -343,13 +365,7 @@ def assemble_operators(mesh_data, spec: ModelSpec, *, parts: bool = False,
     t2 = time.perf_counter()
     K_parts = M_parts = plate_parts = None
     if parts:
-        K_parts = {}
-        for part, mat in spec.materials.items():
-            a_p = forms.material_stiffness_form(u, v, mat, dx(mesh_data.volumes[part]), qd)
-            fp = _compile(hexahedra.with_cell_rule(a_p, c8r.ONE_POINT) if spec.c3d8r else a_p, qd)
-            K_parts[part] = _assemble(fp, fp, [], 0.0)
-            if part in c3:
-                c8r.add_cell_matrices(K_parts[part], V, c3[part][0], c3[part][1], np.zeros(0, np.int32))
+        K_parts = dict(part_stiffnesses(V, mesh_data, spec, c3))
         plate_parts = {}
         for plate in spec.plates:
             if plate.kn > 0 and plate.name:

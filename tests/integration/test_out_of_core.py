@@ -18,6 +18,7 @@ from support.memory import between_the_fits
 from fem_squeal.app import resources
 from fem_squeal.app.run import run_scene
 from fem_squeal.app.scene import load_scene
+from fem_squeal.fe.eigen.block_krylov import OUT_OF_CORE_BLOCK, block_size
 
 RING = Path(__file__).resolve().parents[2] / "scenes" / "ryzhik_ring.toml"
 
@@ -67,9 +68,14 @@ def test_a_run_that_does_not_fit_in_core_goes_out_of_core(tmp_path, monkeypatch)
     assert any("the factors go out of core" in line and "MUMPS_OOC_TMPDIR" in line for line in lines)
     assert seen and sorted(folder.iterdir()) == sorted([live, other])
     assert any("removed 1e-06 GB of factor files that killed runs left" in line for line in lines)
+    ref_lines: list[str] = []
     ref = run_scene(scene, tmp_path / "ref", MPI.COMM_SELF, write_fields=False, report=False,
-                    log=lambda *a, **k: None)
+                    log=lambda *a, **k: ref_lines.append(" ".join(map(str, a))))
     assert ref["solver"]["factors"] == "in core"
+    # the CEA's blocks: wider where each solve reads the factor back from its files
+    wide, default = OUT_OF_CORE_BLOCK, block_size(scene.analyses["cea"]["n_modes"])
+    assert default < wide and any(f"block Arnoldi, {wide} columns" in line for line in lines)
+    assert any(f"block Arnoldi, {default} columns" in line for line in ref_lines)
     # every computed stage says the peak memory so far (getrusage's high-water mark: it never falls)
     peaks = [st["peak_rss_gib"]["largest_rank"] for st in ref["stages"]]
     assert len(peaks) == len(ref["stages"]) and 0 < peaks[0] and peaks == sorted(peaks)

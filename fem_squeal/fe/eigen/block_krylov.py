@@ -25,6 +25,18 @@ BLOCK_MEMORY = 16.0e9
 BEYOND = 2             # converged pairs beyond a threshold λ_max that show none below it is missing
 
 
+#: Columns per block solve where the factor is read back from files (MUMPS out of core, ICNTL(22) = 1): such
+#: a solve reads the whole factor whatever its width (the LU of K − σM at 1.32M DOFs, one rank: 1, 12, 24, 32
+#: and 48 columns in 9.4, 12.2, 12.9, 15.6 and 15.9 s), so fewer, wider blocks win where their larger space
+#: fits.  The brake's 91 pairs ≤ 16 kHz (94 asked) at 348k DOFs: 24 solves of 12 columns (288 vectors), 17 of
+#: 24 (408), 15 of 32 (480), 13 of 48 (624) (docs/validation.md, "Wider blocks on a factor read from files").
+OUT_OF_CORE_BLOCK = 24
+#: The vectors per pair asked the :data:`OUT_OF_CORE_BLOCK` columns need (408 for 91 pairs, 4.5), with a margin:
+#: the room the memory rule must leave for them, else the default width (a space that runs out sends the solve
+#: to Krylov–Schur's single-column solves, each a read of the whole factor).
+OUT_OF_CORE_VECTORS_PER_PAIR = 5.0
+
+
 def block_size(nev: int) -> int:
     """Columns per block solve: ~nev/8, between 8 and 16.  Measured (seconds of the eigensolve after
     the factorisation): clamped disc, 85k DOFs, 20 modes, CHOLMOD: Krylov–Schur 2.8, blocks of 5, 8,
@@ -103,12 +115,11 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     |λ − σ| ≤ ``radius`` (|θ| ≥ 1/radius: they lead in |θ| whatever σ) and the next :data:`BEYOND`:
     one slice of spectrum slicing
     (:mod:`fem_squeal.fe.eigen.slicing`).  ``progress``: called with (converged wanted pairs, vectors,
-    wanted pairs) after each block."""
+    wanted pairs, block columns) after each block."""
     r0, r1 = rows
     dim = _krylov_dim(nev, b, n)
     open_count = lam_max is not None or radius is not None
-    # the vectors the memory rule allows, 8 bytes a row (the smallest over the ranks: all must agree)
-    room = comm.allreduce(int(_vector_memory(comm) // (8 * max(r1 - r0, 1))), op=MPI.MIN)
+    room = vector_room(comm, r1 - r0)
     if open_count:
         # with a threshold the budget starts at what the guess needs (allocating the whole room at once
         # cost 1.4 s of zeroed pages for the 50k-DOF brake's 89 modes) and grows up to the room; the
@@ -159,7 +170,7 @@ def _block_lanczos(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
         res = np.zeros(want.size) if nxt is None else np.linalg.norm(nxt[2] @ Y[k - b:k, want], axis=0)
         done = res <= tol * np.abs(theta[want])
         if progress is not None:
-            progress(int(np.count_nonzero(done)), k, count)
+            progress(int(np.count_nonzero(done)), k, count, b)
         if k >= count and np.all(done):
             return sigma + 1.0 / theta[want], blas.dgemm(1.0, V[:, :k], Y[:, want])
         if MV is not None and 2 * (k + b) > room:
@@ -220,6 +231,12 @@ def _vector_memory(comm) -> float:
     return min(BLOCK_MEMORY, VECTOR_MEMORY_SHARE * available_memory() / ranks)
 
 
+def vector_room(comm, rows: int) -> int:
+    """The vectors of ``rows`` local rows (8 bytes each) the memory rule allows (:func:`_vector_memory`), the
+    smallest over the ranks: all must agree."""
+    return comm.allreduce(int(_vector_memory(comm) // (8 * max(rows, 1))), op=MPI.MIN)
+
+
 def _converged(theta: np.ndarray, Y: np.ndarray, order: np.ndarray, count: int, nxt, tol: float, b: int
                ) -> tuple[np.ndarray, np.ndarray]:
     """Block Arnoldi's wanted Ritz pairs, the first ``count`` of ``order`` (|θ| descending) with a
@@ -264,12 +281,12 @@ def _block_arnoldi(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
     ``radius``: fewer than ``nev`` where every Ritz value with |ν − σ| ≤ ``radius`` (|θ| ≥ 1/radius, so
     they lead in |θ|) and the next :data:`BEYOND` have converged first: the pairs of a band around σ
     without the rest of ``nev`` (the brake's 0–16 kHz at 348k DOFs: 91 pairs of the 120 asked).
-    ``progress``: called with (converged wanted pairs, vectors, wanted pairs) after each step."""
+    ``progress``: called with (converged wanted pairs, vectors, wanted pairs, block columns) after each step."""
     r0, r1 = rows
     # the space: its budget, or the room the memory rule leaves where that is smaller and still holds
     # ARNOLDI_MIN_SPACE·nev (the pages are touched only as vectors are added: the brake at 348k used 390
     # of the 720 for 120 pairs, and at 711k on one rank the 720 (4.1 GB) were refused, 342 s of Krylov–Schur)
-    room = comm.allreduce(int(_vector_memory(comm) // (8 * max(r1 - r0, 1))), op=MPI.MIN) // b * b
+    room = vector_room(comm, r1 - r0) // b * b
     budget = _krylov_dim(nev, b, n)
     dim = min(budget, room)
     if dim < nev + 1 or dim < min(budget, ARNOLDI_MIN_SPACE * nev):
@@ -301,7 +318,7 @@ def _block_arnoldi(solve: Callable[[np.ndarray], np.ndarray], mass: Callable[[np
             if got is not None:
                 want, done = got
                 if progress is not None:
-                    progress(int(done.sum()), k, want.size)
+                    progress(int(done.sum()), k, want.size, b)
                 if np.all(done):                  # x = V y in real products (V @ y would copy V to complex)
                     X = np.empty((r1 - r0, want.size), dtype=complex)
                     X.real = blas.dgemm(1.0, V[:, :k], np.asfortranarray(Y[:, want].real))

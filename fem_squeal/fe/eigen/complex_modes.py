@@ -10,7 +10,13 @@ from slepc4py import SLEPc
 
 from fem_squeal.fe import kernels
 from fem_squeal.fe.dense import block_solve, product_of
-from fem_squeal.fe.eigen.block_krylov import BEYOND, _block_arnoldi
+from fem_squeal.fe.eigen.block_krylov import (
+    BEYOND,
+    OUT_OF_CORE_BLOCK,
+    OUT_OF_CORE_VECTORS_PER_PAIR,
+    _block_arnoldi,
+    vector_room,
+)
 from fem_squeal.fe.eigen.options import (
     PEP_OPTIONS,
     _progress,
@@ -88,7 +94,7 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
                     xrs.append(xr)
                     xis.append(xi)
                 nconv = 0
-                algorithm = f"block Arnoldi, {block_columns(nev, prefix)} columns"
+                algorithm = f"block Arnoldi, {got[2]} columns"
             else:
                 algorithm = "Krylov-Schur" if method == "linear" else "TOAR"
                 with _progress(solver, nev if method == "linear" else 2 * nev, "CEA", progress):
@@ -185,11 +191,14 @@ def _band_stop(eps: SLEPc.EPS, sigma: float, radius: float | None) -> dict:
 
 
 def _cea_block(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: float, tol: float, prefix: str,
-               step=None, radius: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+               step=None, radius: float | None = None) -> tuple[np.ndarray, np.ndarray, int] | None:
     """The linear CEA's pairs by block Arnoldi (:func:`_block_arnoldi`) on the factorisation the
     set-up EPS holds, where it is a direct one (``preonly`` + LU/Cholesky), ``<prefix>block_size``
-    is not 0 and no option of SLEPc's own iteration is given (:data:`SLEPC_SOLVER_OPTIONS`); None
-    otherwise or where it does not converge (then the EPS solves as before).  ``radius``: the band's disc
+    is not 0 and no option of SLEPc's own iteration is given (:data:`SLEPC_SOLVER_OPTIONS`): (ν, the
+    vectors, the block's columns), None otherwise or where it does not converge (then the EPS solves as
+    before).  The columns: ``<prefix>block_size`` where given, else :func:`block_size`, widened to
+    :data:`OUT_OF_CORE_BLOCK` where MUMPS's factor is out of core and the memory rule leaves room for
+    :data:`OUT_OF_CORE_VECTORS_PER_PAIR` vectors per pair.  ``radius``: the band's disc
     (:func:`band_radius`): fewer than ``nev`` pairs where those in it converge first.  ``step``: the
     progress callback (:func:`~fem_squeal.fe.eigen.options.block_progress`).
     Measured on the brake corner (163k DOFs, 1 rank, 60 modes, tol 1e-10): see docs/validation.md."""
@@ -198,5 +207,12 @@ def _cea_block(eps: SLEPc.EPS, K: PETSc.Mat, M: PETSc.Mat, nev: int, sigma: floa
     if (b <= 0 or ksp.getType() != "preonly" or ksp.getPC().getType() not in ("lu", "cholesky")
             or any(user_option(f"{prefix}eps_{o}") is not None for o in SLEPC_SOLVER_OPTIONS)):
         return None
-    return _block_arnoldi(block_solve(ksp.getPC().getFactorMatrix()), product_of(M), K.getComm().tompi4py(),
-                          K.getOwnershipRange(), K.getSize()[0], nev, sigma, tol, b, step, radius)
+    comm = K.getComm().tompi4py()
+    F = ksp.getPC().getFactorMatrix()
+    if (not PETSc.Options().hasName(f"{prefix}block_size") and ksp.getPC().getFactorSolverType() == "mumps"
+            and F.getMumpsIcntl(22) == 1
+            and vector_room(comm, K.getLocalSize()[0]) >= OUT_OF_CORE_VECTORS_PER_PAIR * nev):
+        b = max(b, OUT_OF_CORE_BLOCK)       # each solve reads the factor back from its files, whatever its width
+    got = _block_arnoldi(block_solve(F), product_of(M), comm, K.getOwnershipRange(), K.getSize()[0], nev, sigma,
+                         tol, b, step, radius)
+    return None if got is None else (*got, b)

@@ -12,7 +12,7 @@ from petsc4py import PETSc
 from slepc4py import SLEPc
 
 from fem_squeal.fe.csr import drop_zeros  # noqa: F401  (its former home: fe.eigen.options.drop_zeros)
-from fem_squeal.fe.eigen.block_krylov import block_size
+from fem_squeal.fe.eigen.block_krylov import OUT_OF_CORE_BLOCK, OUT_OF_CORE_VECTORS_PER_PAIR, block_size
 from fem_squeal.fe.factorisation import CHOLESKY, QUIET_CHOLMOD, Factorisation
 from fem_squeal.util.progress import ProgressBar
 
@@ -128,18 +128,19 @@ VECTORS_PER_PAIR = 3.1
 
 
 def eta_seconds(elapsed: float, done: int, done_first: int, vectors: int, vectors_first: int, wanted: int,
-                asked: int = 0) -> float:
+                asked: int = 0, per_pair: float = VECTORS_PER_PAIR) -> float:
     """The seconds a block Krylov solve has left, ``elapsed`` after its first block (``done_first``
     converged pairs and ``vectors_first`` vectors then; ``done`` and ``vectors`` now, of ``wanted``
     pairs; ``asked``: the pairs asked for, nev, which the band's count only reaches as its Ritz values
     come in): the pairs' own rate, which counts the pairs that converge late as never coming, and, while
-    the space is below :data:`VECTORS_PER_PAIR` × max(``wanted``, ``asked``), the vectors still to build at
+    the space is below ``per_pair`` × max(``wanted``, ``asked``) (:data:`VECTORS_PER_PAIR`; blocks of
+    :data:`~fem_squeal.fe.eigen.block_krylov.OUT_OF_CORE_BLOCK` columns need more), the vectors still to build at
     their rate, whichever is less.  NaN before either can be measured.  Replayed on the 1.32M-DOF run out
     of core (94 asked, 93 in the band; the ratio is that run's, and 3.25 at 711k): with 36 / 108 / 180 / 228
     vectors built 386 / 287 / 177 / 104 s against 424 / 310 / 192 / 106 s that were left; the pairs' rate
     alone said 8038 s at 96 vectors (330 s left)."""
     by_pairs = elapsed * (wanted - done) / (done - done_first) if done > done_first else float("nan")
-    expected = VECTORS_PER_PAIR * max(wanted, asked)
+    expected = per_pair * max(wanted, asked)
     if vectors > vectors_first and vectors < expected:
         by_vectors = elapsed * (expected - vectors) / (vectors - vectors_first)
         return by_vectors if by_pairs != by_pairs else min(by_pairs, by_vectors)
@@ -150,7 +151,7 @@ def eta_seconds(elapsed: float, done: int, done_first: int, vectors: int, vector
 def block_progress(label: str, enabled: bool, comm, total: int, factor_seconds: float | None = None,
                    factorising: str = "factorising"):
     """A progress line of a block Krylov solve on rank 0 (the callback :func:`_block_lanczos` and
-    :func:`_block_arnoldi` take, with (converged wanted pairs, vectors, wanted pairs); None when not
+    :func:`_block_arnoldi` take, with (converged wanted pairs, vectors, wanted pairs, block columns); None when not
     ``enabled``): first ``factorising`` where the factorisation is still to come (``factor_seconds``
     None), then the converged pairs, the vectors and the seconds left (:func:`eta_seconds`; the
     factorisation's seconds shown apart).  Drawn full where the solve converged, left
@@ -165,7 +166,7 @@ def block_progress(label: str, enabled: bool, comm, total: int, factor_seconds: 
     if factor_seconds is None:
         bar.update(0, extra=factorising)
 
-    def step(done: int, k: int, wanted: int) -> None:
+    def step(done: int, k: int, wanted: int, width: int = 0) -> None:
         now = time.perf_counter()
         if state["first"] is None:               # the first block: the factorisation is over
             state["first"] = (now, done, k)
@@ -174,7 +175,8 @@ def block_progress(label: str, enabled: bool, comm, total: int, factor_seconds: 
         t1, d1, k1 = state["first"]
         bar.total = float(max(wanted, 1))        # the band's or the threshold's pairs, where not nev
         state["done"], state["last"] = done >= wanted, (done, k, wanted)
-        bar.update(done, eta=eta_seconds(now - t1, done, d1, k, k1, wanted, total),
+        per_pair = OUT_OF_CORE_VECTORS_PER_PAIR if width >= OUT_OF_CORE_BLOCK else VECTORS_PER_PAIR
+        bar.update(done, eta=eta_seconds(now - t1, done, d1, k, k1, wanted, total, per_pair),
                    extra=f"{k} vectors, factorised in {state['factor']:.1f} s")
     try:
         yield step

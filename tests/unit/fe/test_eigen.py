@@ -473,3 +473,5 @@ def test_the_block_solves_eta_counts_the_vectors_still_to_build():
     assert eta_seconds(100.0, 90, 0, 112, 12, 100, 94) == pytest.approx(100.0 * 10 / 90)           # pairs
     near = int(VECTORS_PER_PAIR * 100) - 12
     assert eta_seconds(100.0, 90, 0, near, 12, 100, 94) == pytest.approx(100.0 * 12 / (near - 12))  # vectors
+    # wider blocks (out of core) need more vectors per pair: the space still to build is counted by theirs
+    assert eta_seconds(100.0, 0, 0, 112, 12, 100, 94, per_pair=5.0) == pytest.approx(100.0 * (500 - 112) / 100)

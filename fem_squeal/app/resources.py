@@ -21,9 +21,11 @@ frequencies equal to the in-core run's to 2e-11): 4.214 GiB at 347,853 DOFs and 
 the 1.32M run: 14 % low, as the factorisation's in-core fronts grow; the fit through the two larger
 points gives 0.97 and 2.12 GiB at 88,869 and 184,506 DOFs (measured 1.080 and 2.31).
 symmetric (the preload stage's peak where preload.jacobian is "symmetric": the frictionless Jacobian's
-Cholesky in core, CHOLMOD on one rank; results.json stages[].peak_rss_gib): 4.716 GiB at 347,853 DOFs
-and 23.12 GiB at 1,323,816 (one rank, 2026-11-29), beside the ooc run's 18.42: the in-core Cholesky
-holds more than the out-of-core LU's fronts.  "auto" takes it only where it fits (:func:`preload_jacobian`).
+Cholesky in core, CHOLMOD on one rank; results.json stages[].peak_rss_gib): 4.020 GiB at 347,853 DOFs
+and 20.09 GiB at 1,323,816 (one rank, 2026-11-29: its J as products, the freed heap returned before the
+factorisation, the parts' stiffnesses not held by a CEA alone; 4.716 and 23.12 GiB before), beside the
+ooc run's 18.42: the in-core Cholesky holds more than the out-of-core LU's fronts.  "auto" takes it only
+where it fits (:func:`preload_jacobian`).
 blr (ICNTL(35) = 2, CNTL(7) = 1e-8, one refinement step: frequencies within 1e-11) lowered no peak:
 1.60 against 1.57 GiB at 88,869 DOFs, and above the in-core 7.46 GiB at 347,853 (MUMPS still touches
 its full-rank workspace), so it uses the exact fit.
@@ -86,7 +88,7 @@ def dofs_per_cell(cells: float, degree: int) -> float:
 REFUSE_SHARE, WARN_SHARE = 0.9, 0.6
 #: one-rank peak memory [GiB] measured at two sizes (DOFs) per factorisation kind (benchmarks/memory_model.py)
 MEMORY_POINTS = {"exact": ((88_869, 1.568), (347_853, 7.456)), "ooc": ((347_853, 4.214), (1_323_816, 18.42)),
-                 "symmetric": ((347_853, 4.716), (1_323_816, 23.12))}
+                 "symmetric": ((347_853, 4.020), (1_323_816, 20.09))}
 #: memory ∝ ranks^γ at a fixed size: 9.0 GiB on 2 ranks against 7.456 GiB on 1 at 347,853 DOFs
 RANK_EXPONENT = math.log2(9.0 / 7.456)
 FILL_EXPONENT = 4.0 / 3.0

@@ -221,26 +221,30 @@ def test_out_of_core_is_chosen_only_where_in_core_does_not_fit(monkeypatch):
 
 def test_the_symmetric_preload_is_chosen_where_its_cholesky_fits(monkeypatch):
     """preload.jacobian "auto" (issue 36): "symmetric" only where the LU's factors go out of core and the
-    preload's peak with its Cholesky in core (the "symmetric" fit through the measured 4.716 GiB at 347,853
-    DOFs and 23.12 GiB at 1,323,816) fits in 90 % of the machines' memory; "update" elsewhere.  On this
-    project's 23.5 GiB machine the 1.32M brake's 23.12 GiB does not (one rank), its 711k (11.0 GiB) does.
-    A pressure continuation keeps "update" (its Woodbury columns serve the later pressures).  An explicit
-    "symmetric" stays, with a warning where it is not predicted to fit."""
+    preload's peak with its Cholesky in core (the "symmetric" fit through the measured 4.020 GiB at 347,853
+    DOFs and 20.09 GiB at 1,323,816) fits in 90 % of the machines' memory; "update" elsewhere.  On this
+    project's 23.5 GiB machine the 1.32M brake's 20.09 GiB does (one rank), a 1.5M brake's 23.4 GiB does
+    not.  A pressure continuation keeps "update" (its Woodbury columns serve the later pressures).  An
+    explicit "symmetric" stays, with a warning where it is not predicted to fit."""
     from fem_squeal.app import resources
     from fem_squeal.app.resources import REFUSE_SHARE, preload_jacobian
 
-    assert solve_memory(1_323_816, 1, "symmetric") / GIB == pytest.approx(23.12, rel=1e-12)
-    assert solve_memory(711_351, 1, "symmetric") / GIB == pytest.approx(10.98, rel=1e-3)
+    assert solve_memory(1_323_816, 1, "symmetric") / GIB == pytest.approx(20.09, rel=1e-12)
+    assert solve_memory(711_351, 1, "symmetric") / GIB == pytest.approx(9.456, rel=1e-3)
     monkeypatch.setattr(resources, "machine_memory", lambda: 23.54 * GIB)
-    assert preload_jacobian("auto", 1_323_816, 1, 1, True) == ("update", None)
+    assert preload_jacobian("auto", 1_323_816, 1, 1, True) == ("symmetric", None)
+    assert preload_jacobian("auto", 1_500_000, 1, 1, True) == ("update", None)
     assert preload_jacobian("auto", 711_351, 1, 1, True) == ("symmetric", None)
     assert preload_jacobian("auto", 711_351, 1, 1, False) == ("update", None)
     assert preload_jacobian("auto", 711_351, 1, 1, True, continued=True) == ("update", None)
-    assert preload_jacobian("auto", 1_323_816, 1, 2, True) == ("symmetric", None)        # two machines
+    assert preload_jacobian("auto", 1_500_000, 1, 2, True) == ("symmetric", None)        # two machines
     assert preload_jacobian("refactorise", 1_323_816, 1, 1, True) == ("refactorise", None)
-    jacobian, warning = preload_jacobian("symmetric", 1_323_816, 1, 1, False)
-    assert jacobian == "symmetric" and "23.1 GiB" in warning and warning.startswith("preload.jacobian:")
-    monkeypatch.setattr(resources, "machine_memory", lambda: 23.12 * GIB / REFUSE_SHARE)
+    jacobian, warning = preload_jacobian("symmetric", 1_500_000, 1, 1, False)
+    assert jacobian == "symmetric" and "23.4 GiB" in warning and warning.startswith("preload.jacobian:")
+    monkeypatch.setattr(resources, "machine_memory", lambda: 20.0 * GIB / REFUSE_SHARE)
+    assert preload_jacobian("auto", 1_323_816, 1, 1, True)[0] == "update"
+    assert preload_jacobian("symmetric", 1_323_816, 1, 1, True)[1] is not None
+    monkeypatch.setattr(resources, "machine_memory", lambda: 20.09 * GIB / REFUSE_SHARE)
     assert preload_jacobian("auto", 1_323_816, 1, 1, True)[0] == "symmetric"
     assert preload_jacobian("symmetric", 1_323_816, 1, 1, True) == ("symmetric", None)
 

@@ -3,6 +3,8 @@ for both, both ranks' MUMPS write their factor files there, the folder is gone a
 eigenvalues are those of one rank in core."""
 from __future__ import annotations
 
+import re
+
 import numpy as np
 from support.memory import between_the_fits
 from support.ranks import assert_same_spectrum, two_rank_signature
@@ -21,9 +23,15 @@ def _ring_run(comm, outdir, memory=None) -> dict:
     if memory is not None:      # a machine too small for the in-core factors on comm.size ranks
         machine = between_the_fits(scene, comm.size)[2]
         resources.machine_memory = lambda: machine
-    res = run_scene(scene, outdir, comm, write_fields=False, report=False, log=lambda *a, **k: None)
+    lines: list[str] = []
+    res = run_scene(scene, outdir, comm, write_fields=False, report=False,
+                    log=lambda *a, **k: lines.append(" ".join(map(str, a))))
     lam = np.array([m["real_part"] + 2j * np.pi * m["freq_hz"] for m in res["complex_modes"]])
-    return {"factors": res["solver"]["factors"], "cea_re": lam.real.tolist(), "cea_im": lam.imag.tolist()}
+    # the CEA's block width, as its log line says it (rank 0 logs)
+    width = [int(m.group(1)) for m in (re.search(r"block Arnoldi, (\d+) columns", t) for t in lines) if m]
+    return {"factors": res["solver"]["factors"], "cea_re": lam.real.tolist(), "cea_im": lam.imag.tolist(),
+            "blocks": comm.bcast(width[0] if width else None, root=0),
+            "nev": scene.analyses["cea"]["n_modes"]}
 
 
 def signature() -> dict:
@@ -66,9 +74,13 @@ def test_out_of_core_on_two_ranks_as_one_rank_in_core(mpirun, tmp_path):
     converges to 1e-10 on the shifted operator)."""
     from mpi4py import MPI
 
+    from fem_squeal.fe.eigen.block_krylov import OUT_OF_CORE_BLOCK, block_size
+
     sig = two_rank_signature(mpirun, "test_out_of_core_ranks", tmp_path / "sig.json")
     assert sig["factors"] == "out of core (memory model)"
     assert sig["writers"] == ["0", "1"] and sig["left"] == []
     one = _ring_run(MPI.COMM_SELF, tmp_path / "one")
     assert one["factors"] == "in core"
+    # wider blocks where every solve reads the factor back from the files, on both ranks alike
+    assert sig["blocks"] == OUT_OF_CORE_BLOCK and one["blocks"] == block_size(one["nev"]) < OUT_OF_CORE_BLOCK
     assert_same_spectrum(sig, one, "cea_", 1e-8)

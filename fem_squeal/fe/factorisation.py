@@ -135,7 +135,9 @@ def factor_solver(A: PETSc.Mat, factorisation: Factorisation, prefix: str, optio
                   ) -> PETSc.KSP:
     """A KSP that solves with a factorisation of ``A``, set up (factorised) here: ``factorisation``'s
     settings under ``prefix``, overridden by the user's (``options``: the scene's, then the command
-    line).  Later solves with new values of ``A`` (same pattern) refactorise numerically only."""
+    line).  Later solves with new values of ``A`` (same pattern) refactorise numerically only.  The heap's
+    free pages are returned first (:func:`fem_squeal.util.memory.release_freed_memory`), so that the factor
+    does not sit beside what the assembly of ``A`` left there."""
     ksp = PETSc.KSP().create(A.getComm())
     ksp.setOptionsPrefix(prefix)
     ksp.setOperators(A)

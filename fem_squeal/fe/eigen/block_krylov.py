@@ -29,7 +29,8 @@ BEYOND = 2             # converged pairs beyond a threshold λ_max that show non
 #: a solve reads the whole factor whatever its width (the LU of K − σM at 1.32M DOFs, one rank: 1, 12, 24, 32
 #: and 48 columns in 9.4, 12.2, 12.9, 15.6 and 15.9 s), so fewer, wider blocks win where their larger space
 #: fits.  The brake's 91 pairs ≤ 16 kHz (94 asked) at 348k DOFs: 24 solves of 12 columns (288 vectors), 17 of
-#: 24 (408), 15 of 32 (480), 13 of 48 (624) (docs/validation.md, "Wider blocks on a factor read from files").
+#: 24 (408), 15 of 32 (480), 13 of 48 (624); the 1.32M brake's CEA 602.5 s against 698.4 (docs/validation.md,
+#: "The 1.32M brake by default").
 OUT_OF_CORE_BLOCK = 24
 #: The vectors per pair asked the :data:`OUT_OF_CORE_BLOCK` columns need (408 for 91 pairs, 4.5), with a margin:
 #: the room the memory rule must leave for them, else the default width (a space that runs out sends the solve

@@ -76,6 +76,8 @@ def test_a_run_that_does_not_fit_in_core_goes_out_of_core(tmp_path, monkeypatch)
     wide, default = OUT_OF_CORE_BLOCK, block_size(scene.analyses["cea"]["n_modes"])
     assert default < wide and any(f"block Arnoldi, {wide} columns" in line for line in lines)
     assert any(f"block Arnoldi, {default} columns" in line for line in ref_lines)
+    assert out["solver"]["paths"]["cea"]["block_arnoldi"] == {f"{wide} columns": 1}      # results.json says so
+    assert ref["solver"]["paths"]["cea"]["block_arnoldi"] == {f"{default} columns": 1}
     # every computed stage says the peak memory so far (getrusage's high-water mark: it never falls)
     peaks = [st["peak_rss_gib"]["largest_rank"] for st in ref["stages"]]
     assert len(peaks) == len(ref["stages"]) and 0 < peaks[0] and peaks == sorted(peaks)

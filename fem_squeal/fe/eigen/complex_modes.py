@@ -139,6 +139,8 @@ def solve_complex_modes(K: PETSc.Mat, M: PETSc.Mat, C: PETSc.Mat | None, nev: in
     short = got is not None or stop["band"]
     _check(n_found, n_found if short else nev, res, max_residual, what, lams.imag / TWO_PI)
     kernels.note("complex_modes", f"{method}, {algorithm.split(',')[0]}")
+    if got is not None:                 # the block width (wider where the factor is read from files)
+        kernels.note("block_arnoldi", f"{got[2]} columns")
     return ComplexModes(lams, xrs, xis, res, method, seconds, algorithm)
 
 

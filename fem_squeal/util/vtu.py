@@ -2,6 +2,7 @@
 snapshots u = Φ q of a reduced model on the mesh a basis field carries.  Written atomically."""
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -22,9 +23,25 @@ def add_vtu_field_data(path: Path, arrays: dict[str, object]) -> None:
         text = " ".join(str(int(x)) if kind == "Int64" else repr(float(x)) for x in v.ravel())
         body.append(f'<DataArray type="{kind}" Name={quoteattr(name)} NumberOfTuples="{v.size}" '
                     f'format="ascii">{text}</DataArray>\n')
-    text = Path(path).read_text()
-    i = text.index(">", text.index("<UnstructuredGrid")) + 1
-    Path(path).write_text(text[:i] + "\n<FieldData>\n" + "".join(body) + "</FieldData>" + text[i:])
+    insert = ("\n<FieldData>\n" + "".join(body) + "</FieldData>").encode()
+    with open(path, "rb") as src, atomic_path(path) as tmp, open(tmp, "wb") as dst:
+        # the file's head up to the <UnstructuredGrid ...> tag, the arrays, then the rest copied as bytes: the
+        # file was read and rewritten as text, 2.4 of the 4.4 s of the CEA's mode files at 348k DOFs, and about
+        # three copies of a 2.6 GB file in memory at 1.32M
+        head = b""
+        while True:
+            chunk = src.read(1 << 16)
+            head += chunk
+            start = head.find(b"<UnstructuredGrid")
+            i = head.find(b">", start) + 1 if start >= 0 else 0
+            if i > 0 or not chunk:
+                break
+        if i == 0:
+            raise ValueError(f"{path}: no <UnstructuredGrid> element")
+        dst.write(head[:i])
+        dst.write(insert)
+        dst.write(head[i:])
+        shutil.copyfileobj(src, dst, 16 << 20)
 
 
 def write_snapshots(path: Path, basis_field: dict, times: np.ndarray, q: np.ndarray, q_ref: np.ndarray) -> None:

@@ -52,7 +52,10 @@ def signature() -> dict:
 
     def poll():
         while not done.wait(0.002):
-            seen.update(p.name.split("_")[1] for p in base.glob("fem_squeal_factors.*/mumps_*"))
+            try:        # a folder may go while it is listed (the run's own, removed at its end)
+                seen.update(p.name.split("_")[1] for p in base.glob("fem_squeal_factors.*/mumps_*"))
+            except FileNotFoundError:
+                pass
     watcher = threading.Thread(target=poll)
     watcher.start()
     try:
